@@ -1,0 +1,1 @@
+"""Robot controllers behind one interface: `Controller.plan(Observation) -> Plan`."""

@@ -1,0 +1,68 @@
+"""The interface between perception (simulator or log playback) and the controllers.
+
+Everything is in the world frame `map` (metres, seconds, radians), x forward along the
+robot's nominal path. Histories are sampled at NaviGAN's step of 0.4 s, oldest first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+#: NaviGAN's planning step (s), observed and predicted horizons (steps).
+STEP_S = 0.4
+T_OBS = 8
+T_PRED = 12
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a controller sees at one planning step.
+
+    Attributes:
+        time: seconds since the run started.
+        robot_pose: (3,) x, y, heading.
+        robot_velocity: (2,) linear (m/s) and angular (rad/s) velocity.
+        goal: (2,) goal position.
+        robot_history: (T_OBS, 2) the robot's own last positions, the newest equal to its pose.
+        pedestrian_ids: one stable id per tracked pedestrian.
+        pedestrian_history: (N, T_OBS, 2) each pedestrian's last positions; NaN before a
+            track was first seen.
+    """
+
+    time: float
+    robot_pose: np.ndarray
+    robot_velocity: np.ndarray
+    goal: np.ndarray
+    robot_history: np.ndarray
+    pedestrian_ids: tuple[int, ...]
+    pedestrian_history: np.ndarray
+
+    def pedestrian_positions(self) -> np.ndarray:
+        """(N, 2) the newest position of every tracked pedestrian."""
+        return self.pedestrian_history[:, -1, :]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A controller's answer: way-points ahead of the robot, one every `step` seconds.
+
+    `record` holds what the controller wants logged (forces, expansions, timing); it is
+    controller-specific, so a blinded study keeps it out of the public log.
+    """
+
+    waypoints: np.ndarray
+    step: float = STEP_S
+    record: dict[str, Any] = field(default_factory=dict)
+
+
+class Controller(Protocol):
+    """A planner the runner can drive; `reset` starts a new run with its seed."""
+
+    name: str
+
+    def reset(self, seed: int) -> None: ...
+
+    def plan(self, observation: Observation) -> Plan: ...
