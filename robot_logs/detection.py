@@ -1,0 +1,123 @@
+"""Person detection in one planar lidar scan, in the scan's own frame.
+
+The steps, as in the classic leg detectors (e.g. Leigh et al., ICRA 2015, without their
+learned classifier): drop NaN, inf and out-of-range beams; split the remaining points into
+segments wherever two neighbours are farther apart than a jump distance; keep segments as
+wide as a leg (or as a body, or two legs seen as one); pair nearby legs into people.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robot_logs.records import Scan
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Thresholds of the detector (metres).
+
+    Attributes:
+        jump_distance: neighbouring points farther apart than this start a new segment.
+        min_points: fewer points than this make no segment (noise, far thin objects).
+        leg_width: (min, max) end-to-end width of a segment taken as one leg.
+        body_width: (min, max) width of a segment taken as a whole person (a body disc, or
+            two legs too close to split); min should equal leg_width's max.
+        pair_distance: two legs closer than this belong to one person.
+    """
+
+    jump_distance: float = 0.13
+    min_points: int = 3
+    leg_width: tuple[float, float] = (0.05, 0.4)
+    body_width: tuple[float, float] = (0.4, 0.8)
+    pair_distance: float = 0.6
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Contiguous groups of scan points: (K, 2) centroids, (K,) widths and point counts."""
+
+    centroids: np.ndarray
+    widths: np.ndarray
+    counts: np.ndarray
+
+
+@dataclass(frozen=True)
+class Detections:
+    """What one scan shows, in the scan frame: (L, 2) leg centroids and (P, 2) people."""
+
+    legs: np.ndarray
+    people: np.ndarray
+
+
+def scan_points(scan: Scan) -> np.ndarray:
+    """(M, 2) points of the valid beams, in beam order."""
+    valid = scan.valid()
+    ranges = scan.ranges[valid]
+    angles = scan.angles()[valid]
+    return np.column_stack((ranges * np.cos(angles), ranges * np.sin(angles)))
+
+
+def _covers_circle(scan: Scan) -> bool:
+    return len(scan.ranges) * scan.angle_increment >= 2.0 * math.pi - 1e-6
+
+
+def segment(scan: Scan, jump_distance: float) -> Segments:
+    """Split a scan's valid points at every jump longer than `jump_distance`.
+
+    A full 360-degree scan is rotated to start at a jump, so an object straddling the first
+    and last beam stays one segment.
+    """
+    points = scan_points(scan)
+    if len(points) == 0:
+        empty = np.zeros((0, 2))
+        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int))
+    jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
+    if _covers_circle(scan) and jumps.any() and np.hypot(*(points[0] - points[-1])) <= jump_distance:
+        shift = int(np.flatnonzero(jumps)[0]) + 1
+        points = np.roll(points, -shift, axis=0)
+        jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
+    starts = np.concatenate(([0], np.flatnonzero(jumps) + 1))
+    ends = np.concatenate((starts[1:], [len(points)]))
+    counts = ends - starts
+    centroids = np.add.reduceat(points, starts, axis=0) / counts[:, None]
+    widths = np.hypot(*(points[ends - 1] - points[starts]).T)
+    return Segments(centroids, widths, counts)
+
+
+def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, int]], list[int]]:
+    """Greedy pairing, closest pairs first: (pairs of leg indices, indices left single)."""
+    count = len(legs)
+    if count < 2:
+        return [], list(range(count))
+    distances = np.hypot(*(legs[:, None, :] - legs[None, :, :]).transpose(2, 0, 1))
+    first, second = np.triu_indices(count, k=1)
+    order = np.argsort(distances[first, second], kind="stable")
+    used = np.zeros(count, dtype=bool)
+    pairs = []
+    for k in order:
+        i, j = int(first[k]), int(second[k])
+        if distances[i, j] > max_distance:
+            break
+        if not used[i] and not used[j]:
+            used[i] = used[j] = True
+            pairs.append((i, j))
+    return pairs, [i for i in range(count) if not used[i]]
+
+
+def detect(scan: Scan, config: DetectorConfig = DetectorConfig()) -> Detections:
+    """Legs and people in one scan (scan frame); a single unpaired leg counts as a person."""
+    segments = segment(scan, config.jump_distance)
+    enough = segments.counts >= config.min_points
+    widths = segments.widths
+    is_leg = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
+    is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
+    legs = segments.centroids[is_leg]
+    pairs, singles = pair_legs(legs, config.pair_distance)
+    people = [legs[[i, j]].mean(axis=0) for i, j in pairs]
+    people.extend(legs[singles])
+    people.extend(segments.centroids[is_body])
+    return Detections(legs=legs, people=np.array(people, dtype=float).reshape(-1, 2))

@@ -1,0 +1,141 @@
+"""Multi-person tracking: one constant-velocity Kalman filter per track (filterpy), detections
+assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
+
+Life of a track: it is born tentative from an unassigned detection, confirmed (and given the
+next id, never reused) after `birth_hits` consecutive hits, dropped if it misses while still
+tentative, and deleted after `death_misses` consecutive misses once confirmed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter
+from scipy.optimize import linear_sum_assignment
+
+#: Chi-square quantile with 2 degrees of freedom: 99 % of true matches fall inside the gate.
+CHI2_2DOF_99 = 9.21
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Noise levels and track-management rules.
+
+    Attributes:
+        measurement_std: standard deviation of a detected position (m).
+        acceleration_std: white-noise acceleration of walking people (m/s^2).
+        initial_speed_std: velocity uncertainty of a newborn track (m/s).
+        gate: largest squared Mahalanobis distance of an accepted detection.
+        birth_hits: consecutive hits that confirm a track.
+        death_misses: consecutive misses that delete a confirmed track.
+    """
+
+    measurement_std: float = 0.1
+    acceleration_std: float = 2.0
+    initial_speed_std: float = 1.0
+    gate: float = CHI2_2DOF_99
+    birth_hits: int = 3
+    death_misses: int = 5
+
+
+@dataclass(frozen=True)
+class TrackState:
+    """A confirmed track after one scan: stable id, position (m) and velocity (m/s)."""
+
+    track_id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+
+
+class Track:
+    """One person's filter (state x, y, vx, vy) and its hit and miss counts."""
+
+    def __init__(self, position: np.ndarray, config: TrackerConfig) -> None:
+        kf = KalmanFilter(dim_x=4, dim_z=2)
+        kf.x = np.array([position[0], position[1], 0.0, 0.0])
+        kf.H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+        kf.R = np.eye(2) * config.measurement_std**2
+        kf.P = np.diag([config.measurement_std**2] * 2 + [config.initial_speed_std**2] * 2)
+        self.kf = kf
+        self.track_id: int | None = None
+        self.hits = 1
+        self.misses = 0
+
+    @property
+    def confirmed(self) -> bool:
+        return self.track_id is not None
+
+    def state(self) -> TrackState:
+        x, y, vx, vy = (float(v) for v in self.kf.x)
+        assert self.track_id is not None
+        return TrackState(self.track_id, x, y, vx, vy)
+
+
+class Tracker:
+    """Tracks people through a sequence of detection sets; call `step` once per scan."""
+
+    def __init__(self, config: TrackerConfig = TrackerConfig()) -> None:
+        self.config = config
+        self.tracks: list[Track] = []
+        self.time: float | None = None
+        self._next_id = 1
+
+    def _predict(self, time: float) -> None:
+        dt = 0.0 if self.time is None else max(time - self.time, 0.0)
+        self.time = time
+        if dt == 0.0 or not self.tracks:
+            return
+        F = np.eye(4)
+        F[0, 2] = F[1, 3] = dt
+        Q = Q_discrete_white_noise(dim=2, dt=dt, var=self.config.acceleration_std**2, block_size=2, order_by_dim=False)
+        for track in self.tracks:
+            track.kf.predict(F=F, Q=Q)
+
+    def distances(self, detections: np.ndarray) -> np.ndarray:
+        """(T, D) squared Mahalanobis distances of detections from the predicted tracks."""
+        if not self.tracks or len(detections) == 0:
+            return np.zeros((len(self.tracks), len(detections)))
+        means = np.array([t.kf.x[:2] for t in self.tracks])
+        S = np.array([t.kf.P[:2, :2] + t.kf.R for t in self.tracks])
+        innovation = detections[None, :, :] - means[:, None, :]
+        return np.einsum("tdi,tij,tdj->td", innovation, np.linalg.inv(S), innovation)
+
+    def associate(self, detections: np.ndarray) -> list[tuple[int, int]]:
+        """(track index, detection index) pairs: the Hungarian optimum inside the gate."""
+        cost = self.distances(detections)
+        if cost.size == 0:
+            return []
+        rows, cols = linear_sum_assignment(np.minimum(cost, 2.0 * self.config.gate))
+        return [(int(r), int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
+
+    def step(self, time: float, detections: np.ndarray) -> list[TrackState]:
+        """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
+
+        A confirmed track is reported while it coasts through misses, until it is deleted.
+        """
+        detections = np.asarray(detections, dtype=float).reshape(-1, 2)
+        self._predict(time)
+        pairs = self.associate(detections)
+        hit = {t for t, _ in pairs}
+        for t, d in pairs:
+            track = self.tracks[t]
+            track.kf.update(detections[d])
+            track.hits += 1
+            track.misses = 0
+        for index, track in enumerate(self.tracks):
+            if index not in hit:
+                track.misses += 1
+        self.tracks = [
+            t for t in self.tracks if (t.misses == 0 or t.confirmed) and t.misses < self.config.death_misses
+        ]
+        used = {d for _, d in pairs}
+        self.tracks.extend(Track(detections[d], self.config) for d in range(len(detections)) if d not in used)
+        for track in self.tracks:
+            if not track.confirmed and track.hits >= self.config.birth_hits:
+                track.track_id = self._next_id
+                self._next_id += 1
+        return [t.state() for t in self.tracks if t.confirmed]
