@@ -11,13 +11,14 @@ import sys
 from collections.abc import Sequence
 
 from designs.errors import DesignError
+from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design",)
+COMMANDS: tuple[str, ...] = ("design", "log")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError)
 
 EXIT_USAGE = 2
 
