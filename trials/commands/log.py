@@ -1,0 +1,164 @@
+"""`trials log`: look into robot logs and track the people in them.
+
+A command group: `trials log inspect FILE` and `trials log track FILE`. Other modules add
+subcommands by naming themselves in `SUBCOMMANDS`; each has `register(log_subparsers)`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+#: More `trials log` subcommand modules under trials.commands (e.g. "log_show").
+SUBCOMMANDS: tuple[str, ...] = ()
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    import importlib
+
+    parser = sub.add_parser(
+        "log",
+        help="inspect robot logs (ROS1/ROS2 bags, MCAP) and track people in their lidar scans",
+        description="Robot logs: ROS1 .bag files, ROS2 bag folders (sqlite3 or MCAP storage) and .mcap files.",
+    )
+    group = parser.add_subparsers(dest="log_command", metavar="SUBCOMMAND", parser_class=type(parser))
+    group.required = True
+    _register_inspect(group)
+    _register_track(group)
+    for name in SUBCOMMANDS:
+        importlib.import_module(f"trials.commands.{name}").register(group)
+
+
+def _add_log_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("file", type=Path, metavar="FILE", help="a ROS1 .bag, a ROS2 bag folder, an .mcap or a .db3 file")
+    parser.add_argument("--salvage", action="store_true", help="read a damaged log up to the damage instead of refusing it")
+
+
+def _register_inspect(group: argparse._SubParsersAction) -> None:
+    parser = group.add_parser(
+        "inspect",
+        help="topics, types, counts, rates, duration and frames of a log",
+        description="List a log's topics with their types, message counts, rates and frames, and its duration. "
+        "Times are header stamps; record times are shown where they differ.",
+    )
+    _add_log_argument(parser)
+    parser.set_defaults(handler=inspect)
+
+
+def _register_track(group: argparse._SubParsersAction) -> None:
+    parser = group.add_parser(
+        "track",
+        help="detect and track people in a log's LaserScans",
+        description="Detect people in every LaserScan (leg segments paired into people) and track them with "
+        "Kalman filters. Writes one CSV row per track per scan: stamp (header stamp, s), scan_index, "
+        "track_id, x, y, vx, vy, frame.",
+    )
+    _add_log_argument(parser)
+    parser.add_argument("--frame", choices=("sensor", "odom"), default="sensor", help="track in the scan's own frame (default) or the odometry frame")
+    parser.add_argument("--out", type=Path, metavar="CSV", help="write the tracks here (default: standard output)")
+    parser.add_argument("--mcap", type=Path, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
+    parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
+    parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
+    parser.set_defaults(handler=track)
+
+
+def _warn_damage(damage: str | None) -> None:
+    if damage:
+        sys.stderr.write(f"warning: the log is damaged; read the messages before the damage ({damage})\n")
+
+
+def inspect(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from robot_logs.reader import LogReader
+    from robot_logs.summary import summarise
+
+    with LogReader(args.file, salvage=args.salvage) as log:
+        total = sum(t.count for t in log.topics)
+        with tqdm(total=total, unit="msg", desc="reading", disable=None, leave=False) as bar:
+            summary = summarise(log, bar.update)
+    for line in summary_lines(summary):
+        print(line)
+    _warn_damage(summary.damage)
+    return 0
+
+
+def summary_lines(summary) -> list[str]:  # noqa: ANN001 - a robot_logs.summary.LogSummary
+    """The text of `trials log inspect`."""
+    from robot_logs.records import seconds, stamp_text
+
+    lines = [f"{summary.path}: {summary.format}"]
+    span, record_span = summary.span_s(), summary.span_s(record=True)
+    if span is not None:
+        lines.append(f"duration: {span:.3f} s by header stamps, {record_span:.3f} s by record times")
+    elif record_span is not None:
+        lines.append(f"duration: {record_span:.3f} s by record times (no header stamps)")
+    starts = [t.first_stamp_ns for t in summary.topics if t.first_stamp_ns is not None]
+    if starts:
+        lines.append(f"first header stamp: {stamp_text(min(starts))}")
+    lines.append("")
+    lines.append(f"{'topic':<32} {'type':<36} {'count':>7} {'rate Hz':>8}  frames")
+    for t in summary.topics:
+        rate = f"{t.rate_hz:.2f}" if t.rate_hz is not None else "-"
+        frames = ", ".join(sorted(t.frames)) or "-"
+        lines.append(f"{t.name:<32} {t.msgtype:<36} {t.count:>7} {rate:>8}  {frames}")
+    notes = []
+    for t in summary.topics:
+        offset = t.header_minus_record_ns
+        if offset is not None and abs(offset) > 1_000_000_000:
+            days = seconds(offset) / 86400.0
+            when = f"{abs(days):.1f} days" if abs(days) >= 1 else f"{abs(seconds(offset)):.1f} s"
+            notes.append(f"{t.name}: header stamps are {when} {'older' if offset < 0 else 'newer'} than record times")
+        if t.unstamped:
+            notes.append(f"{t.name}: {t.unstamped} messages have unset (zero) header stamps; their record times stand in")
+    if notes:
+        lines.append("")
+        lines.append("times: robot_logs uses header stamps")
+        lines.extend(f"  {note}" for note in notes)
+    return lines
+
+
+def track(args: argparse.Namespace) -> int:
+    from contextlib import ExitStack
+
+    from tqdm import tqdm
+
+    from robot_logs.foxglove_log import FoxgloveWriter, log_line
+    from robot_logs.log_tracking import LogTracking, result_rows
+    from robot_logs.reader import LogReader
+    from robot_logs.topics import TopicNames
+    from robot_logs.track_mcap import write_tracked_scan
+    from robot_logs.tracks import TrackTable, write_rows
+
+    topics = TopicNames(scan=args.scan_topic, odometry=args.odom_topic)
+    rows = []
+    with LogReader(args.file, salvage=args.salvage) as log, ExitStack() as outputs:
+        tracking = LogTracking(log, args.frame, topics)
+        writer = None
+        if args.mcap is not None:
+            meta = {"source": str(args.file), "frame": args.frame, "scan_topic": tracking.scan_topic.name}
+            writer = outputs.enter_context(FoxgloveWriter(args.mcap, metadata={"tracking": meta}))
+        bar = outputs.enter_context(tqdm(total=tracking.scan_topic.count, unit="scan", desc="tracking", disable=None, leave=False))
+        last_stamp = 0
+        for scan, result in tracking:
+            last_stamp = scan.stamp_ns
+            rows.extend(result_rows(result))
+            if writer is not None:
+                write_tracked_scan(writer, scan, result)
+            bar.update(1)
+        damage = log.damage
+        if writer is not None and (damage or tracking.skipped):
+            note = f"read up to damage: {damage}" if damage else f"{tracking.skipped} scans had no odometry pose"
+            writer.write("/log", "foxglove.Log", log_line(last_stamp, note, "warning"), last_stamp)
+    table = TrackTable(rows)
+    if args.out is not None:
+        table.write_csv(args.out)
+    else:
+        write_rows(sys.stdout, table.rows)
+    _warn_damage(damage)
+    if tracking.skipped:
+        sys.stderr.write(f"warning: {tracking.skipped} scans fell outside the odometry's time span and were left out\n")
+    where = f" -> {args.out}" if args.out else ""
+    sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}\n")
+    return 0
