@@ -15,7 +15,7 @@ from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "log")
+COMMANDS: tuple[str, ...] = ("design", "log", "lattice")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
 USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError)

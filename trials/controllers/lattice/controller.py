@@ -1,0 +1,202 @@
+"""The lattice planner as a trial controller: the A/B study's pure collision-avoidance baseline.
+
+Every step it draws the tracked pedestrians into a cost grid around the robot and the goal, plans
+from the robot's pose to the goal with ARA* within its time budget, and returns way-points one step
+apart along the path, timed at the robot's nominal speed. It never raises during a run: when the
+robot already stands too close to someone it first retries without the comfort margin, then holds
+still; when the goal is covered it aims at the nearest free cell; when no path is found in time it
+follows the best partial path. The record says which.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
+from trials.controllers.lattice.actions import build_actions
+from trials.controllers.lattice.costmap import (
+    CIRCUMSCRIBED_THRESH,
+    FREE,
+    INSCRIBED_THRESH,
+    OBSTHRESH,
+    Window,
+    pedestrian_costmap,
+    predicted_centres,
+)
+from trials.controllers.lattice.environment import Environment, cont_to_cell, cont_to_heading
+from trials.controllers.lattice.errors import LatticeError
+from trials.controllers.lattice.footprint import Polygon
+from trials.controllers.lattice.husky import HUSKY_FOOTPRINT, HUSKY_SPEED, HUSKY_TURN_45_S, husky_primitives
+from trials.controllers.lattice.planner import LatticePlanner, PlanResult, State
+from trials.controllers.lattice.primitives import PrimitiveSet
+
+#: Time kept back from the budget for the way-points and the record.
+RESERVE_S = 0.02
+#: Free cells tried, nearest first, when the goal is covered.
+GOAL_CANDIDATES = 400
+
+
+def inscribed_radius(polygon: Polygon) -> float:
+    """The radius of the largest circle about the robot's origin inside the polygon (0 for a point robot)."""
+    if len(polygon) < 3:
+        return 0.0
+    pts = np.asarray(polygon, dtype=np.float64)
+    radius = math.inf
+    for a, b in zip(pts, np.roll(pts, -1, axis=0)):
+        edge = b - a
+        t = np.clip(-a @ edge / (edge @ edge), 0.0, 1.0)
+        radius = min(radius, float(np.hypot(*(a + t * edge))))
+    return radius
+
+
+class LatticeController:
+    """SBPL-like lattice planning among pedestrians (the `Controller` protocol).
+
+    Args:
+        cell_size: grid resolution in metres (0.1 or 0.05).
+        pedestrian_radius: a pedestrian's body radius (m).
+        comfort_margin: clearance (m) the footprint keeps from a pedestrian's body.
+        predict_s: also block each pedestrian's constant-velocity prediction this far ahead (s); 0: now only.
+        budget_s: wall-clock budget of one `plan` call (s), everything included.
+        eps, eps_step: ARA*'s initial suboptimality bound and its decrement per iteration.
+        horizon_steps: way-points returned, one every STEP_S.
+        window_margin: metres of grid around the robot and the goal.
+        goal_tolerance: within this distance (m) of the goal the robot holds.
+        footprint: the robot's outline, robot frame (default: the Husky's 0.99 x 0.67 m).
+        primitives: the motion primitives (default: `husky_primitives(cell_size)`).
+        speed, turn_45_s: nominal speed (m/s) and time to turn 45 degrees in place (s).
+    """
+
+    name = "lattice"
+
+    def __init__(self, cell_size: float = 0.1, pedestrian_radius: float = 0.3, comfort_margin: float = 0.2,
+                 predict_s: float = 0.0, budget_s: float = 0.25, eps: float = 3.0, eps_step: float = 0.2,
+                 horizon_steps: int = T_PRED, window_margin: float = 4.0, goal_tolerance: float = 0.3,
+                 footprint: Polygon = HUSKY_FOOTPRINT, primitives: PrimitiveSet | None = None,
+                 speed: float = HUSKY_SPEED, turn_45_s: float = HUSKY_TURN_45_S) -> None:
+        for field, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
+                             ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps), ("eps_step", eps_step)):
+            if not value > 0:
+                raise LatticeError(f"lattice controller: {field} must be positive, got {value}")
+        for field, value in (("pedestrian_radius", pedestrian_radius), ("comfort_margin", comfort_margin),
+                             ("predict_s", predict_s), ("window_margin", window_margin),
+                             ("goal_tolerance", goal_tolerance)):
+            if not value >= 0:
+                raise LatticeError(f"lattice controller: {field} must not be negative, got {value}")
+        if not eps >= 1:
+            raise LatticeError(f"lattice controller: eps must be at least 1, got {eps}")
+        self.cell_size, self.pedestrian_radius, self.comfort_margin = cell_size, pedestrian_radius, comfort_margin
+        self.predict_s, self.budget_s, self.eps, self.eps_step = predict_s, budget_s, eps, eps_step
+        self.horizon_steps, self.window_margin, self.goal_tolerance = int(horizon_steps), window_margin, goal_tolerance
+        prims = primitives if primitives is not None else husky_primitives(cell_size)
+        self._template = Environment(np.zeros((1, 1), np.uint8), cell_size, prims.num_angles, OBSTHRESH,
+                                     INSCRIBED_THRESH, CIRCUMSCRIBED_THRESH, speed, turn_45_s)
+        self.actions = build_actions(prims, self._template, footprint)
+        self.inscribed = inscribed_radius(self.actions.polygon)
+        self.seed = 0
+        self.reset(0)
+        self._warm_up()
+
+    def reset(self, seed: int) -> None:
+        """Start a new run: forget the grid window and the goal heading."""
+        self.seed = seed
+        self._window: Window | None = None
+        self._planner: LatticePlanner | None = None
+        self._goal: np.ndarray | None = None
+        self._goal_heading = 0
+
+    def _warm_up(self) -> None:
+        """Load the compiled search once, so that no trial step pays for it."""
+        middle = self.actions.reach + 2
+        planner = self._new_planner(Window((0.0, 0.0), self.cell_size, 2 * middle + 8, 2 * middle))
+        planner.plan((middle, middle, 0), (middle + 8, middle, 0), budget=self.budget_s * 20)
+
+    def _new_planner(self, window: Window) -> LatticePlanner:
+        grid = np.zeros((window.height, window.width), np.uint8)
+        return LatticePlanner(replace(self._template, grid=grid), self.actions)
+
+    def _planner_for(self, robot: np.ndarray, goal: np.ndarray) -> tuple[LatticePlanner, Window]:
+        """The run's planner, rebuilt when the goal changes or the robot nears the window's edge."""
+        if (self._window is None or self._planner is None or self._goal is None
+                or not np.array_equal(goal, self._goal) or not self._window.contains(robot, border=1.0)):
+            if self._goal is None or not np.array_equal(goal, self._goal):
+                direction = goal - robot
+                self._goal_heading = cont_to_heading(math.atan2(direction[1], direction[0]),
+                                                     self.actions.num_thetas)
+            self._goal = goal.copy()
+            self._window = Window.around(np.array([robot, goal]), self.window_margin, self.cell_size)
+            self._planner = self._new_planner(self._window)
+        return self._planner, self._window
+
+    def _state(self, window: Window, pose: np.ndarray) -> State:
+        x, y = window.to_local(pose[:2])
+        return (cont_to_cell(x, self.cell_size), cont_to_cell(y, self.cell_size),
+                cont_to_heading(float(pose[2]), self.actions.num_thetas))
+
+    def _free_goal(self, planner: LatticePlanner, goal: State) -> State | None:
+        """`goal`, or when the robot cannot stand there, the nearest cell (same heading) where it can."""
+        if planner.env.on_map(goal[0], goal[1]) and planner.collision(goal) is None:
+            return goal
+        free_y, free_x = np.nonzero(planner.env.grid == FREE)
+        order = np.argsort((free_x - goal[0]) ** 2 + (free_y - goal[1]) ** 2, kind="stable")
+        for i in order[:GOAL_CANDIDATES]:
+            candidate = (int(free_x[i]), int(free_y[i]), goal[2])
+            if planner.collision(candidate) is None:
+                return candidate
+        return None
+
+    def _hold(self, robot: np.ndarray, record: dict[str, Any]) -> Plan:
+        return Plan(np.repeat(np.asarray(robot[:2], np.float64)[None, :], self.horizon_steps, axis=0),
+                    STEP_S, {**record, "holding": True})
+
+    def plan(self, observation: Observation) -> Plan:
+        """Way-points for the next `horizon_steps` steps (held in place when no move is possible)."""
+        t0 = time.perf_counter()
+        pose = np.asarray(observation.robot_pose, dtype=np.float64)
+        goal = np.asarray(observation.goal, dtype=np.float64)[:2]
+        record: dict[str, Any] = {"controller": self.name, "status": "", "holding": False,
+                                  "pedestrians": len(observation.pedestrian_ids)}
+        if not (np.isfinite(pose).all() and np.isfinite(goal).all()):
+            return self._hold(np.nan_to_num(pose), {**record, "status": "bad_observation",
+                                                    "message": "robot pose or goal is not finite"})
+        if np.hypot(*(goal - pose[:2])) <= self.goal_tolerance:
+            return self._hold(pose, {**record, "status": "at_goal", "message": "within the goal tolerance"})
+        planner, window = self._planner_for(pose[:2], goal)
+        start = self._state(window, pose)
+        centres = predicted_centres(observation.pedestrian_history, self.predict_s)
+        for margin in dict.fromkeys((self.comfort_margin, 0.0)):
+            planner.set_grid(pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed))
+            collision = planner.collision(start)
+            if collision is None:
+                break
+        record["margin"] = margin
+        if collision is not None:
+            return self._hold(pose, {**record, "status": "start_in_collision", "message": collision,
+                                     "plan_seconds": time.perf_counter() - t0})
+        wanted = (*self._state(window, np.array([*goal, 0.0]))[:2], self._goal_heading)
+        target = self._free_goal(planner, wanted)
+        record["goal_moved"] = target != wanted
+        if target is None:
+            return self._hold(pose, {**record, "status": "goal_blocked", "message": "no free cell near the goal",
+                                     "plan_seconds": time.perf_counter() - t0})
+        budget = max(t0 + self.budget_s - RESERVE_S - time.perf_counter(), 0.0)
+        result = planner.plan(start, target, self.eps, self.eps_step, budget=budget)
+        record.update(self._search_record(result))
+        if len(result.states) < 2:
+            return self._hold(pose, {**record, "plan_seconds": time.perf_counter() - t0})
+        ahead = STEP_S * np.arange(1, self.horizon_steps + 1)
+        local = np.column_stack([np.interp(ahead, result.times, result.poses[:, i]) for i in (0, 1)])
+        record["plan_seconds"] = time.perf_counter() - t0
+        return Plan(window.to_world(local), STEP_S, record)
+
+    @staticmethod
+    def _search_record(result: PlanResult) -> dict[str, Any]:
+        return {"status": result.status, "message": result.message, "cost": result.cost,
+                "eps": None if math.isinf(result.eps) else result.eps, "expansions": result.expansions,
+                "iterations": len(result.iterations), "heuristic_seconds": result.heuristic_seconds,
+                "search_seconds": result.seconds}
