@@ -11,14 +11,15 @@ import sys
 from collections.abc import Sequence
 
 from designs.errors import DesignError
+from navigan.errors import NaviganError
 from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "log", "lattice")
+COMMANDS: tuple[str, ...] = ("design", "log", "lattice", "train", "evaluate")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError)
 
 EXIT_USAGE = 2
 

@@ -1,0 +1,148 @@
+"""Checkpoints: the best generator weights with everything needed to trust and remake them.
+
+A checkpoint holds the model and training configs, the data split (file names), the seed,
+the command that made it, per-epoch validation metrics, and the best weights. While training
+runs it also holds `state` (latest weights of both networks, optimisers, noise RNG) so an
+interrupted run resumes; a finished training drops it, which keeps shipped files small.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from navigan.config import ModelConfig, TrainConfig, from_dict, to_dict
+from navigan.errors import NaviganError
+from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator
+
+FORMAT = "navigan-checkpoint/1"
+
+#: Where the shipped weights live, one `<model>-<split>.pt` each.
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+
+#: The checkpoint the trial controller loads by default.
+DEFAULT_MODEL, DEFAULT_SPLIT = "navigan-r", "all"
+
+
+@dataclass
+class Checkpoint:
+    """A training record (see the module docstring).
+
+    Attributes:
+        model, train: the configs.
+        split: the split's name and data files (relative to the data folder).
+        data: window and target counts and NaN/missing rows skipped, per part.
+        command: the command line that made it.
+        epoch: epochs completed.
+        history: one dict of training losses and validation metrics per epoch.
+        best: the epoch and validation metrics of the kept weights.
+        generator: the kept (best validation loss) generator weights.
+        finished: why training stopped ("early stopping", "epoch limit"), None while it runs.
+        state: what resuming needs, None once finished.
+    """
+
+    model: ModelConfig
+    train: TrainConfig
+    split: dict[str, Any]
+    data: dict[str, Any]
+    command: str
+    epoch: int = 0
+    history: list[dict[str, Any]] = field(default_factory=list)
+    best: dict[str, Any] | None = None
+    generator: dict[str, torch.Tensor] = field(default_factory=dict)
+    finished: str | None = None
+    state: dict[str, Any] | None = None
+
+    def build_generator(self) -> NaviganGenerator | GoalSocialGenerator:
+        """The generator with the kept weights, in eval mode."""
+        generator = build_generator(self.model)
+        generator.load_state_dict(self.generator)
+        return generator.eval()
+
+
+def save(checkpoint: Checkpoint, path: str | Path) -> None:
+    """Write atomically: a temporary file in the same folder, then a rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    record = {
+        "format": FORMAT,
+        "model": to_dict(checkpoint.model),
+        "train": to_dict(checkpoint.train),
+        "split": checkpoint.split,
+        "data": checkpoint.data,
+        "command": checkpoint.command,
+        "epoch": checkpoint.epoch,
+        "history": checkpoint.history,
+        "best": checkpoint.best,
+        "generator": checkpoint.generator,
+        "finished": checkpoint.finished,
+        "state": checkpoint.state,
+    }
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(record, f)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoint:
+    """Read a checkpoint.
+
+    Raises:
+        NaviganError: missing file, not a NaviGAN checkpoint, or unknown fields.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise NaviganError(f"no checkpoint at {path}")
+    try:
+        record = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # torch raises many types for a corrupt or foreign file
+        raise NaviganError(f"{path} is not a readable checkpoint: {exc}") from exc
+    if not isinstance(record, dict) or record.get("format") != FORMAT:
+        raise NaviganError(f"{path} is not a {FORMAT} file")
+    try:
+        return Checkpoint(
+            model=from_dict(ModelConfig, record["model"]),
+            train=from_dict(TrainConfig, record["train"]),
+            split=record["split"],
+            data=record["data"],
+            command=record["command"],
+            epoch=record["epoch"],
+            history=record["history"],
+            best=record["best"],
+            generator=record["generator"],
+            finished=record["finished"],
+            state=record["state"],
+        )
+    except KeyError as exc:
+        raise NaviganError(f"{path} lacks the field {exc}") from exc
+
+
+def shipped(model: str = DEFAULT_MODEL, split: str = DEFAULT_SPLIT) -> Path:
+    """The path of the shipped checkpoint of `model` trained on `split`.
+
+    Raises:
+        NaviganError: no such shipped checkpoint.
+    """
+    path = WEIGHTS_DIR / f"{model}-{split}.pt"
+    if not path.is_file():
+        names = sorted(p.stem for p in WEIGHTS_DIR.glob("*.pt"))
+        raise NaviganError(f"no shipped weights {path.name}; shipped: {', '.join(names) or 'none'}")
+    return path
+
+
+def resolve(name_or_path: str | Path) -> Path:
+    """A checkpoint path, or the shipped file a name like `navigan-r-eth` stands for."""
+    path = Path(name_or_path)
+    if path.is_file() or path.suffix == ".pt" or len(path.parts) > 1:
+        return path
+    candidate = WEIGHTS_DIR / f"{path.name}.pt"
+    return candidate if candidate.is_file() else path

@@ -1,0 +1,122 @@
+"""What a model is (sizes, recipe) and how it is trained, as plain records stored in checkpoints."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+from navigan.errors import NaviganError
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """Which generator a model uses and which losses train it.
+
+    Attributes:
+        generator: "navigan" (intention + social force) or "goal-social-lstm".
+        fde: FDE loss on the intention output.
+        adversarial: GAN loss against the social-aware discriminator.
+        resistance: resistance loss against the other agents' positions.
+        fluctuation: sample the fluctuation noise z (else z = 0, in training and at run time).
+    """
+
+    generator: str
+    fde: bool
+    adversarial: bool
+    resistance: bool
+    fluctuation: bool
+
+
+#: The four trainable models of the paper.
+MODELS: dict[str, Recipe] = {
+    "goal-social-lstm": Recipe("goal-social-lstm", fde=False, adversarial=False, resistance=False, fluctuation=False),
+    "navil2": Recipe("navigan", fde=True, adversarial=False, resistance=False, fluctuation=False),
+    "navigan": Recipe("navigan", fde=True, adversarial=True, resistance=False, fluctuation=True),
+    "navigan-r": Recipe("navigan", fde=True, adversarial=True, resistance=True, fluctuation=True),
+}
+
+
+def recipe(model: str) -> Recipe:
+    """The recipe of a model name.
+
+    Raises:
+        NaviganError: unknown model.
+    """
+    if model not in MODELS:
+        raise NaviganError(f"unknown model {model!r}: choose one of {', '.join(MODELS)}")
+    return MODELS[model]
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Network sizes (the paper uses hidden size 32 throughout).
+
+    Attributes:
+        model: a key of MODELS.
+        hidden: LSTM encoder state size.
+        embed: size of the linear embedding of 2-D inputs (positions, forces, displacements).
+        goal: size of the goal embedding joined to the decoder's initial state.
+        pool: size of PoolNet's output V_i.
+        noise: size of the fluctuation noise z.
+        mlp: hidden width of the small MLPs (NN_spatial, NN_social, NN_embed, the score).
+    """
+
+    model: str
+    hidden: int = 32
+    embed: int = 16
+    goal: int = 16
+    pool: int = 32
+    noise: int = 8
+    mlp: int = 32
+
+    @property
+    def recipe(self) -> Recipe:
+        return recipe(self.model)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How a model is trained (the paper: batch 32 targets, Adam 1e-3, 500 epochs).
+
+    Attributes:
+        split: the leave-one-scene-out split, or "all".
+        epochs: most epochs to run.
+        patience: stop after this many epochs without a better validation loss (None: never).
+        batch: target agents per batch (whole scenes, so a batch may hold fewer).
+        lr: Adam learning rate of generator and discriminator.
+        seed: seeds weights, batch order and noise.
+        d_safe: the resistance loss's safe distance (m).
+        w_l2, w_fde, w_adversarial, w_resistance: loss weights.
+        clip: gradient norm clip.
+    """
+
+    split: str
+    epochs: int = 500
+    patience: int | None = None
+    batch: int = 32
+    lr: float = 1e-3
+    seed: int = 0
+    d_safe: float = 0.5
+    w_l2: float = 1.0
+    w_fde: float = 1.0
+    w_adversarial: float = 1.0
+    w_resistance: float = 1.0
+    clip: float = 1.0
+
+
+def to_dict(record: Any) -> dict[str, Any]:
+    """A config record as a plain dict."""
+    return asdict(record)
+
+
+def from_dict(cls: type, values: dict[str, Any]) -> Any:
+    """A config record from a dict, refusing unknown fields.
+
+    Raises:
+        NaviganError: a field is not one of the record's.
+    """
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise NaviganError(f"unknown {cls.__name__} fields {unknown}")
+    return cls(**values)

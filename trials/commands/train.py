@@ -1,0 +1,88 @@
+"""`trials train`: train a NaviGAN-family model on an ETH/UCY leave-one-scene-out split."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+MODELS = ("goal-social-lstm", "navil2", "navigan", "navigan-r")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "train",
+        help="train a NaviGAN-family model on ETH/UCY",
+        description=(
+            "Train a model on a split's training recordings, keeping the weights of the best "
+            "validation loss. The checkpoint (weights, configs, split files, seed, this command, "
+            "per-epoch validation metrics) is saved after every epoch; run the same command again "
+            "to resume an interrupted training."
+        ),
+    )
+    parser.add_argument("--model", required=True, choices=MODELS, help="which model of the family")
+    parser.add_argument("--split", required=True, help="eth, hotel, univ, zara1, zara2, or all (every scene)")
+    parser.add_argument("--epochs", type=int, default=500, help="most epochs (default 500, as the paper)")
+    parser.add_argument("--patience", type=int, help="stop after this many epochs without a better validation loss (default: never)")
+    parser.add_argument("--batch", type=int, default=32, help="target agents per batch, whole scenes (default 32, as the paper)")
+    parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
+    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
+    parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
+    parser.add_argument("--data", type=Path, metavar="DIR", help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+    parser.add_argument("--out", type=Path, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.set_defaults(handler=run)
+
+
+def command_line(args: argparse.Namespace, out: Path) -> str:
+    """The command that reproduces this training (the data folder aside, which is machine-specific)."""
+    parts = [
+        f"trials train --model {args.model} --split {args.split} --epochs {args.epochs}",
+        f"--patience {args.patience}" if args.patience is not None else "",
+        f"--batch {args.batch} --lr {args.lr:g} --seed {args.seed} --out {out.name}",
+    ]
+    return " ".join(p for p in parts if p)
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from navigan.config import ModelConfig, TrainConfig
+    from navigan.data import Scenes, data_dir, load_split
+    from navigan.errors import NaviganError
+    from navigan.training import train
+
+    for name in ("epochs", "batch", "patience", "threads"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
+    if not args.lr > 0:
+        raise NaviganError(f"--lr: expected a positive number, got {args.lr}")
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise NaviganError("--device cuda: this torch build sees no CUDA device")
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    split = load_split(data_dir(args.data), args.split)
+    out = args.out or Path(f"{args.model}-{args.split}.pt")
+    train_scenes, val_scenes = Scenes.from_files(split.train), Scenes.from_files(split.val)
+    for scenes in (train_scenes, val_scenes):
+        for name, count in scenes.skipped.items():
+            if count:
+                sys.stderr.write(f"{name}: skipped {count} rows with NaN or missing values\n")
+    config = TrainConfig(
+        split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed
+    )
+    record = train(
+        ModelConfig(args.model), config, train_scenes, val_scenes, split.describe(), out,
+        command=command_line(args, out), device=args.device, progress=not args.quiet,
+    )
+    best = record.best or {"epoch": 0, "val": {}}
+    status = record.finished or "unfinished"
+    val = best["val"]
+    print(
+        f"{out}: {status} after {record.epoch} epochs; kept epoch {best['epoch']} "
+        f"(validation loss {val.get('loss', float('nan')):.4f}, ADE {val.get('ade', float('nan')):.3f} m, "
+        f"FDE {val.get('fde', float('nan')):.3f} m)"
+    )
+    return 0
