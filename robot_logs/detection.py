@@ -44,10 +44,17 @@ class Segments:
     widths: np.ndarray
     counts: np.ndarray
 
+    def centres(self) -> np.ndarray:
+        """(K, 2) centres of the round objects seen: a lidar sees the near half of a leg or
+        body, whose centroid lies about width / pi in front of the centre, so push it back."""
+        distance = np.maximum(np.hypot(self.centroids[:, 0], self.centroids[:, 1]), 1e-9)
+        return self.centroids * (1.0 + self.widths / (np.pi * distance))[:, None]
+
 
 @dataclass(frozen=True)
 class Detections:
-    """What one scan shows, in the scan frame: (L, 2) leg centroids and (P, 2) people."""
+    """What one scan shows: (L, 2) leg centroids (the points leg labels mark) and (P, 2)
+    people, each the midpoint of two paired leg centres, a lone leg centre or a body centre."""
 
     legs: np.ndarray
     people: np.ndarray
@@ -109,15 +116,20 @@ def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, in
 
 
 def detect(scan: Scan, config: DetectorConfig = DetectorConfig()) -> Detections:
-    """Legs and people in one scan (scan frame); a single unpaired leg counts as a person."""
+    """Legs and people in one scan (scan frame); a single unpaired leg counts as a person.
+
+    The people are as many as the leg pairs, lone legs and body-wide segments together.
+    """
     segments = segment(scan, config.jump_distance)
     enough = segments.counts >= config.min_points
     widths = segments.widths
     is_leg = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
     is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
-    legs = segments.centroids[is_leg]
+    centres = segments.centres()
+    legs = centres[is_leg]
     pairs, singles = pair_legs(legs, config.pair_distance)
     people = [legs[[i, j]].mean(axis=0) for i, j in pairs]
     people.extend(legs[singles])
-    people.extend(segments.centroids[is_body])
-    return Detections(legs=legs, people=np.array(people, dtype=float).reshape(-1, 2))
+    people.extend(centres[is_body])
+    people_array = np.array(people, dtype=float).reshape(-1, 2)
+    return Detections(legs=segments.centroids[is_leg], people=people_array)

@@ -25,12 +25,12 @@ _PHASE_OFFSET = math.pi * (3.0 - math.sqrt(5.0))
 class LidarSpec:
     """Beam geometry, range limits (m) and noise of the simulated sensor.
 
-    Defaults: a 270-degree scanner at 0.5-degree resolution, 0.05-10 m, 1 cm range noise.
+    Defaults: a 270-degree scanner at 0.25-degree resolution, 0.05-10 m, 1 cm range noise.
     """
 
     angle_min: float = -0.75 * math.pi
     angle_max: float = 0.75 * math.pi
-    angle_increment: float = math.radians(0.5)
+    angle_increment: float = math.radians(0.25)
     range_min: float = 0.05
     range_max: float = 10.0
     range_noise_std: float = 0.01

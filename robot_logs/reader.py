@@ -2,8 +2,9 @@
 
 Which file is which is told by its first bytes (a folder with metadata.yaml is a ROS2 bag).
 ROS1 bags and ROS2 bags open through rosbags' AnyReader, plain MCAP files through the `mcap`
-library. A damaged file raises `LogError` naming it; with `salvage=True` the messages before
-the damage are read instead and `damage` says what stopped the reading.
+library. A damaged file raises `LogError` naming it; with `salvage=True` what can be read is
+read instead (undecodable messages and damaged MCAP chunks are skipped, a truncated file is
+read up to the cut) and `damage` says what was met.
 
 Timestamps: robot_logs times everything by the messages' header stamps (acquisition time, the
 clock tf lookups use). Record times, which can differ from header stamps by seconds or years
@@ -96,28 +97,20 @@ class LogReader:
         Raises:
             LogError: the file is damaged and salvage is off, or nothing could be salvaged.
         """
+        storage = [self.path] if self.kind == "mcap" else sorted(self.path.glob("*.mcap")) if self.kind == "ros2" else []
         try:
-            if self.kind == "mcap":
-                self._source = McapSource([self.path])
+            if storage and (self.kind == "mcap" or self.salvage):
+                self._source = McapSource(storage, salvage=self.salvage)
             else:
-                self._source = RosbagsSource(self.path)
+                self._source = RosbagsSource(self.path, salvage=self.salvage)
         except LogError:
-            if not self.salvage:
-                raise
-            self._source = self._salvage_source("no summary section")
+            raise
         except Exception as exc:  # rosbags, mcap, sqlite3 and decompressors each raise their own
             if not self.salvage:
                 raise self._damaged(_describe(exc)) from None
-            self._source = self._salvage_source(_describe(exc))
-        self.damage = getattr(self._source, "damage", None)
-
-    def _salvage_source(self, detail: str) -> McapSource | BagWalkSource:
-        if self.kind == "ros1":
-            return BagWalkSource(self.path)
-        files = [self.path] if self.kind == "mcap" else sorted(self.path.glob("*.mcap"))
-        if not files:
-            raise LogError(f"{self.path} is damaged ({detail}) and its storage cannot be read in part")
-        return McapSource(files, salvage=True)
+            if self.kind != "ros1":
+                raise LogError(f"{self.path} is damaged ({_describe(exc)}) and no part of it can be read") from None
+            self._source = BagWalkSource(self.path)
 
     def close(self) -> None:
         """Release the file."""
@@ -148,6 +141,8 @@ class LogReader:
         """
         if self._source is None:
             raise LogError(f"{self.path} is not open")
+        if not topics:
+            return
         try:
             yield from self._source.messages(set(topics))
         except LogError:
@@ -156,7 +151,7 @@ class LogReader:
             if not self.salvage:
                 raise self._damaged(_describe(exc)) from None
             self.damage = _describe(exc)
-        self.damage = self.damage or getattr(self._source, "damage", None)
+        self.damage = getattr(self._source, "damage", None) or self.damage
 
 
 def _describe(exc: Exception) -> str:

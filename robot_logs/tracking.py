@@ -32,8 +32,8 @@ class TrackerConfig:
         death_misses: consecutive misses that delete a confirmed track.
     """
 
-    measurement_std: float = 0.1
-    acceleration_std: float = 2.0
+    measurement_std: float = 0.2
+    acceleration_std: float = 3.0
     initial_speed_std: float = 1.0
     gate: float = CHI2_2DOF_99
     birth_hits: int = 3
