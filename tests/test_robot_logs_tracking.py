@@ -1,0 +1,142 @@
+"""Detection and tracking: track life cycle, gating, ids, frames, and CLEAR-MOT on simulated walks."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robot_logs.bag_writer import BagWriter
+from robot_logs.crowd import walking_crowd
+from robot_logs.detection import detect, pair_legs
+from robot_logs.evaluation import clear_mot
+from robot_logs.frames import Pose2D
+from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
+from robot_logs.log_tracking import track_log
+from robot_logs.pipeline import PersonTracker
+from robot_logs.records import Odometry, Transform
+from robot_logs.tracking import Tracker, TrackerConfig
+
+
+def test_a_track_is_born_after_three_hits_and_dies_after_five_misses() -> None:
+    tracker = Tracker(TrackerConfig(birth_hits=3, death_misses=5))
+    person = np.array([[2.0, 1.0]])
+    assert tracker.step(0.0, person) == []
+    assert tracker.step(0.1, person) == []
+    confirmed = tracker.step(0.2, person)
+    assert [t.track_id for t in confirmed] == [1]
+    coasting = [len(tracker.step(0.3 + 0.1 * k, np.zeros((0, 2)))) for k in range(5)]
+    assert coasting == [1, 1, 1, 1, 0]  # reported while coasting, deleted at the fifth miss
+
+
+def test_a_tentative_track_dies_at_its_first_miss() -> None:
+    tracker = Tracker()
+    tracker.step(0.0, np.array([[2.0, 1.0]]))
+    tracker.step(0.1, np.array([[2.0, 1.0]]))
+    tracker.step(0.2, np.zeros((0, 2)))
+    assert tracker.tracks == []
+
+
+def test_ids_are_stable_and_never_reused() -> None:
+    tracker = Tracker(TrackerConfig(death_misses=2))
+    for k in range(5):  # two people walking in parallel, 2 m apart
+        t = 0.1 * k
+        states = tracker.step(t, np.array([[1.0 + t, 0.0], [1.0 + t, 2.0]]))
+    assert {s.track_id: round(s.y) for s in states} == {1: 0, 2: 2}
+    for k in range(5, 8):  # the first leaves; a newcomer appears
+        t = 0.1 * k
+        states = tracker.step(t, np.array([[1.0 + t, 2.0], [4.0, -3.0]]))
+    assert {s.track_id for s in states} == {2, 3}
+
+
+def test_mahalanobis_gating_keeps_far_detections_out() -> None:
+    tracker = Tracker(TrackerConfig(measurement_std=0.1, birth_hits=1))
+    tracker.step(0.0, np.array([[0.0, 0.0]]))
+    # a fresh track: S = P + R = 0.01 + 0.01 per axis, so 0.4 m off is d^2 = 0.16 / 0.02 = 8
+    assert tracker.distances(np.array([[0.4, 0.0], [0.0, 0.5]])) == pytest.approx(np.array([[8.0, 12.5]]))
+    states = tracker.step(0.0, np.array([[0.0, 0.5]]))  # outside the 9.21 gate: a second track
+    assert sorted(s.track_id for s in states) == [1, 2]
+
+
+def test_velocity_is_estimated() -> None:
+    tracker = Tracker()
+    for k in range(30):
+        states = tracker.step(0.1 * k, np.array([[1.0 + 1.2 * 0.1 * k, 0.5]]))
+    assert states[0].vx == pytest.approx(1.2, abs=0.05) and states[0].vy == pytest.approx(0.0, abs=0.05)
+
+
+def test_legs_pair_into_people() -> None:
+    legs = np.array([[2.0, 0.1], [2.0, -0.1], [4.0, 2.0], [6.0, 0.0], [6.3, 0.3]])
+    pairs, singles = pair_legs(legs, 0.6)
+    assert sorted(pairs) == [(0, 1), (3, 4)] and singles == [2]
+
+
+def test_a_simulated_person_is_detected_at_their_position() -> None:
+    lidar = LidarSimulator(seed=0)
+    for velocity in ([0.0, 0.0], [1.2, 0.4]):
+        scan = lidar.scan(0.3, Pose2D(), np.array([[3.0, 1.0]]), np.array([velocity]))
+        found = detect(scan)
+        assert len(found.people) == 1
+        assert np.hypot(*(found.people[0] - [3.0, 1.0])) < 0.1
+
+
+def test_clear_mot_with_six_walkers() -> None:
+    crowd = walking_crowd(6, duration=20.0, seed=7)
+    lidar = LidarSimulator(LidarSpec(), BodyModel(), seed=7)
+    tracker = PersonTracker()
+    tracks = [tracker.process(lidar.scan(t, Pose2D(), p, v)).tracks for t, p, v in zip(crowd.times, crowd.positions, crowd.velocities)]
+    figures = clear_mot(list(crowd.positions), tracks)
+    assert figures["objects"] == 1200
+    assert figures["mota"] >= 0.9
+    assert figures["motp"] <= 0.15
+    assert figures["id_switches"] <= 20
+
+
+@pytest.fixture(scope="module")
+def moving_robot_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Path], np.ndarray]:
+    """A robot driving and turning past two standing people, with a laser 0.3 m ahead of its base.
+
+    tf names frames with leading slashes, as ROS1 logs often do.
+    """
+    root = tmp_path_factory.mktemp("moving")
+    people = np.array([[6.0, 1.5], [4.0, -2.0]])
+    bags = {"ros1": root / "moving.bag", "ros2-sqlite3": root / "moving_sqlite"}
+    mount = Pose2D(0.3, 0.0, 0.0)
+    for bag_format, path in bags.items():
+        lidar = LidarSimulator(seed=11)
+        with BagWriter(path, bag_format) as bag:
+            bag.transforms([Transform(1_000_000_000, "/base_link", "/laser", mount, True)], "/tf_static")
+            for k in range(60):
+                t = 1.0 + 0.1 * k
+                base = Pose2D(0.4 * (t - 1.0), 0.1 * (t - 1.0), 0.15 * (t - 1.0))
+                bag.odometry(Odometry(int(round(t * 1e9)), "odom", "base_link", base, 0.4, 0.15))
+                bag.scan(lidar.scan(t, base.compose(mount), people, None))
+    return bags, people
+
+
+@pytest.mark.parametrize("bag_format", ["ros1", "ros2-sqlite3"])
+def test_tracks_in_the_odometry_frame_stay_put_while_the_robot_moves(moving_robot_bags, bag_format: str) -> None:
+    bags, people = moving_robot_bags
+    table = track_log(bags[bag_format], frame="odom")
+    assert {row.frame for row in table.rows} == {"odom"}
+    assert len(table.ids) == 2
+    for track_id in table.ids:
+        _, xy = table.track(track_id)
+        nearest = people[np.argmin(np.hypot(*(people - xy[-1]).T))]
+        assert np.hypot(*(xy - nearest).T).max() < 0.15  # still people stay still in odom
+
+
+def test_tracks_in_the_sensor_frame_move_with_the_robot(moving_robot_bags) -> None:
+    bags, people = moving_robot_bags
+    table = track_log(bags["ros1"], frame="sensor")
+    assert {row.frame for row in table.rows} == {"laser"}
+    last = max(row.stamp_ns for row in table.rows)
+    t = last * 1e-9
+    sensor = Pose2D(0.4 * (t - 1.0), 0.1 * (t - 1.0), 0.15 * (t - 1.0)).compose(Pose2D(0.3, 0.0, 0.0))
+    expected = sensor.inverse().apply(people)
+    seen = np.array([[r.x, r.y] for r in table.rows if r.stamp_ns == last])
+    for point in expected:
+        assert np.hypot(*(seen - point).T).min() < 0.15
+    assert math.isclose(t, 6.9, abs_tol=1e-6)
