@@ -4,8 +4,8 @@ Every step it draws the tracked pedestrians into a cost grid around the robot an
 from the robot's pose to the goal with ARA* within its time budget, and returns way-points one step
 apart along the path, timed at the robot's nominal speed. It never raises during a run: when the
 robot already stands too close to someone it first retries without the comfort margin, then holds
-still; when the goal is covered it aims at the nearest free cell; when no path is found in time it
-follows the best partial path. The record says which.
+still; when the goal is covered or out of reach it aims at the nearest cell it can reach; when no
+path is found in time it follows the best partial path. The record says which.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 
 from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
 from trials.controllers.lattice.actions import build_actions
@@ -37,7 +38,7 @@ from trials.controllers.lattice.primitives import PrimitiveSet
 
 #: Time kept back from the budget for the way-points and the record.
 RESERVE_S = 0.02
-#: Free cells tried, nearest first, when the goal is covered.
+#: Free cells tried, nearest first, when the goal is covered or out of reach.
 GOAL_CANDIDATES = 400
 
 
@@ -138,14 +139,18 @@ class LatticeController:
         return (cont_to_cell(x, self.cell_size), cont_to_cell(y, self.cell_size),
                 cont_to_heading(float(pose[2]), self.actions.num_thetas))
 
-    def _free_goal(self, planner: LatticePlanner, goal: State) -> State | None:
-        """`goal`, or when the robot cannot stand there, the nearest cell (same heading) where it can."""
-        if planner.env.on_map(goal[0], goal[1]) and planner.collision(goal) is None:
+    def _target(self, planner: LatticePlanner, start: State, goal: State) -> State | None:
+        """`goal`, or when the robot cannot stand there or reach it, the nearest cell (same heading) it can
+        stand on within the area its centre can reach from `start`."""
+        grid = planner.env.grid
+        labels, _ = ndimage.label(grid < INSCRIBED_THRESH, structure=np.ones((3, 3), dtype=bool))
+        reachable = labels == labels[start[1], start[0]]
+        if planner.env.on_map(goal[0], goal[1]) and reachable[goal[1], goal[0]] and planner.collision(goal) is None:
             return goal
-        free_y, free_x = np.nonzero(planner.env.grid == FREE)
-        order = np.argsort((free_x - goal[0]) ** 2 + (free_y - goal[1]) ** 2, kind="stable")
+        ys, xs = np.nonzero(reachable & (grid == FREE))
+        order = np.argsort((xs - goal[0]) ** 2 + (ys - goal[1]) ** 2, kind="stable")
         for i in order[:GOAL_CANDIDATES]:
-            candidate = (int(free_x[i]), int(free_y[i]), goal[2])
+            candidate = (int(xs[i]), int(ys[i]), goal[2])
             if planner.collision(candidate) is None:
                 return candidate
         return None
@@ -179,11 +184,12 @@ class LatticeController:
             return self._hold(pose, {**record, "status": "start_in_collision", "message": collision,
                                      "plan_seconds": time.perf_counter() - t0})
         wanted = (*self._state(window, np.array([*goal, 0.0]))[:2], self._goal_heading)
-        target = self._free_goal(planner, wanted)
+        target = self._target(planner, start, wanted)
         record["goal_moved"] = target != wanted
         if target is None:
-            return self._hold(pose, {**record, "status": "goal_blocked", "message": "no free cell near the goal",
+            return self._hold(pose, {**record, "status": "goal_blocked", "message": "no free cell within reach",
                                      "plan_seconds": time.perf_counter() - t0})
+        record["target"] = window.to_world(planner.env.to_pose(target)[:2]).tolist()
         budget = max(t0 + self.budget_s - RESERVE_S - time.perf_counter(), 0.0)
         result = planner.plan(start, target, self.eps, self.eps_step, budget=budget)
         record.update(self._search_record(result))
