@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from robot_logs.crowd import walking_crowd
+from robot_logs.detection import detect
 from robot_logs.evaluation import clear_mot, labelled_scans, score_detections
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.pipeline import PersonTracker
-from robot_logs.detection import detect
 from robot_logs.reader import LogReader
 
 SAMPLES = Path(__file__).resolve().parents[2] / "shared" / "samples" / "robot_logs"
@@ -78,7 +78,7 @@ def labelled_legs() -> str:
     if not path.exists():
         return f"(no {path})"
     with LogReader(path) as log:
-        pairs = labelled_scans(log, "/training_scan", "/leg_cluster_positions")
+        pairs = labelled_scans(log)
     lines = []
     for radius in (0.1, 0.15):
         score = score_detections(((detect(scan).legs, label.points) for scan, label in pairs), radius)

@@ -18,6 +18,7 @@ from robot_logs.convert import to_points, to_scan
 from robot_logs.errors import LogError
 from robot_logs.reader import LogReader
 from robot_logs.records import PointSet, Scan
+from robot_logs.topics import POINTS_TYPES, SCAN_TYPES, TopicNames, pick_topic
 from robot_logs.tracking import TrackState
 
 
@@ -62,15 +63,18 @@ def score_detections(pairs: Iterable[tuple[np.ndarray, np.ndarray]], max_distanc
     return DetectionScore(matched, spurious, missed, float(np.mean(errors)) if errors else float("nan"))
 
 
-def labelled_scans(log: LogReader, scan_topic: str, label_topic: str) -> list[tuple[Scan, PointSet]]:
-    """Scans paired with their labels (geometry_msgs/PoseArray in the scan frame).
+def labelled_scans(log: LogReader, topics: TopicNames = TopicNames()) -> list[tuple[Scan, PointSet]]:
+    """Scans paired with their labels or ground truth (geometry_msgs/PoseArray, scan frame).
 
-    A label with a header stamp goes with the scan of the same stamp; an unstamped one with
-    the scan recorded closest to it (labelling tools often leave stamps at zero).
+    Topics are chosen by type unless `topics.scan` / `topics.people` name them. A label with
+    a header stamp goes with the scan of the same stamp; an unstamped one with the scan
+    recorded closest to it (labelling tools often leave stamps at zero).
 
     Raises:
-        LogError: a scan has no label.
+        LogError: a topic is missing, or a scan has no label.
     """
+    scan_topic = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic").name
+    label_topic = pick_topic(log.topics, POINTS_TYPES, "PoseArray", topics.people, log.path, "--people-topic").name
     scans: list[tuple[Scan, int]] = []
     labels: list[PointSet] = []
     for message in log.messages({scan_topic, label_topic}):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_logs.detection import DetectorConfig, Detections, detect
+from robot_logs.detection import Detections, DetectorConfig, detect
 from robot_logs.frames import Pose2D
 from robot_logs.records import Scan
 from robot_logs.tracking import Tracker, TrackerConfig, TrackState

@@ -67,7 +67,7 @@ class LogReader:
 
     Args:
         path: a ROS1 `.bag`, a ROS2 bag folder, an `.mcap` or a `.db3` file.
-        salvage: read what precedes damage instead of refusing a damaged file.
+        salvage: read what can be read of a damaged file instead of refusing it.
     """
 
     def __init__(self, path: str | Path, *, salvage: bool = False) -> None:
@@ -88,7 +88,7 @@ class LogReader:
     def _damaged(self, detail: str) -> LogError:
         return LogError(
             f"{self.path} is damaged (truncated or corrupt: {detail}); "
-            "pass --salvage to read the messages before the damage"
+            "pass --salvage to read what can be read"
         )
 
     def open(self) -> None:
@@ -111,6 +111,7 @@ class LogReader:
             if self.kind != "ros1":
                 raise LogError(f"{self.path} is damaged ({_describe(exc)}) and no part of it can be read") from None
             self._source = BagWalkSource(self.path)
+        self.damage = getattr(self._source, "damage", None)
 
     def close(self) -> None:
         """Release the file."""
@@ -136,8 +137,8 @@ class LogReader:
         """Decoded messages of the given topics, in record-time order (file order when salvaging).
 
         Raises:
-            LogError: damage met while reading (with salvage on, reading stops there instead
-                and `damage` tells why).
+            LogError: damage met while reading (with salvage on, the damaged part is skipped
+                or reading stops there, and `damage` tells what was met).
         """
         if self._source is None:
             raise LogError(f"{self.path} is not open")

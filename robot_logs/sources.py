@@ -15,9 +15,10 @@ from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from mcap.reader import SeekingReader
 from mcap.data_stream import ReadDataStream
-from mcap.records import Channel, Chunk, Message as McapMessage, Schema
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, Schema
+from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
 from rosbags.highlevel import AnyReader

@@ -74,9 +74,7 @@ def summarise(log: LogReader, progress: Callable[[int], None] | None = None) -> 
         entry.first_record_ns = record if entry.first_record_ns is None else min(entry.first_record_ns, record)
         entry.last_record_ns = record if entry.last_record_ns is None else max(entry.last_record_ns, record)
         headers = _headers(message.data)
-        for header, label in headers:
-            if label:
-                entry.frames.add(label)
+        entry.frames.update(label for _, label in headers if label)
         stamps = [int(h.stamp.sec) * 1_000_000_000 + int(h.stamp.nanosec) for h, _ in headers]
         stamps = [s for s in stamps if s]
         if headers and not stamps:

@@ -16,7 +16,10 @@ POINTS_TYPES = ("geometry_msgs/msg/PoseArray",)
 
 @dataclass(frozen=True)
 class TopicNames:
-    """Topic names to use instead of choosing by type; None means "the one topic of that type"."""
+    """Topic names to use instead of choosing by type; None means "the one topic of that type".
+
+    people: labelled or ground-truth positions (geometry_msgs/PoseArray).
+    """
 
     scan: str | None = None
     odometry: str | None = None

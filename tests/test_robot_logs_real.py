@@ -80,7 +80,7 @@ def test_foxglove_output_holds_scans_detections_and_tracks(tracked: dict[str, Pa
 
 def test_detections_match_the_hand_labelled_legs(robot_logs_dir: Path) -> None:
     with LogReader(robot_logs_dir / "legs_labelled_ros1.bag") as log:
-        pairs = labelled_scans(log, "/training_scan", "/leg_cluster_positions")
+        pairs = labelled_scans(log)
     assert len(pairs) == 197
     assert sum(len(label.points) for _, label in pairs) == 324
     score = score_detections(((detect(scan).legs, label.points) for scan, label in pairs), max_distance=0.15)

@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _add_log_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", type=Path, metavar="FILE", help="a ROS1 .bag, a ROS2 bag folder, an .mcap or a .db3 file")
-    parser.add_argument("--salvage", action="store_true", help="read a damaged log up to the damage instead of refusing it")
+    parser.add_argument("--salvage", action="store_true", help="read what can be read of a damaged log instead of refusing it")
 
 
 def _register_inspect(group: argparse._SubParsersAction) -> None:
@@ -65,7 +65,7 @@ def _register_track(group: argparse._SubParsersAction) -> None:
 
 def _warn_damage(damage: str | None) -> None:
     if damage:
-        sys.stderr.write(f"warning: the log is damaged; read the messages before the damage ({damage})\n")
+        sys.stderr.write(f"warning: the log is damaged; read what could be read ({damage})\n")
 
 
 def inspect(args: argparse.Namespace) -> int:
