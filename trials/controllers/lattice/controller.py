@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,21 @@ def inscribed_radius(polygon: Polygon) -> float:
         t = np.clip(-a @ edge / (edge @ edge), 0.0, 1.0)
         radius = min(radius, float(np.hypot(*(a + t * edge))))
     return radius
+
+
+@dataclass
+class Situation:
+    """One step's planning problem (`planner`, `start`, `target` on `window`), or with `hold` set, the
+    reason there is none; `record` collects what the step will log."""
+
+    pose: np.ndarray
+    record: dict[str, Any]
+    hold: str | None = None
+    message: str = ""
+    planner: LatticePlanner | None = None
+    window: Window | None = None
+    start: State | None = None
+    target: State | None = None
 
 
 class LatticeController:
@@ -159,18 +174,16 @@ class LatticeController:
         return Plan(np.repeat(np.asarray(robot[:2], np.float64)[None, :], self.horizon_steps, axis=0),
                     STEP_S, {**record, "holding": True})
 
-    def plan(self, observation: Observation) -> Plan:
-        """Way-points for the next `horizon_steps` steps (held in place when no move is possible)."""
-        t0 = time.perf_counter()
+    def situation(self, observation: Observation) -> Situation:
+        """The grid, start and target for one observation, or the reason the robot must hold."""
         pose = np.asarray(observation.robot_pose, dtype=np.float64)
         goal = np.asarray(observation.goal, dtype=np.float64)[:2]
         record: dict[str, Any] = {"controller": self.name, "status": "", "holding": False,
                                   "pedestrians": len(observation.pedestrian_ids)}
         if not (np.isfinite(pose).all() and np.isfinite(goal).all()):
-            return self._hold(np.nan_to_num(pose), {**record, "status": "bad_observation",
-                                                    "message": "robot pose or goal is not finite"})
+            return Situation(np.nan_to_num(pose), record, "bad_observation", "robot pose or goal is not finite")
         if np.hypot(*(goal - pose[:2])) <= self.goal_tolerance:
-            return self._hold(pose, {**record, "status": "at_goal", "message": "within the goal tolerance"})
+            return Situation(pose, record, "at_goal", "within the goal tolerance")
         planner, window = self._planner_for(pose[:2], goal)
         start = self._state(window, pose)
         centres = predicted_centres(observation.pedestrian_history, self.predict_s)
@@ -181,24 +194,32 @@ class LatticeController:
                 break
         record["margin"] = margin
         if collision is not None:
-            return self._hold(pose, {**record, "status": "start_in_collision", "message": collision,
-                                     "plan_seconds": time.perf_counter() - t0})
+            return Situation(pose, record, "start_in_collision", collision)
         wanted = (*self._state(window, np.array([*goal, 0.0]))[:2], self._goal_heading)
         target = self._target(planner, start, wanted)
         record["goal_moved"] = target != wanted
         if target is None:
-            return self._hold(pose, {**record, "status": "goal_blocked", "message": "no free cell within reach",
-                                     "plan_seconds": time.perf_counter() - t0})
+            return Situation(pose, record, "goal_blocked", "no free cell within reach")
         record["target"] = window.to_world(planner.env.to_pose(target)[:2]).tolist()
+        return Situation(pose, record, planner=planner, window=window, start=start, target=target)
+
+    def plan(self, observation: Observation) -> Plan:
+        """Way-points for the next `horizon_steps` steps (held in place when no move is possible)."""
+        t0 = time.perf_counter()
+        situation = self.situation(observation)
+        record = situation.record
+        if situation.hold is not None:
+            return self._hold(situation.pose, {**record, "status": situation.hold, "message": situation.message,
+                                               "plan_seconds": time.perf_counter() - t0})
         budget = max(t0 + self.budget_s - RESERVE_S - time.perf_counter(), 0.0)
-        result = planner.plan(start, target, self.eps, self.eps_step, budget=budget)
+        result = situation.planner.plan(situation.start, situation.target, self.eps, self.eps_step, budget=budget)
         record.update(self._search_record(result))
         if len(result.states) < 2:
-            return self._hold(pose, {**record, "plan_seconds": time.perf_counter() - t0})
+            return self._hold(situation.pose, {**record, "plan_seconds": time.perf_counter() - t0})
         ahead = STEP_S * np.arange(1, self.horizon_steps + 1)
         local = np.column_stack([np.interp(ahead, result.times, result.poses[:, i]) for i in (0, 1)])
         record["plan_seconds"] = time.perf_counter() - t0
-        return Plan(window.to_world(local), STEP_S, record)
+        return Plan(situation.window.to_world(local), STEP_S, record)
 
     @staticmethod
     def _search_record(result: PlanResult) -> dict[str, Any]:
