@@ -11,6 +11,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -120,7 +121,7 @@ def _stamp_ns(text: str) -> int:
     return sign * (abs(int(whole)) * 1_000_000_000 + int((part + "000000000")[:9]))
 
 
-def write_rows(stream, rows: Iterable[TrackRow]) -> None:  # noqa: ANN001 - any text stream
+def write_rows(stream: TextIO, rows: Iterable[TrackRow]) -> None:
     """Tracks CSV (header row, then one row per track per scan) on an open text stream."""
     writer = csv.writer(stream, lineterminator="\n")
     writer.writerow(COLUMNS)

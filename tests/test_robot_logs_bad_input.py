@@ -141,3 +141,18 @@ def test_scans_and_odometry_on_different_clocks(tmp_path: Path) -> None:
             bag.scan(_scan(201, stamp))
     with pytest.raises(LogError, match="falls within its odometry's time span.*different clocks"):
         track_log(path, frame="odom")
+
+
+def test_a_scan_frame_without_tf_to_the_robot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from robot_logs.frames import Pose2D
+    from robot_logs.records import Odometry
+
+    path = tmp_path / "no_tf.bag"
+    with BagWriter(path) as bag:
+        for k in range(3):
+            stamp = 1_000_000_000 + k * 100_000_000
+            bag.odometry(Odometry(stamp, "/odom", "base_link", Pose2D(), 0.0, 0.0))
+            bag.scan(_scan(201, stamp))
+    code, _, err = run(capsys, "track", path, "--frame", "odom")
+    assert code == 2
+    assert one_error_line(err) == "error: no transform connects frame 'laser' to 'odom' (frames in the log: base_link, odom)"

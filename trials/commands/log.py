@@ -9,6 +9,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from robot_logs.summary import LogSummary
 
 #: More `trials log` subcommand modules under trials.commands (e.g. "log_show").
 SUBCOMMANDS: tuple[str, ...] = ()
@@ -84,7 +88,7 @@ def inspect(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary_lines(summary) -> list[str]:  # noqa: ANN001 - a robot_logs.summary.LogSummary
+def summary_lines(summary: LogSummary) -> list[str]:
     """The text of `trials log inspect`."""
     from robot_logs.records import seconds, stamp_text
 
