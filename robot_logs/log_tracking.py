@@ -97,7 +97,10 @@ class LogTracking:
         if self.tree is None:
             return Pose2D()
         assert self.output_frame is not None
-        return self.tree.lookup(self.output_frame, scan.frame_id, scan.stamp_ns)
+        try:
+            return self.tree.lookup(self.output_frame, scan.frame_id, scan.stamp_ns)
+        except LogError as exc:
+            raise LogError(f"{self.log.path}: {exc}") from None
 
     def __iter__(self) -> Iterator[tuple[Scan, ScanResult]]:
         seen, last_stamp = 0, 0

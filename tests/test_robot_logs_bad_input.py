@@ -155,4 +155,4 @@ def test_a_scan_frame_without_tf_to_the_robot(tmp_path: Path, capsys: pytest.Cap
             bag.scan(_scan(201, stamp))
     code, _, err = run(capsys, "track", path, "--frame", "odom")
     assert code == 2
-    assert one_error_line(err) == "error: no transform connects frame 'laser' to 'odom' (frames in the log: base_link, odom)"
+    assert one_error_line(err) == f"error: {path}: no transform connects frame 'laser' to 'odom' (frames in the log: base_link, odom)"
