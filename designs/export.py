@@ -1,0 +1,150 @@
+"""A built plan as records: `design.json`, the `plan.csv` table and the console summary.
+
+Everything here is public: a blinded factor appears only through its arm labels.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from designs.exchange import candidate_set
+from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, plain
+from designs.plan import StudyPlan
+from designs.spec import factor_table
+
+FORMAT = "navtrials.design/1"
+PLAN_COLUMNS = ("order", "run_code")
+
+
+def plan_table(plan: StudyPlan) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the public run sheet, in run order."""
+    header = [*PLAN_COLUMNS, *(f.name for f in plan.spec.factors)]
+    rows = [[str(run.order), run.code, *(_cell(run.values[f.name]) for f in plan.spec.factors)] for run in plan.runs]
+    return header, rows
+
+
+def design_record(plan: StudyPlan, created: str) -> dict[str, Any]:
+    """The content of design.json."""
+    d = plan.diagnostics
+    record: dict[str, Any] = {
+        "format": FORMAT,
+        "created": created,
+        "study": plan.spec.name,
+        "runs": plan.spec.runs,
+        "seed": plan.seed,
+        "factors": [_factor_record(f) for f in plan.spec.factors],
+        "model": {
+            "expression": plan.spec.model,
+            "terms": plan.model.term_names,
+            "columns": plan.model.columns,
+        },
+        "diagnostics": {
+            "p": d.p,
+            "n": d.n,
+            "det_xtx": d.det_xtx,
+            "d_efficiency": d.d_efficiency,
+            "a_efficiency": d.a_efficiency,
+            "g_efficiency": d.g_efficiency,
+            "average_prediction_variance": d.average_prediction_variance,
+            "max_prediction_variance": d.max_prediction_variance,
+            "d_efficiency_bound": plan.bound.d_efficiency,
+            "d_efficiency_vs_bound": plan.d_efficiency_vs_bound,
+            "standard_errors": d.standard_errors,
+            "correlation_map": {"columns": d.correlation_columns, "matrix": _matrix(d.correlations)},
+            "power": {
+                "alpha": d.alpha,
+                "snr": d.snr,
+                "error_df": d.error_df,
+                "terms": [{"term": t.term, "parameters": t.parameters, "power": t.power} for t in d.term_power],
+                "parameters": d.parameter_power,
+            },
+        },
+        "search": {
+            "algorithm": "Fedorov exchange with replicates, then coordinate search of continuous factors",
+            "starts": plan.design.starts,
+            "hits": plan.design.hits,
+            "design_seed": plan.design.seed,
+            "log_det_xtx": plan.design.log_det,
+        },
+        "bound": {
+            "method": "approximate D-optimal design on the candidate set (cvxpy, log det)",
+            "d_efficiency": plan.bound.d_efficiency,
+            "support": _support(plan),
+        },
+        "design": [
+            {"order": run.order, "run_code": run.code, "settings": run.settings.tolist()} for run in plan.runs
+        ],
+        "blinding": None,
+    }
+    if plan.sealed is not None:
+        record["blinding"] = {
+            "factor": plan.sealed.factor,
+            "arms": sorted(plan.sealed.arms),
+            "commitment": {"algorithm": "sha256(salt + newline + key json)", "digest": plan.sealed.commitment()},
+            "key": "sealed/allocation.json",
+        }
+    return record
+
+
+def summary_lines(plan: StudyPlan) -> list[str]:
+    """What `trials design` prints: the design's quality and what it can estimate."""
+    d = plan.diagnostics
+    spec = plan.spec
+    lines = [
+        f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
+        f"Seed {plan.seed}; {plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
+        f"  D-efficiency                 {d.d_efficiency:9.4f}   det(X'X) = {d.det_xtx:.10g}",
+        f"  D-efficiency bound (cvxpy)   {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it",
+        f"  A-efficiency                 {d.a_efficiency:9.4f}",
+        f"  G-efficiency                 {d.g_efficiency:9.4f}",
+        f"  Average prediction variance  {d.average_prediction_variance:9.4f}",
+        f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}):",
+    ]
+    width = max(len(t.term) for t in d.term_power)
+    lines += [f"  {t.term:<{width}}  {t.parameters} df  power {t.power:.3f}" for t in d.term_power]
+    largest = _largest_correlation(d.correlation_columns, d.correlations)
+    if largest:
+        lines.append(f"Largest correlation between model columns: {largest}")
+    if plan.sealed is not None:
+        lines.append(
+            f"Blinded: {plan.sealed.factor} appears as arms {', '.join(sorted(plan.sealed.arms))}; "
+            f"the key is sealed (commitment {plan.sealed.commitment()[:16]}...)"
+        )
+    return lines
+
+
+def _factor_record(factor: Factor) -> dict[str, Any]:
+    """The spec's factor table plus its coding."""
+    record = factor_table(factor)
+    if isinstance(factor, (ContinuousFactor, DiscreteFactor)):
+        record["coding"] = {"center": plain(0.5 * (factor.low + factor.high)), "half_range": plain(0.5 * (factor.high - factor.low))}
+    elif isinstance(factor, CategoricalFactor):
+        record["coding"] = {"effect": factor.effect_coding.tolist()}
+    return record
+
+
+def _support(plan: StudyPlan) -> list[dict[str, Any]]:
+    candidates = candidate_set(plan.model)
+    keep = plan.bound.weights > 1e-6
+    return [{"settings": c.tolist(), "weight": float(w)} for c, w in zip(candidates[keep], plan.bound.weights[keep])]
+
+
+def _matrix(values: np.ndarray) -> list[list[float | None]]:
+    return [[None if math.isnan(v) else float(v) for v in row] for row in values]
+
+
+def _cell(value: float | str) -> str:
+    value = plain(value)
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _largest_correlation(columns: list[str], corr: np.ndarray) -> str:
+    if len(columns) < 2:
+        return ""
+    masked = np.abs(np.where(np.isnan(corr), 0.0, corr))
+    np.fill_diagonal(masked, 0.0)
+    i, j = np.unravel_index(np.argmax(masked), masked.shape)
+    return f"|r| = {masked[i, j]:.3f} ({columns[i]} ~ {columns[j]})"

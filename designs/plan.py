@@ -1,0 +1,94 @@
+"""From a study spec to a randomized, optionally blinded run plan with its diagnostics."""
+
+from __future__ import annotations
+
+import secrets
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from designs.blinding import SealedAllocation, arm_labels, seal
+from designs.bound import ApproximateDesign, approximate_d_optimal
+from designs.diagnostics import Diagnostics, diagnose
+from designs.exchange import ExactDesign, candidate_set, d_optimal
+from designs.model import Model, parse_model
+from designs.spec import StudySpec
+
+#: Run-code alphabet: capitals and digits without the look-alikes 0/O, 1/I/L, 2/Z, 5/S, 8/B.
+CODE_ALPHABET = "ACDEFGHJKMNPQRTUVWXY34679"
+CODE_LENGTH = 5
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """One row of the public run sheet; `values` holds every factor, fixed ones included."""
+
+    order: int
+    code: str
+    values: dict[str, float | str]
+    settings: np.ndarray
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """A built study: the public spec (arm labels when blind), design, bound, diagnostics, runs."""
+
+    spec: StudySpec
+    model: Model
+    design: ExactDesign
+    bound: ApproximateDesign
+    diagnostics: Diagnostics
+    runs: tuple[PlannedRun, ...]
+    sealed: SealedAllocation | None
+
+    @property
+    def seed(self) -> int:
+        """The public study seed (the spec's, or the one drawn for it)."""
+        assert self.spec.seed is not None
+        return self.spec.seed
+
+    @property
+    def d_efficiency_vs_bound(self) -> float:
+        return 100.0 * self.diagnostics.d_efficiency / self.bound.d_efficiency
+
+
+def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan:
+    """Design, bound, diagnose and randomize a study; seal its blind factor if it has one.
+
+    The public seed (drawn when the spec has none) drives the exchange starts, the run order
+    and the run codes; the blind allocation uses its own secret seed.
+    """
+    seed = spec.seed if spec.seed is not None else secrets.randbits(31)
+    spec = replace(spec, seed=seed)
+    sealed = None
+    blind = spec.blind_factor
+    if blind is not None:
+        sealed = seal(blind.name, blind.levels, allocation_seed)
+        spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
+    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
+    design = d_optimal(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts)
+    bound = approximate_d_optimal(model.matrix(candidate_set(model)))
+    diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr)
+    order = np.random.default_rng(order_seed).permutation(spec.runs)
+    codes = run_codes(spec.runs, np.random.default_rng(code_seed))
+    runs = tuple(
+        PlannedRun(position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
+        for position, row in enumerate(order)
+    )
+    return StudyPlan(spec, model, design, bound, diagnostics, runs, sealed)
+
+
+def run_codes(count: int, rng: np.random.Generator) -> list[str]:
+    """`count` distinct random codes, unrelated to run order or arm."""
+    codes: list[str] = []
+    while len(codes) < count:
+        code = "".join(rng.choice(list(CODE_ALPHABET), size=CODE_LENGTH))
+        if code not in codes:
+            codes.append(code)
+    return codes
+
+
+def _values(spec: StudySpec, model: Model, settings: np.ndarray) -> dict[str, float | str]:
+    design_values = {f.name: f.decode(s) for f, s in zip(model.factors, settings)}
+    return {f.name: design_values[f.name] if f.name in design_values else f.value for f in spec.factors}

@@ -1,0 +1,36 @@
+"""The paper's two JMP plans as study specs (Tsai & Oh, section V.B)."""
+
+from __future__ import annotations
+
+from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, FixedFactor
+from designs.spec import StudySpec
+
+PEDESTRIANS = DiscreteFactor("Pedestrians", (2.0, 4.0, 6.0))
+DIRECTION = CategoricalFactor("Direction", ("Parallel", "ParallelCrossing", "Crossing"))
+#: The controllers the A/B plan compares; the runner maps these names to controllers.
+CONTROLLERS = ("NaviGAN-R", "Lattice")
+
+
+def qualitative(runs: int = 27) -> StudySpec:
+    """The 27-run qualitative plan: main effects of pedestrians, direction and crossing distance."""
+    return StudySpec(
+        name="qualitative",
+        factors=(PEDESTRIANS, DIRECTION, ContinuousFactor("CrossingDistance", 1.0, 3.0, "m")),
+        model="main",
+        runs=runs,
+    )
+
+
+def ab(runs: int = 18) -> StudySpec:
+    """The 18-run blinded A/B plan: NaviGAN-R against the lattice planner."""
+    return StudySpec(
+        name="ab",
+        factors=(
+            PEDESTRIANS,
+            DIRECTION,
+            CategoricalFactor("Controller", CONTROLLERS, blind=True),
+            FixedFactor("CrossingDistance", 2.0, "m"),
+        ),
+        model="main + interactions + Pedestrians^2",
+        runs=runs,
+    )

@@ -1,0 +1,240 @@
+"""The study spec (`study.toml`): factors, model, runs, seed; read, validated and written.
+
+    [study]
+    name = "qualitative"
+    runs = 27
+    model = "main"            # keywords main, interactions, quadratic, or terms A + B + A*B + A^2
+    seed = 2019               # optional: drawn and recorded when absent
+    starts = 100              # random starts of the exchange
+    snr = 1.0                 # signal-to-noise ratio for the power table
+    alpha = 0.05
+
+    [[factors]]
+    name = "Pedestrians"
+    type = "discrete"         # continuous (low, high) | discrete (levels) | categorical (levels) | fixed (value)
+    levels = [2, 4, 6]
+
+A blinded categorical factor has `blind = true`. In the public spec that `trials design`
+writes, its levels are replaced by `arms = [...]` (opaque labels); the levels themselves
+live only in the sealed allocation.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, replace
+from numbers import Real
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from designs.errors import DesignError
+from designs.factors import (
+    CategoricalFactor,
+    ContinuousFactor,
+    DesignFactor,
+    DiscreteFactor,
+    Factor,
+    FixedFactor,
+    plain,
+    validate_factor,
+)
+
+FACTOR_TYPES = ("continuous", "discrete", "categorical", "fixed")
+DEFAULT_STARTS = 100
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A study as the researcher specifies it.
+
+    `arms_sealed` says that the blinded factor's levels are already arm labels (a public
+    spec written by `trials design`), so its real levels must come from the sealed key.
+    """
+
+    name: str
+    factors: tuple[Factor, ...]
+    model: str
+    runs: int
+    seed: int | None = None
+    starts: int = DEFAULT_STARTS
+    snr: float = 1.0
+    alpha: float = 0.05
+    arms_sealed: bool = False
+
+    @property
+    def design_factors(self) -> tuple[DesignFactor, ...]:
+        return tuple(f for f in self.factors if not isinstance(f, FixedFactor))
+
+    @property
+    def fixed_factors(self) -> tuple[FixedFactor, ...]:
+        return tuple(f for f in self.factors if isinstance(f, FixedFactor))
+
+    @property
+    def blind_factor(self) -> CategoricalFactor | None:
+        return next((f for f in self.factors if isinstance(f, CategoricalFactor) and f.blind), None)
+
+    def with_factor(self, factor: Factor) -> StudySpec:
+        """The same spec with the factor of the same name replaced."""
+        return replace(self, factors=tuple(factor if f.name == factor.name else f for f in self.factors))
+
+
+def read_spec(path: Path) -> StudySpec:
+    """Parse and validate a study.toml; DesignError names the file, line or field."""
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DesignError(f"no study spec at {path}") from None
+    except UnicodeDecodeError as exc:
+        raise DesignError(f"malformed {path.name}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"malformed {path.name}: {exc}") from None
+    return spec_from_dict(data, source=path.name)
+
+
+def spec_from_dict(data: dict[str, Any], source: str = "study.toml") -> StudySpec:
+    """Validate the parsed TOML tables of a spec."""
+    study = _table(data, "study", source)
+    unknown = set(data) - {"study", "factors"}
+    if unknown:
+        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study] and [[factors]])")
+    raw_factors = data.get("factors")
+    if not isinstance(raw_factors, list) or not raw_factors:
+        raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")
+    factors = tuple(_factor(raw, f"{source}: factors[{i}]") for i, raw in enumerate(raw_factors))
+    names = [f.name for f in factors]
+    for name in names:
+        if names.count(name) > 1:
+            raise DesignError(f"{source}: two factors are named {name!r}")
+    blind = [f for f in factors if isinstance(f, CategoricalFactor) and f.blind]
+    if len(blind) > 1:
+        raise DesignError(f"{source}: only one factor can be blind, got {[f.name for f in blind]}")
+    if not any(not isinstance(f, FixedFactor) for f in factors):
+        raise DesignError(f"{source}: every factor is fixed; a design needs at least one varying factor")
+    allowed = {"name", "runs", "model", "seed", "starts", "snr", "alpha"}
+    _no_unknown_keys(study, allowed, f"{source}: [study]")
+    return StudySpec(
+        name=_string(study, "name", f"{source}: [study]", default="study"),
+        factors=factors,
+        model=_string(study, "model", f"{source}: [study]", default="main"),
+        runs=_integer(study, "runs", f"{source}: [study]", minimum=1),
+        seed=_integer(study, "seed", f"{source}: [study]", minimum=0, required=False),
+        starts=_integer(study, "starts", f"{source}: [study]", minimum=1, required=False) or DEFAULT_STARTS,
+        snr=_number(study, "snr", f"{source}: [study]", default=1.0),
+        alpha=_number(study, "alpha", f"{source}: [study]", default=0.05),
+        arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
+    )
+
+
+def spec_to_toml(spec: StudySpec) -> str:
+    """The spec as TOML; a blinded factor lists only its arm labels (`arms`)."""
+    study: dict[str, Any] = {"name": spec.name, "runs": spec.runs, "model": spec.model}
+    if spec.seed is not None:
+        study["seed"] = spec.seed
+    study.update(starts=spec.starts, snr=spec.snr, alpha=spec.alpha)
+    return tomli_w.dumps({"study": study, "factors": [factor_table(f) for f in spec.factors]})
+
+
+def factor_table(factor: Factor) -> dict[str, Any]:
+    """One [[factors]] table; a blind factor lists its arm labels as `arms`."""
+    table: dict[str, Any] = {"name": factor.name, "type": factor.kind}
+    if isinstance(factor, ContinuousFactor):
+        table.update(low=plain(factor.low), high=plain(factor.high))
+    elif isinstance(factor, DiscreteFactor):
+        table["levels"] = [plain(v) for v in factor.levels]
+    elif isinstance(factor, CategoricalFactor):
+        table.update({"blind": True, "arms": list(factor.levels)} if factor.blind else {"levels": list(factor.levels)})
+    else:
+        table["value"] = plain(factor.value)
+    if getattr(factor, "units", ""):
+        table["units"] = factor.units
+    return table
+
+
+def _factor(raw: Any, where: str) -> Factor:
+    if not isinstance(raw, dict):
+        raise DesignError(f"{where}: expected a table with name and type")
+    name = _string(raw, "name", where)
+    where = f"{where} ({name})"
+    if not name.isidentifier():
+        raise DesignError(f"{where}: factor names must be letters, digits and _ (no spaces), got {name!r}")
+    kind = _string(raw, "type", where)
+    if kind not in FACTOR_TYPES:
+        raise DesignError(f"{where}: unknown factor type {kind!r} (expected {', '.join(FACTOR_TYPES)})")
+    units = _string(raw, "units", where, default="")
+    common = {"name", "type", "units"}
+    factor: Factor
+    if kind == "continuous":
+        _no_unknown_keys(raw, common | {"low", "high"}, where)
+        factor = ContinuousFactor(name, _number(raw, "low", where), _number(raw, "high", where), units)
+    elif kind == "discrete":
+        _no_unknown_keys(raw, common | {"levels"}, where)
+        levels = _levels(raw, where)
+        for level in levels:
+            if not isinstance(level, Real) or isinstance(level, bool):
+                raise DesignError(f"{where}: level {level!r} is not a number; a discrete numeric factor needs numeric levels")
+        factor = DiscreteFactor(name, tuple(float(v) for v in levels), units)
+    elif kind == "categorical":
+        _no_unknown_keys(raw, common | {"levels", "blind", "arms"}, where)
+        blind = raw.get("blind", False)
+        if not isinstance(blind, bool):
+            raise DesignError(f"{where}: blind must be true or false, got {blind!r}")
+        key = "arms" if "arms" in raw else "levels"
+        if key == "arms" and not blind:
+            raise DesignError(f"{where}: arms are only for a blind factor; use levels")
+        levels = _levels(raw, where, key)
+        factor = CategoricalFactor(name, tuple(str(v) for v in levels), blind)
+    else:
+        _no_unknown_keys(raw, common | {"value"}, where)
+        if "value" not in raw:
+            raise DesignError(f"{where}: a fixed factor needs a value")
+        value = raw["value"]
+        if isinstance(value, bool) or not isinstance(value, (Real, str)):
+            raise DesignError(f"{where}: value must be a number or a string, got {value!r}")
+        factor = FixedFactor(name, float(value) if isinstance(value, Real) else value, units)
+    validate_factor(factor, where)
+    return factor
+
+
+def _table(data: dict[str, Any], key: str, source: str) -> dict[str, Any]:
+    value = data.get(key)
+    if not isinstance(value, dict):
+        raise DesignError(f"{source}: missing [{key}] table")
+    return value
+
+
+def _no_unknown_keys(raw: dict[str, Any], allowed: set[str], where: str) -> None:
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise DesignError(f"{where}: unknown field {unknown[0]!r} (expected {', '.join(sorted(allowed))})")
+
+
+def _levels(raw: dict[str, Any], where: str, key: str = "levels") -> list[Any]:
+    levels = raw.get(key)
+    if not isinstance(levels, list):
+        raise DesignError(f"{where}: {key} must be a list, got {levels!r}")
+    return levels
+
+
+def _string(raw: dict[str, Any], key: str, where: str, default: str | None = None) -> str:
+    value = raw.get(key, default)
+    if not isinstance(value, str) or (default is None and not value.strip()):
+        raise DesignError(f"{where}: {key} must be a non-empty string, got {value!r}")
+    return value
+
+
+def _number(raw: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
+    value = raw.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise DesignError(f"{where}: {key} must be a number, got {value!r}")
+    return float(value)
+
+
+def _integer(raw: dict[str, Any], key: str, where: str, minimum: int, required: bool = True) -> int | None:
+    value = raw.get(key)
+    if value is None and not required:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise DesignError(f"{where}: {key} must be an integer >= {minimum}, got {value!r}")
+    return value

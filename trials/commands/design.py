@@ -1,0 +1,76 @@
+"""`trials design`: build a D-optimal, randomized (and blinded) plan into the study folder."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "design",
+        help="make a D-optimal, randomized, optionally blinded run plan",
+        description=(
+            "Build the study's plan: the paper's 27-run qualitative plan by default, the 18-run "
+            "blinded A/B plan with --ab, or any study from a study.toml. Writes study.toml, "
+            "plan.csv, design.json, correlation_map.png (and sealed/ when blinded)."
+        ),
+    )
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--ab", action="store_true", help="the paper's blinded A/B plan (NaviGAN-R vs the lattice planner)")
+    source.add_argument("--spec", type=Path, metavar="FILE", help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
+    parser.add_argument("--runs", type=int, help="number of runs (presets: 27, or 18 with --ab)")
+    parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
+    parser.add_argument("--seed", type=int, help="seed of the design search, run order and run codes (default: drawn and recorded)")
+    parser.add_argument("--starts", type=int, help="random starts of the exchange algorithm (default 100)")
+    parser.add_argument("--snr", type=float, help="signal-to-noise ratio for the power table (default 1)")
+    parser.add_argument("--allocation-seed", type=int, help="seed of the blind allocation (default: a fresh secret one, sealed)")
+    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from designs import presets
+    from designs.export import summary_lines
+    from designs.plan import build_plan
+    from designs.spec import read_spec
+    from trials.design_files import SEALED_SPEC, write_design
+    from trials.errors import StudyError
+    from trials.study import ALLOCATION, PUBLIC_STUDY_FILES, SPEC, StudyFolder
+
+    folder = StudyFolder(args.study)
+    own_spec = folder.path(SPEC)
+    spec_path = args.spec or (own_spec if own_spec.exists() and not args.ab else None)
+    if spec_path is not None:
+        spec = read_spec(spec_path)
+    else:
+        spec = presets.ab() if args.ab else presets.qualitative()
+    overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr}
+    spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
+
+    replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
+    if (folder.has_plan() or replaces_own_spec) and not args.force:
+        what = "a plan" if folder.has_plan() else f"a different {SPEC}"
+        raise StudyError(f"{folder.root.resolve()} already has {what}; pass --force to replace it (the old files move to superseded/)")
+    if spec.arms_sealed:
+        sealed = folder.read_sealed()
+        blind = spec.blind_factor
+        assert blind is not None
+        spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
+
+    plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
+    names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
+    original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
+    moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
+    written = write_design(folder, plan, original)
+
+    print("\n".join(summary_lines(plan)))
+    print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
+    if plan.sealed is not None:
+        print("The allocation key is in sealed/: keep it closed until the study is unblinded (trials report --unblind).")
+    if moved is not None:
+        print(f"The previous plan and its results moved to {moved}")
+    return 0
