@@ -161,13 +161,15 @@ def test_start_on_an_obstacle_is_in_collision():
 def test_budget_spent_before_the_goal_gives_the_best_partial_path(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
-    planner.plan(budget=60.0)  # compiled and warm
-    result = planner.plan(eps=1.0, budget=0.05)  # plain A* needs about 0.2 s here
-    assert result.status == "partial" and "no path to the goal within 0.05 s" in result.message
-    assert result.iterations == [] and result.expansions > 0
-    assert result.seconds < 0.05 + 0.2  # the clock is read every 1024 expansions
+    runs = [planner.plan(eps=1.0, budget=60.0) for _ in range(3)]  # plain A*: about 150 000 expansions
+    full = runs[-1]
+    budget = min(r.heuristic_seconds for r in runs) + 0.1 * min(r.iterations[0].seconds for r in runs)
+    result = planner.plan(eps=1.0, budget=budget)
+    assert result.status == "partial" and f"no path to the goal within {budget:g} s" in result.message
+    assert result.iterations == [] and 0 < result.expansions < full.expansions
+    assert result.seconds < budget + 0.2  # the clock is read every 1024 expansions
     start, nearest = result.states[0], result.states[-1]
-    assert start == (20, 100, 0) and nearest[0] > start[0] + 20  # well on its way towards x = 380
+    assert start == (20, 100, 0) and nearest[0] > start[0] + 10  # on its way towards x = 380
     assert len(result.poses) > 1 and result.cost > 0
 
 
