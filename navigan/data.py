@@ -167,7 +167,7 @@ class SceneBatch:
         """(K, A, T_PRED, 2) the future positions of each target's scene and (K, A) which of them
         are real agents other than the target."""
         b, a = self.mask.nonzero(as_tuple=True)
-        others = self.mask[b] & (torch.arange(self.mask.shape[1]) != a.unsqueeze(1))
+        others = self.mask[b] & (torch.arange(self.mask.shape[1], device=self.mask.device) != a.unsqueeze(1))
         return self.future[b], others
 
     def to(self, device: str | torch.device) -> SceneBatch:

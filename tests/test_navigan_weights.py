@@ -1,0 +1,48 @@
+"""The shipped weights: complete, reproducible from their records, small, and better than constant velocity."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from navigan import checkpoint as ckpt
+from navigan.data import SPLITS, Scenes, load_split
+from navigan.evaluation import evaluate, evaluate_constant_velocity
+
+MODELS = ("goal-social-lstm", "navil2", "navigan", "navigan-r")
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """Tiny tensors run fastest on one thread, and a shared 2-core machine thrashes with more."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def test_every_model_and_split_is_shipped_with_its_record():
+    expected = {f"{m}-{s}.pt" for m in MODELS for s in SPLITS} | {"navigan-r-all.pt"}
+    assert {p.name for p in ckpt.WEIGHTS_DIR.glob("*.pt")} == expected
+    total = 0
+    for name in sorted(expected):
+        path = ckpt.WEIGHTS_DIR / name
+        total += path.stat().st_size
+        record = ckpt.load(path)
+        model, split = record.model.model, record.split["name"]
+        assert name == f"{model}-{split}.pt"
+        assert record.finished in ("early stopping", "epoch limit") and record.state is None
+        assert record.command.startswith(f"trials train --model {model} --split {split} ")
+        assert f"--seed {record.train.seed}" in record.command
+        assert record.split["train"] and record.split["val"]
+        assert record.best["epoch"] <= record.epoch == len(record.history)
+    assert total < 8 * 2**20
+
+
+@pytest.mark.parametrize("split", SPLITS)
+def test_shipped_navigan_r_beats_constant_velocity(split, eth_ucy_dir):
+    test = Scenes.from_files(load_split(eth_ucy_dir, split).test)
+    model = evaluate(ckpt.load(ckpt.shipped("navigan-r", split)).build_generator(), test, seed=0)
+    baseline = evaluate_constant_velocity(test)
+    assert model["ade"] < baseline["ade"]
+    assert model["fde"] < baseline["fde"]
