@@ -95,15 +95,15 @@ class LatticeController:
                  horizon_steps: int = T_PRED, window_margin: float = 4.0, goal_tolerance: float = 0.3,
                  footprint: Polygon = HUSKY_FOOTPRINT, primitives: PrimitiveSet | None = None,
                  speed: float = HUSKY_SPEED, turn_45_s: float = HUSKY_TURN_45_S) -> None:
-        for field, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
-                             ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps), ("eps_step", eps_step)):
+        for option, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
+                              ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps), ("eps_step", eps_step)):
             if not value > 0:
-                raise LatticeError(f"lattice controller: {field} must be positive, got {value}")
-        for field, value in (("pedestrian_radius", pedestrian_radius), ("comfort_margin", comfort_margin),
-                             ("predict_s", predict_s), ("window_margin", window_margin),
-                             ("goal_tolerance", goal_tolerance)):
+                raise LatticeError(f"lattice controller: {option} must be positive, got {value}")
+        for option, value in (("pedestrian_radius", pedestrian_radius), ("comfort_margin", comfort_margin),
+                              ("predict_s", predict_s), ("window_margin", window_margin),
+                              ("goal_tolerance", goal_tolerance)):
             if not value >= 0:
-                raise LatticeError(f"lattice controller: {field} must not be negative, got {value}")
+                raise LatticeError(f"lattice controller: {option} must not be negative, got {value}")
         if not eps >= 1:
             raise LatticeError(f"lattice controller: eps must be at least 1, got {eps}")
         self.cell_size, self.pedestrian_radius, self.comfort_margin = cell_size, pedestrian_radius, comfort_margin
@@ -114,7 +114,6 @@ class LatticeController:
                                      INSCRIBED_THRESH, CIRCUMSCRIBED_THRESH, speed, turn_45_s)
         self.actions = build_actions(prims, self._template, footprint)
         self.inscribed = inscribed_radius(self.actions.polygon)
-        self.seed = 0
         self.reset(0)
         self._warm_up()
 

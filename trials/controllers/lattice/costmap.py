@@ -46,7 +46,8 @@ class Window:
 
     def contains(self, xy: np.ndarray, border: float = 0.0) -> bool:
         x, y = self.to_local(xy)
-        return border <= x < self.width * self.cell_size - border and border <= y < self.height * self.cell_size - border
+        width, height = self.width * self.cell_size, self.height * self.cell_size
+        return border <= x < width - border and border <= y < height - border
 
 
 def predicted_centres(history: np.ndarray, horizon_s: float, step: float = STEP_S) -> np.ndarray:
@@ -64,7 +65,8 @@ def predicted_centres(history: np.ndarray, horizon_s: float, step: float = STEP_
     return np.array(centres, dtype=np.float64).reshape(-1, 2)
 
 
-def pedestrian_costmap(window: Window, centres: np.ndarray, lethal_radius: float, inscribed_radius: float) -> np.ndarray:
+def pedestrian_costmap(window: Window, centres: np.ndarray, lethal_radius: float,
+                       inscribed_radius: float) -> np.ndarray:
     """A (height, width) uint8 grid: LETHAL within `lethal_radius` of any centre, INSCRIBED within
     `lethal_radius + inscribed_radius`, FREE elsewhere (distances from cell centres)."""
     grid = np.zeros((window.height, window.width), dtype=np.uint8)

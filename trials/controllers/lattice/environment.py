@@ -7,7 +7,7 @@ so that costs computed from them match SBPL's to the last integer.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -107,10 +107,6 @@ class Environment:
     def on_map(self, x: int, y: int) -> bool:
         return 0 <= x < self.width and 0 <= y < self.height
 
-    def with_problem(self, start: tuple[float, float, float], goal: tuple[float, float, float]) -> Environment:
-        """The same environment with another start and goal."""
-        return replace(self, start=tuple(map(float, start)), goal=tuple(map(float, goal)))
-
 
 def read_cfg(path: Path) -> Environment:
     """Read an SBPL nav3d environment `.cfg` (the layout SBPL's ReadConfiguration accepts).
@@ -147,7 +143,7 @@ def read_cfg(path: Path) -> Environment:
                           f"({height} rows of {width} cell values)", 0, MAX_CELL_COST)
     tok.end(f"{height} map rows of {width} values")
     return Environment(
-        grid=values.astype(np.uint8).reshape(height, width), cell_size=cell_size, num_thetas=num_thetas, obsthresh=obsthresh,
-        cost_inscribed_thresh=inscribed, cost_possibly_circumscribed_thresh=circumscribed,
+        grid=values.astype(np.uint8).reshape(height, width), cell_size=cell_size, num_thetas=num_thetas,
+        obsthresh=obsthresh, cost_inscribed_thresh=inscribed, cost_possibly_circumscribed_thresh=circumscribed,
         nominal_vel=nominal_vel, time_to_turn_45=turn45, start=poses[0], goal=poses[1],
     )

@@ -23,9 +23,6 @@ from trials.controllers.lattice.search import AraStar, Iteration, Tables, Thresh
 
 State = tuple[int, int, int]
 
-#: Outcomes that mean no search was run: the request itself cannot be served.
-REFUSED = ("start_outside_map", "goal_outside_map", "start_in_collision", "goal_in_collision")
-
 
 @dataclass
 class PlanResult:
@@ -33,8 +30,9 @@ class PlanResult:
 
     Attributes:
         status: "solved", "partial" (budget spent before reaching the goal; the path leads to the
-            expanded state nearest the goal), "no_path" (none exists; path as for partial), or one
-            of REFUSED (nothing searched, empty path).
+            expanded state nearest the goal), "no_path" (none exists; path as for partial), or, with
+            nothing searched and an empty path, "start_outside_map", "goal_outside_map",
+            "start_in_collision" or "goal_in_collision".
         message: one line saying what happened.
         poses: (K, 3) world x, y, theta along the path (cell centres plus primitive poses).
         times: (K,) seconds at which the robot passes each pose at nominal speed.
@@ -141,7 +139,8 @@ class LatticePlanner:
                                    self._state_id(goal), eps, eps_step, final_eps, deadline=t0 + budget)
         states = [(*self.grid.xy(s // n), s % n) for s in found.states]
         actions, poses, times = self._trace(states)
-        message = {"solved": f"path of cost {found.cost} within eps {found.eps:g} of optimal",
+        bound = "no bound yet" if math.isinf(found.eps) else f"within eps {found.eps:g} of optimal"
+        message = {"solved": f"path of cost {found.cost} {bound}",
                    "partial": f"no path to the goal within {budget:g} s; the path leads to the state nearest it",
                    "no_path": "no path to the goal exists; the path leads to the reachable state nearest it",
                    }[found.status]
@@ -156,6 +155,8 @@ class LatticePlanner:
         t, th = self.tables, self.thresholds
         cell = self.grid.index(source[0], source[1])
         best = (-1, -1)
+        if self.grid.values[cell] >= th.obsthresh:
+            return best
         for action in range(source[2] * t.per_heading, (source[2] + 1) * t.per_heading):
             dx, dy, heading = self.actions.end.reshape(-1, 3)[action]
             if (source[0] + dx, source[1] + dy, heading) != tuple(target):
@@ -181,7 +182,7 @@ class LatticePlanner:
             times.extend(clock + duration * np.arange(len(prim.poses) - 1) / (len(prim.poses) - 1))
             clock += duration
         if states:
-            x, y, t = states[-1]
+            x, y, _ = states[-1]
             last = self.actions.primitives[actions[-1][0]][actions[-1][1]].poses[-1, 2] if actions else \
                 self.env.to_pose(states[-1])[2]
             poses.append(np.array([cell_to_cont(x, cs), cell_to_cont(y, cs), last]))
