@@ -126,10 +126,11 @@ class LatticeController:
         self._goal_heading = 0
 
     def _warm_up(self) -> None:
-        """Load the compiled search once, so that no trial step pays for it."""
+        """Compile (or load) every compiled function once, so that no trial step pays for it: a small
+        search with no time limit, run down to epsilon 1."""
         middle = self.actions.reach + 2
         planner = self._new_planner(Window((0.0, 0.0), self.cell_size, 2 * middle + 8, 2 * middle))
-        planner.plan((middle, middle, 0), (middle + 8, middle, 0), budget=self.budget_s * 20)
+        planner.plan((middle, middle, 0), (middle + 8, middle, 0), budget=math.inf)
 
     def _new_planner(self, window: Window) -> LatticePlanner:
         grid = np.zeros((window.height, window.width), np.uint8)

@@ -12,9 +12,10 @@ import numpy as np
 from numba import njit
 
 
-def new_heap(capacity: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Empty heap arrays for up to `capacity` items numbered 0..capacity-1: keys, items, size."""
-    return np.zeros(capacity + 1, np.int64), np.zeros(capacity + 1, np.int64), np.zeros(1, np.int64)
+def new_heap(capacity: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Empty heap arrays for up to `capacity` items numbered 0..capacity-1: keys, items, pos, size."""
+    return (np.zeros(capacity + 1, np.int64), np.zeros(capacity + 1, np.int32), np.zeros(capacity, np.int32),
+            np.zeros(1, np.int64))
 
 
 @njit(cache=True, inline="always")

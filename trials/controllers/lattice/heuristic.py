@@ -36,8 +36,8 @@ def move_lengths_mm(cell_size: float) -> np.ndarray:
 def _dijkstra(values, source, target, block, moves, through, lengths, g):
     """Costs from `source` into `g`; returns the bound given to cells it did not settle."""
     n = values.size
-    keys, items, size = np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int64), np.zeros(1, np.int64)
-    pos = np.zeros(n, np.int64)
+    keys, items, pos, size = np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int32), np.zeros(n, np.int32), \
+        np.zeros(1, np.int64)
     closed = np.zeros(n, np.bool_)
     g[:] = INFINITE_COST
     g[source] = 0

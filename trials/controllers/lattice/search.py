@@ -190,11 +190,10 @@ class AraStar:
     def __init__(self, num_cells: int, tables: Tables, thresholds: Thresholds) -> None:
         self.tables, self.thresholds = tables, thresholds
         n = num_cells * tables.num_thetas
-        self.g, self.v, self.pred = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+        self.g, self.v, self.pred = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int32)
         self.closed, self.seen = np.zeros(n, np.int32), np.zeros(n, np.int32)
-        self.keys, self.items, self.size = new_heap(n)
-        self.pos = np.zeros(n, np.int64)
-        self.incons, self.n_incons, self.in_incons = np.empty(n, np.int64), np.zeros(1, np.int64), np.zeros(n, np.int8)
+        self.keys, self.items, self.pos, self.size = new_heap(n)
+        self.incons, self.n_incons, self.in_incons = np.empty(n, np.int32), np.zeros(1, np.int64), np.zeros(n, np.int8)
         self.call = 0
 
     def search(self, values: np.ndarray, clear2: np.ndarray, hcell: np.ndarray, start: int, goal: int,
