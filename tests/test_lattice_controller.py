@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -45,6 +47,7 @@ def test_open_floor_drives_straight_at_nominal_speed(fresh):
     assert record["status"] == "solved" and record["eps"] == 1.0 and not record["holding"]
     assert record["expansions"] > 0 and record["cost"] > 0 and record["margin"] == 0.2
     assert 0 < record["plan_seconds"] <= fresh.budget_s
+    assert json.loads(json.dumps(record)) == record  # loggable as it is
 
 
 def test_detours_round_a_standing_pedestrian(fresh):
