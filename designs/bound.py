@@ -5,13 +5,17 @@
 
 Its optimum bounds every exact design: det(X'X / n) <= det(M(w*)) for any n runs drawn from
 the candidates, so 100 * det(M(w*))^(1/p) is the D-efficiency no exact design can beat.
+
+cvxpy takes about a second to import, so `solve_in_background` runs the solve in a forked
+worker process while the caller searches the exact design.
 """
 
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 
 from designs.errors import DesignError
@@ -32,6 +36,8 @@ class ApproximateDesign:
 
 def approximate_d_optimal(rows: np.ndarray) -> ApproximateDesign:
     """Solve the D-optimal weights for candidate model rows (N, p)."""
+    import cvxpy as cp
+
     n_candidates, p = rows.shape
     w = cp.Variable(n_candidates, nonneg=True)
     information = rows.T @ cp.diag(w) @ rows
@@ -45,3 +51,18 @@ def approximate_d_optimal(rows: np.ndarray) -> ApproximateDesign:
     if sign <= 0:
         raise DesignError("the model cannot be estimated from the candidate set (its information matrix is singular)")
     return ApproximateDesign(weights, float(log_det), p)
+
+
+def solve_in_background(rows: np.ndarray) -> Future[ApproximateDesign]:
+    """Start `approximate_d_optimal(rows)` in a forked worker; solve here where fork is missing."""
+    if "fork" not in multiprocessing.get_all_start_methods():
+        future: Future[ApproximateDesign] = Future()
+        try:
+            future.set_result(approximate_d_optimal(rows))
+        except DesignError as exc:
+            future.set_exception(exc)
+        return future
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"))
+    future = pool.submit(approximate_d_optimal, rows)
+    pool.shutdown(wait=False)
+    return future

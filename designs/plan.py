@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import secrets
+from concurrent.futures import Future
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from designs.blinding import SealedAllocation, arm_labels, seal
-from designs.bound import ApproximateDesign, approximate_d_optimal
+from designs.bound import ApproximateDesign, solve_in_background
 from designs.diagnostics import Diagnostics, diagnose
-from designs.exchange import ExactDesign, candidate_set, d_optimal
+from designs.exchange import ExactDesign, candidate_set, check_runs, d_optimal
 from designs.model import Model, parse_model
 from designs.spec import StudySpec
 
@@ -36,10 +37,15 @@ class StudyPlan:
     spec: StudySpec
     model: Model
     design: ExactDesign
-    bound: ApproximateDesign
+    bound_job: Future[ApproximateDesign]
     diagnostics: Diagnostics
     runs: tuple[PlannedRun, ...]
     sealed: SealedAllocation | None
+
+    @property
+    def bound(self) -> ApproximateDesign:
+        """The cvxpy bound (waits for its background solve on first use)."""
+        return self.bound_job.result()
 
     @property
     def seed(self) -> int:
@@ -66,9 +72,10 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
     model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    check_runs(model, spec.runs)
+    bound_job = solve_in_background(model.matrix(candidate_set(model)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
     design = d_optimal(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts)
-    bound = approximate_d_optimal(model.matrix(candidate_set(model)))
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr)
     order = np.random.default_rng(order_seed).permutation(spec.runs)
     codes = run_codes(spec.runs, np.random.default_rng(code_seed))
@@ -76,7 +83,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
         PlannedRun(position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
-    return StudyPlan(spec, model, design, bound, diagnostics, runs, sealed)
+    return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed)
 
 
 def run_codes(count: int, rng: np.random.Generator) -> list[str]:

@@ -31,13 +31,13 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     writer.writerow(header)
     writer.writerows(rows)
     d = plan.diagnostics
+    # The figure first: it does not need the cvxpy bound, which may still be solving.
+    figure = correlation_map_png(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns")
     public = {
         folder.path(SPEC): spec_to_toml(plan.spec).encode(),
         folder.path(PLAN): table.getvalue().encode(),
         folder.path(DESIGN): (json.dumps(design_record(plan, created), indent=1) + "\n").encode(),
-        folder.path(CORRELATION_MAP): correlation_map_png(
-            d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns"
-        ),
+        folder.path(CORRELATION_MAP): figure,
     }
     secret: dict[Path, bytes] = {}
     if plan.sealed is not None:

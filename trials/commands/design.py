@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
     from designs.export import summary_lines
     from designs.plan import build_plan
     from designs.spec import read_spec
-    from trials.design_files import SEALED_SPEC, write_design
     from trials.errors import StudyError
     from trials.study import ALLOCATION, PUBLIC_STUDY_FILES, SPEC, StudyFolder
 
@@ -62,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
     plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
+    # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
+    from trials.design_files import SEALED_SPEC, write_design
+
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
