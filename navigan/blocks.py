@@ -49,7 +49,9 @@ class PoolNet(nn.Module):
         self.nn_pos = nn.Linear(2, embed)
         self.nn_embed = nn.Sequential(nn.Linear(embed + features, out), nn.ReLU())
 
-    def forward(self, positions: torch.Tensor, features: torch.Tensor, mask: torch.Tensor, centres: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, positions: torch.Tensor, features: torch.Tensor, mask: torch.Tensor, centres: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """Pool over each scene's other agents, at every step.
 
         Args:
@@ -63,7 +65,8 @@ class PoolNet(nn.Module):
             (B, A, S, out) V_i for every agent i.
         """
         layer = self.nn_embed[0]
-        w_pos, w_features = layer.weight.split([self.nn_pos.out_features, layer.in_features - self.nn_pos.out_features], dim=1)
+        embed = self.nn_pos.out_features
+        w_pos, w_features = layer.weight[:, :embed], layer.weight[:, embed:]
         position_map = w_pos @ self.nn_pos.weight
         bias = w_pos @ self.nn_pos.bias + layer.bias
         per_agent = F.linear(positions, position_map) + F.linear(features, w_features, bias)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 from pathlib import Path
 
 BASELINES = ("constant-velocity",)
@@ -28,18 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--split", help="eth, hotel, univ, zara1 or zara2 (default: the checkpoint's own)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
-    parser.add_argument("--data", type=Path, metavar="DIR", help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
-    parser.add_argument("--json", type=Path, metavar="FILE", help="where to write the result (default: NAME-SPLIT-eval.json here)")
+    parser.add_argument("--data", type=Path, metavar="DIR",
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+    parser.add_argument("--json", type=Path, metavar="FILE",
+                        help="where to write the result (default: NAME-SPLIT-eval.json here)")
     parser.set_defaults(handler=run)
-
-
-def write_json(path: Path, record: dict) -> None:
-    """Write atomically (temporary file, then rename)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        json.dump(record, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, path)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.data import ALL_SCENES, Scenes, data_dir, load_split
     from navigan.errors import NaviganError
     from navigan.evaluation import evaluate, evaluate_constant_velocity
+    from trials.atomic import write_text
 
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
@@ -86,6 +78,6 @@ def run(args: argparse.Namespace) -> int:
     for row_label, m in rows:
         print(f"  {row_label:<20} ADE {m['ade']:.3f} m   FDE {m['fde']:.3f} m")
     out = args.json or Path(f"{name}-{split_name}-eval.json")
-    write_json(out, record)
+    write_text(out, json.dumps(record, indent=1) + "\n")
     print(f"wrote {out}")
     return 0

@@ -23,13 +23,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--model", required=True, choices=MODELS, help="which model of the family")
     parser.add_argument("--split", required=True, help="eth, hotel, univ, zara1, zara2, or all (every scene)")
     parser.add_argument("--epochs", type=int, default=500, help="most epochs (default 500, as the paper)")
-    parser.add_argument("--patience", type=int, help="stop after this many epochs without a better validation loss (default: never)")
-    parser.add_argument("--batch", type=int, default=32, help="target agents per batch, whole scenes (default 32, as the paper)")
+    parser.add_argument("--patience", type=int,
+                        help="stop after this many epochs without a better validation loss (default: never)")
+    parser.add_argument("--batch", type=int, default=32,
+                        help="target agents per batch, whole scenes (default 32, as the paper)")
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
-    parser.add_argument("--data", type=Path, metavar="DIR", help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+    parser.add_argument("--data", type=Path, metavar="DIR",
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
     parser.add_argument("--out", type=Path, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(handler=run)
