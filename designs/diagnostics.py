@@ -17,10 +17,9 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 from scipy.special import fdtri, ncfdtr
 
-from designs.factors import ContinuousFactor
+from designs.exchange import squared_continuous
 from designs.model import Model
 
 #: Levels per continuous factor of the grid searched for the largest prediction variance.
@@ -106,19 +105,19 @@ def moment_matrix(model: Model) -> np.ndarray:
 def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     """The largest relative prediction variance x'(X'X)^-1 x over the design region.
 
-    A grid over the region (21 values per continuous factor) is searched first; the best
-    grid points are then polished over their continuous coordinates with L-BFGS-B.
+    The variance is convex in any coordinate that enters the model linearly, so the candidate
+    grid holds its maximum unless a continuous factor is squared; then a grid of 21 values per
+    such factor is searched and its best points are polished with L-BFGS-B.
     """
-    continuous = [i for i, f in enumerate(model.factors) if isinstance(f, ContinuousFactor)]
-    grids = [np.linspace(-1, 1, _REGION_GRID) if i in continuous else f.candidate_settings for i, f in enumerate(model.factors)]
+    squared = squared_continuous(model)
+    grids = [np.linspace(-1, 1, _REGION_GRID) if i in squared else f.candidate_settings for i, f in enumerate(model.factors)]
     if np.prod([len(g) for g in grids]) > _MAX_REGION_POINTS:
         grids = [f.candidate_settings for f in model.factors]
     points = np.array(list(itertools.product(*grids)))
     variance = _prediction_variance(model, inv, points)
     best = float(variance.max())
-    if continuous:
-        for start in points[np.argsort(variance)[-5:]]:
-            best = max(best, _polish(model, inv, start, continuous))
+    for start in points[np.argsort(variance)[-5:]] if squared else ():
+        best = max(best, _polish(model, inv, start, squared))
     return best
 
 
@@ -128,6 +127,8 @@ def _prediction_variance(model: Model, inv: np.ndarray, points: np.ndarray) -> n
 
 
 def _polish(model: Model, inv: np.ndarray, start: np.ndarray, continuous: list[int]) -> float:
+    from scipy.optimize import minimize  # only models with squared continuous factors need it
+
     def negative(values: np.ndarray) -> float:
         point = start.copy()
         point[continuous] = values
