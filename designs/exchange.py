@@ -13,8 +13,9 @@ Continuous factors: when every term is linear in each continuous factor, the del
 one coordinate is convex in it, so some optimum has every continuous coordinate at -1 or +1
 and the candidate grid suffices. When a continuous factor is squared, the optimum may lie
 off the grid (Box & Draper's 6-run quadratic design is one), so those starts draw continuous
-coordinates uniformly and alternate a coordinate exchange over the whole range, maximising
-the delta exactly (a quartic in the coordinate), with the candidate exchange.
+coordinates uniformly and alternate three steps: a coordinate exchange over the whole range
+(each move maximises the delta exactly: it is a quartic in the coordinate), a joint polish of
+all those coordinates by L-BFGS-B on log det(X'X), and the candidate exchange.
 """
 
 from __future__ import annotations
@@ -30,12 +31,10 @@ from designs.model import Model
 
 #: A swap must raise det(X'X) by this relative margin to count, so loops always end.
 _MIN_GAIN = 1e-9
-#: Coordinate moves converge slowly near an off-grid optimum: starts stop at this relative
-#: gain, and only the best design is polished down to the finer one.
-_COORDINATE_GAIN = 1e-7
-_POLISH_GAIN = 1e-12
-#: Two log-determinants this close are the same optimum (D-efficiencies agree to ~1e-5 %).
-LOG_DET_TOL = 1e-5
+#: Coordinate jumps are taken while they gain this much; the joint polish does the fine work.
+_COORDINATE_GAIN = 1e-4
+#: Two log-determinants this close are the same optimum.
+LOG_DET_TOL = 1e-7
 #: Coordinate values at which the quartic delta is sampled, and the fine grid it is maximised on.
 _PROBES = np.array([-1.0, -0.5, 0.0, 0.5, 1.0])
 _PROBE_INVERSE = np.linalg.inv(np.vander(_PROBES, 5, increasing=True))
@@ -106,10 +105,6 @@ def d_optimal(model: Model, runs: int, *, seed: int, starts: int = 100) -> Exact
             best_settings, best = settings, log_det
     if not np.isfinite(best):
         raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular)")
-    if squared:
-        x = model.matrix(best_settings)
-        _coordinate_exchange(model, x, best_settings, squared, _POLISH_GAIN)
-        best = max(best, float(np.linalg.slogdet(x.T @ x)[1]))
     return ExactDesign(best_settings, best, ends, seed)
 
 
@@ -122,22 +117,26 @@ def squared_continuous(model: Model) -> list[int]:
 def _optimise(
     model: Model, settings: np.ndarray, candidates: np.ndarray, rows: np.ndarray, squared: list[int]
 ) -> tuple[np.ndarray, float]:
-    """Alternate coordinate exchange (squared continuous factors) and candidate exchange."""
+    """Alternate coordinate exchange and joint polish (squared continuous factors) with candidate exchange."""
     x = model.matrix(settings)
     while True:
         moved = bool(squared) and _coordinate_exchange(model, x, settings, squared, _COORDINATE_GAIN)
         swapped = _exchange(x, settings, candidates, rows)
-        if not (squared and (moved or swapped)):
+        if not squared or (not (moved or swapped) and not _polish(model, x, settings, squared)):
             break
     sign, log_det = np.linalg.slogdet(x.T @ x)
     return settings, float(log_det) if sign > 0 else -np.inf
 
 
+def _singular(info: np.ndarray) -> bool:
+    sign, log_det = np.linalg.slogdet(info)
+    return bool(sign <= 0 or log_det < -30.0)
+
+
 def _inverse_information(x: np.ndarray) -> np.ndarray:
     """(X'X)^-1, with a small ridge while X'X is singular so that exchange can leave it."""
     info = x.T @ x
-    sign, log_det = np.linalg.slogdet(info)
-    if sign <= 0 or log_det < -30.0:
+    if _singular(info):
         info = info + 1e-6 * max(1.0, np.trace(info) / len(info)) * np.eye(len(info))
     return np.linalg.inv(info)
 
@@ -160,10 +159,15 @@ def _exchange(x: np.ndarray, settings: np.ndarray, candidates: np.ndarray, rows:
 
 
 def _coordinate_exchange(model: Model, x: np.ndarray, settings: np.ndarray, factors: list[int], min_gain: float) -> bool:
-    """Make the best single-coordinate move anywhere in [-1, 1] while one raises det(X'X) by min_gain."""
+    """Make the best single-coordinate move anywhere in [-1, 1] while one raises det(X'X) by min_gain.
+
+    Nothing moves while X'X is singular: the candidate exchange, free in every factor, repairs that.
+    """
     moved = False
-    for _ in range(200 * len(x)):
-        inv = _inverse_information(x)
+    for _ in range(50 * len(x)):
+        if _singular(x.T @ x):
+            break
+        inv = np.linalg.inv(x.T @ x)
         best_gain, best_move = 1.0 + min_gain, None
         for f in factors:
             values, gains = _best_coordinate(model, x, settings, inv, f)
@@ -177,6 +181,48 @@ def _coordinate_exchange(model: Model, x: np.ndarray, settings: np.ndarray, fact
         x[i] = model.matrix(settings[i])[0]
         moved = True
     return moved
+
+
+def _polish(model: Model, x: np.ndarray, settings: np.ndarray, factors: list[int]) -> bool:
+    """Maximise log det(X'X) over all coordinates of `factors` at once (L-BFGS-B, in place).
+
+    Returns whether det(X'X) rose by more than the exchange's minimum relative gain.
+
+    Model rows are at most quadratic in a coordinate, so a central difference with any step
+    is its exact derivative; the gradient of log det is 2 x_i' (X'X)^-1 dx_i/dt.
+    """
+    from scipy.optimize import minimize  # only models with squared continuous factors need it
+
+    n = len(settings)
+
+    def trial(values: np.ndarray) -> np.ndarray:
+        out = settings.copy()
+        out[:, factors] = values.reshape(n, len(factors))
+        return out
+
+    def objective(values: np.ndarray) -> tuple[float, np.ndarray]:
+        points = trial(values)
+        rows = model.matrix(points)
+        sign, log_det = np.linalg.slogdet(rows.T @ rows)
+        if sign <= 0:
+            return 1e6, np.zeros_like(values)
+        weighted = rows @ np.linalg.inv(rows.T @ rows)
+        gradient = np.empty((n, len(factors)))
+        for j, f in enumerate(factors):
+            up, down = points.copy(), points.copy()
+            up[:, f] += 1.0
+            down[:, f] -= 1.0
+            gradient[:, j] = ((model.matrix(up) - model.matrix(down)) * weighted).sum(axis=1)
+        return -log_det, -gradient.ravel()
+
+    start = settings[:, factors].ravel()
+    before, _ = objective(start)
+    result = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=[(-1.0, 1.0)] * len(start))
+    if result.fun >= before:
+        return False
+    settings[:, factors] = result.x.reshape(n, len(factors))
+    x[:] = model.matrix(settings)
+    return bool(before - result.fun > _MIN_GAIN)
 
 
 def _best_coordinate(model: Model, x: np.ndarray, settings: np.ndarray, inv: np.ndarray, f: int) -> tuple[np.ndarray, np.ndarray]:

@@ -42,14 +42,16 @@ def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
 
 
 def test_allocation_does_not_follow_from_the_public_seed(tmp_path):
-    """The same public seed gives the same public plan; the key comes from its own secret seed."""
-    mappings = []
-    for i in range(8):
-        folder = tmp_path / str(i)
-        assert main(["design", "--ab", "--study", str(folder), "--seed", "12"]) == 0
-        mappings.append(json.loads((folder / "sealed" / "allocation.json").read_text())["arms"]["A"])
-        assert (folder / "plan.csv").read_text() == (tmp_path / "0" / "plan.csv").read_text()
-    assert len(set(mappings)) == 2  # 8 fresh secret seeds: both mappings occur (fails with p = 2/256)
+    """The same public seed gives the same public plan; each key comes from a fresh secret seed."""
+    keys = []
+    for name in ("a", "b"):
+        assert main(["design", "--ab", "--study", str(tmp_path / name), "--seed", "12"]) == 0
+        keys.append(json.loads((tmp_path / name / "sealed" / "allocation.json").read_text()))
+    assert (tmp_path / "a" / "plan.csv").read_text() == (tmp_path / "b" / "plan.csv").read_text()
+    assert keys[0]["allocation_seed"] != keys[1]["allocation_seed"]
+    assert 12 not in (keys[0]["allocation_seed"], keys[1]["allocation_seed"])
+    mappings = {seal("Controller", CONTROLLERS).arms["A"] for _ in range(16)}
+    assert mappings == set(CONTROLLERS)  # both allocations occur (fails with p = 2 / 2**16)
 
 
 def test_allocation_seed_reproduces_the_key(tmp_path):

@@ -18,6 +18,7 @@ name = "speed-trial"
 runs = 12
 model = "Speed + Density + Layout + Speed*Layout + Speed^2"
 seed = 31
+starts = 20
 
 [[factors]]
 name = "Speed"
