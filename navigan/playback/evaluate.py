@@ -1,0 +1,327 @@
+"""The playback evaluation: every requested model on every requested split, resumable, into one folder.
+
+    OUT/episodes/<split>/<model>.json  each episode's scores and walked path, with the settings,
+                                       the checkpoint's digest and the episode names that made them
+    OUT/table1.md, OUT/table1.csv      Table I pooled over the splits, then per split, beside the paper's
+    OUT/episodes.csv                   every episode's scores, one row per split, model and episode
+    OUT/figures/                       fig4_<split>.png, forces_<split>.png, min_distance.png
+
+A (split, model) whose file exists is not walked again; an interrupted run picks up where it was.
+A file made with other settings, weights or data is an error, never silently reused or replaced.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from navigan import checkpoint as ckpt
+from navigan.data import SPLITS, load_split
+from navigan.errors import NaviganError
+from navigan.playback import figures
+from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
+from navigan.playback.metrics import Scoring, score_episode
+from navigan.playback.rollout import Policy, Rollout, recorded_rollout, roll_out
+from navigan.playback.table import COLUMNS, Table, csv_text, paper_values, summarize
+
+MODELS: tuple[str, ...] = tuple(COLUMNS)
+HUMAN = "human"
+#: Which model's full and dagger paths Fig. 4 shows: the first of these evaluated with its dagger.
+FIGURE_MODELS = ("navigan-r", "navigan", "navil2")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What, besides the weights and the data, decides the scores.
+
+    Attributes:
+        scoring: the reward's settings.
+        seed: seeds the fluctuation noise (with each episode's name).
+        limit: evaluate only the first `limit` episodes of each split (a quick look).
+    """
+
+    scoring: Scoring = field(default_factory=Scoring)
+    seed: int = 0
+    limit: int | None = None
+
+    def record(self) -> dict[str, Any]:
+        return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit}
+
+
+def base_model(model: str) -> str:
+    """The trained model a column walks with: `navigan-dagger` -> `navigan`."""
+    return model.removesuffix("-dagger")
+
+
+def checkpoint_file(model: str, split: str, folder: Path) -> Path | None:
+    """The checkpoint a column uses on a split: `<model>-<split>.pt` in `folder`; None for the human row."""
+    return None if model == HUMAN else folder / f"{base_model(model)}-{split}.pt"
+
+
+def check_request(splits: Sequence[str], models: Sequence[str], folder: Path) -> None:
+    """Refuse unknown splits or models, and missing checkpoints, before any work.
+
+    Raises:
+        NaviganError: naming every unknown name or missing file.
+    """
+    unknown = [s for s in splits if s not in SPLITS]
+    if unknown:
+        raise NaviganError(f"unknown split {', '.join(unknown)}: choose from {', '.join(SPLITS)} or all")
+    unknown = [m for m in models if m not in MODELS]
+    if unknown:
+        raise NaviganError(f"unknown model {', '.join(unknown)}: choose from {', '.join(MODELS)}")
+    missing = sorted({str(p) for s in splits for m in models
+                      if (p := checkpoint_file(m, s, folder)) is not None and not p.is_file()})
+    if missing:
+        raise NaviganError(f"missing checkpoint{'s' if len(missing) > 1 else ''}: {', '.join(missing)}")
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write through a temporary file in the same folder and a rename, so no file is ever half-written."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _finite(value: float | None) -> float | None:
+    """JSON has no inf or NaN: store them as null."""
+    return None if value is None or not math.isfinite(value) else round(float(value), 6)
+
+
+def score_rollout(episodes: Episodes, rollout: Rollout, scoring: Scoring) -> list[dict[str, Any]]:
+    """One record per episode: its name, every score, and the walked path."""
+    history = episodes.history()
+    records = []
+    for e, name in enumerate(episodes.ids):
+        path = rollout.path(e)
+        score = score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
+                              history[e, -1] - history[e, -2], scoring)
+        record: dict[str, Any] = {"episode": name}
+        for key, value in asdict(score).items():
+            record[key] = _finite(value) if isinstance(value, float) else value
+        record["path"] = np.round(path.astype(np.float64), 4).tolist()
+        records.append(record)
+    return records
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@dataclass
+class Playback:
+    """An evaluation writing into `out`, with checkpoints from `checkpoints`, data under `data`."""
+
+    data: Path
+    out: Path
+    checkpoints: Path = ckpt.WEIGHTS_DIR
+    settings: Settings = field(default_factory=Settings)
+
+    def result_file(self, split: str, model: str) -> Path:
+        return self.out / "episodes" / split / f"{model}.json"
+
+    def episodes(self, split: str) -> tuple[Episodes, list[str]]:
+        """A split's episodes (the first `limit` of them) and its test files."""
+        files = load_split(self.data, split).test
+        episodes = load_episodes(files)
+        if self.settings.limit is not None:
+            episodes = episodes.subset(range(min(self.settings.limit, len(episodes))))
+        return episodes, [f.name for f in files]
+
+    def identity(self, split: str, model: str, episodes: Episodes) -> dict[str, Any]:
+        """What a stored result must match to be reused."""
+        path = checkpoint_file(model, split, self.checkpoints)
+        return {"settings": self.settings.record(), "checkpoint_sha256": path and _digest(path),
+                "episodes": episodes.ids}
+
+    def stored(self, split: str, model: str, identity: dict[str, Any]) -> dict[str, Any] | None:
+        """The stored result of a (split, model), None if there is none.
+
+        Raises:
+            NaviganError: it was made with other settings, weights or episodes.
+        """
+        file = self.result_file(split, model)
+        if not file.is_file():
+            return None
+        try:
+            record = json.loads(file.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise NaviganError(f"cannot read {file}: {exc}; delete it to redo that evaluation") from exc
+        differ = [k for k, v in identity.items() if record.get("identity", {}).get(k) != v]
+        if differ:
+            raise NaviganError(f"{file} was made with other {' and '.join(differ)}; pass another --out, "
+                               "or delete that file to redo it")
+        return record
+
+    def walk(self, split: str, model: str, episodes: Episodes, progress: Callable[[int], object] | None
+             ) -> tuple[Rollout, dict[str, Any] | None]:
+        """Roll out one column on a split's episodes; also a description of the checkpoint used."""
+        path = checkpoint_file(model, split, self.checkpoints)
+        if path is None:
+            return recorded_rollout(episodes), None
+        policy = Policy.load(path, dagger=model.endswith("-dagger"), seed=self.settings.seed)
+        record = ckpt.load(path)
+        about = {"file": path.name, "trained_on": record.split.get("name"), "epochs": record.epoch,
+                 "kept_epoch": (record.best or {}).get("epoch")}
+        return roll_out(policy, episodes, progress=progress), about
+
+    def evaluate(self, splits: Sequence[str], models: Sequence[str], progress: bool = True) -> list[Table]:
+        """Evaluate what is not stored yet, then write the tables, the episode CSV and the figures.
+
+        Raises:
+            NaviganError: unknown split or model, missing checkpoint or data, or a stored result
+                made differently.
+        """
+        check_request(splits, models, self.checkpoints)
+        models = [m for m in MODELS if m in models]
+        loaded = {s: self.episodes(s) for s in splits}
+        results: dict[tuple[str, str], dict[str, Any]] = {}
+        pending = []
+        for split in splits:
+            for model in models:
+                identity = self.identity(split, model, loaded[split][0])
+                record = self.stored(split, model, identity)
+                if record is None:
+                    pending.append((split, model, identity))
+                else:
+                    results[split, model] = record
+        learned = sum(1 for _, m, _ in pending if m != HUMAN)
+        with tqdm(total=learned * CUTOFF_STEPS, disable=not progress, unit="step", desc="playback") as bar:
+            for split, model, identity in pending:
+                bar.set_description(f"playback {split} {COLUMNS[model]}")
+                episodes = loaded[split][0]
+                rollout, about = self.walk(split, model, episodes, bar.update)
+                if model != HUMAN:
+                    bar.update(CUTOFF_STEPS - int(rollout.steps.max(initial=0)))
+                record = {"split": split, "model": model, "column": COLUMNS[model], "checkpoint": about,
+                          "identity": identity, "results": score_rollout(episodes, rollout, self.settings.scoring)}
+                write_atomic(self.result_file(split, model), (json.dumps(record) + "\n").encode())
+                results[split, model] = record
+        tables = self.write_tables(splits, models, loaded, results)
+        self.write_figures(splits, models, loaded, results)
+        return tables
+
+    def write_tables(self, splits: Sequence[str], models: Sequence[str],
+                     loaded: dict[str, tuple[Episodes, list[str]]],
+                     results: dict[tuple[str, str], dict[str, Any]]) -> list[Table]:
+        """table1.md, table1.csv and episodes.csv from the results."""
+        columns = tuple(models)
+        pooled = {m: summarize([r for s in splits for r in results[s, m]["results"]]) for m in models}
+        tables = [Table("all", columns, pooled)]
+        tables += [Table(s, columns, {m: summarize(results[s, m]["results"]) for m in models}) for s in splits]
+        paper = paper_values()
+        write_atomic(self.out / "table1.md", self.markdown(tables, loaded, results, paper).encode())
+        write_atomic(self.out / "table1.csv", csv_text(tables, paper).encode())
+        keys = ["split", "model", "episode"] + [k for k in results[splits[0], models[0]]["results"][0]
+                                               if k not in ("episode", "path")]
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(keys)
+        for s in splits:
+            for m in models:
+                for r in results[s, m]["results"]:
+                    writer.writerow([s, m] + [("" if r[k] is None else r[k]) for k in keys[2:]])
+        write_atomic(self.out / "episodes.csv", buffer.getvalue().encode())
+        return tables
+
+    def markdown(self, tables: list[Table], loaded: dict[str, tuple[Episodes, list[str]]],
+                 results: dict[tuple[str, str], dict[str, Any]], paper: dict) -> str:
+        s = self.settings.scoring
+        splits = [t.scope for t in tables[1:]]
+        total = sum(len(loaded[x][0]) for x in splits)
+        lines = [
+            "# Table I: long-term playback navigation", "",
+            "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
+            "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
+            "as recorded; it plans 12 steps every 0.4 s and walks the first. The episode ends on arrival "
+            "(within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The human column is the "
+            "recorded path itself.", "",
+            f"- S: mean over episodes of sum_k {s.gamma:g}^((k-1) * 0.4 s * {s.v_pref:g} m/s) * r_k, with "
+            f"r_k = -0.25 if the step's closest approach d_k < {s.collision:g} m (collision), else +1 if the "
+            "step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 (CrowdNav's reward and discount; "
+            "d_k is the closest approach to any other pedestrian during step k, both moving straight).",
+            "- C: fraction of episodes never closer than 0.2 m to another pedestrian (the reading the "
+            "paper's numbers need; its prose states the opposite).",
+            "- A: fraction of episodes reaching the goal within 0.5 m before the cut-off.",
+            f"- Seed {self.settings.seed}" + (f"; first {self.settings.limit} episodes of each split only"
+                                              if self.settings.limit is not None else "") + ".", "",
+            f"## All splits pooled ({', '.join(splits)}; {total} episodes)", "",
+            tables[0].markdown(paper), "",
+            "## Episodes per split", "",
+            "| split | test recordings | episodes | left out: goal within 0.5 m of the start |",
+            "|---|---|---:|---:|",
+        ]
+        for x in splits:
+            episodes, files = loaded[x]
+            lines.append(f"| {x} | {', '.join(files)} | {len(episodes)} | {episodes.standing} |")
+        lines += ["", "## Weights", "", "| split | " + " | ".join(COLUMNS[m] for m in tables[0].columns) + " |",
+                  "|---" * (len(tables[0].columns) + 1) + "|"]
+        for x in splits:
+            cells = []
+            for m in tables[0].columns:
+                about = results[x, m]["checkpoint"]
+                cells.append("recordings" if about is None else
+                             f"{about['file']} (epoch {about['kept_epoch']} of {about['epochs']})")
+            lines.append(f"| {x} | " + " | ".join(cells) + " |")
+        for table in tables[1:]:
+            lines += ["", f"## {table.scope} ({len(loaded[table.scope][0])} episodes)", "", table.markdown(paper)]
+        return "\n".join(lines)
+
+    def write_figures(self, splits: Sequence[str], models: Sequence[str],
+                      loaded: dict[str, tuple[Episodes, list[str]]],
+                      results: dict[tuple[str, str], dict[str, Any]]) -> None:
+        """Fig. 4 and the force plot per split (for the first of FIGURE_MODELS evaluated with its
+        dagger variant), and the distribution of closest approaches."""
+        folder = self.out / "figures"
+        closest = {COLUMNS[m]: [np.inf if r["min_distance"] is None else r["min_distance"]
+                                for s in splits for r in results[s, m]["results"]] for m in models}
+        write_atomic(folder / "min_distance.png",
+                     figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)})"))
+        model = next((m for m in FIGURE_MODELS if m in models and f"{m}-dagger" in models), None)
+        if model is None:
+            return
+        for split in splits:
+            episodes = loaded[split][0]
+            full, dagger = results[split, model]["results"], results[split, f"{model}-dagger"]["results"]
+            e = choose_episode(full, dagger)
+            one = episodes.subset([e])
+            path = checkpoint_file(model, split, self.checkpoints)
+            walked = roll_out(Policy.load(path, seed=self.settings.seed), one, record=True)
+            intention = roll_out(Policy.load(path, dagger=True, seed=self.settings.seed), one)
+            n = int(walked.steps[0])
+            label = f"{COLUMNS[model]} ({path.name}) on {split}, episode {one.ids[0]}"
+            write_atomic(folder / f"fig4_{split}.png",
+                         figures.plot_paths(one, 0, walked.path(0), intention.path(0), walked.plans[0, :n, 2, 0],
+                                            label))
+            write_atomic(folder / f"forces_{split}.png",
+                         figures.plot_forces(one, 0, walked.path(0), walked.plans[0, :n], label))
+
+
+def choose_episode(full: list[dict[str, Any]], dagger: list[dict[str, Any]]) -> int:
+    """The episode whose full and dagger paths part most (mean distance over their common steps),
+    among those the full model completes, else among all: where the social force shows."""
+    def parting(a: dict[str, Any], b: dict[str, Any]) -> float:
+        pa, pb = np.asarray(a["path"]), np.asarray(b["path"])
+        n = min(len(pa), len(pb))
+        return float(np.linalg.norm(pa[:n] - pb[:n], axis=-1).mean())
+
+    order = [i for i, r in enumerate(full) if r["arrived"]] or list(range(len(full)))
+    return max(order, key=lambda i: parting(full[i], dagger[i]))

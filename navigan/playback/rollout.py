@@ -1,0 +1,172 @@
+"""Batched playback roll-outs: every episode of a scene steps at once, one network call per step.
+
+At each 0.4 s step the policy sees each target's own last T_OBS positions (the walked ones once
+the observation is used up), the other pedestrians' recorded last T_OBS positions and the goal,
+plans T_PRED way-points and walks to the first. An episode stops when it reaches its goal or its
+cut-off, and leaves the batch. The fluctuation noise of each episode and step is drawn from the
+seed and the episode's name alone, so a batch walks exactly as its episodes one at a time.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from navigan import checkpoint as ckpt
+from navigan.data import T_OBS, T_PRED
+from navigan.generators import GoalSocialGenerator, NaviganGenerator
+from navigan.planner import fill_tracks
+from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
+
+
+@dataclass(frozen=True)
+class Policy:
+    """A generator that walks its way-points (full) or its intention-only path (dagger).
+
+    Attributes:
+        generator: the network, in eval mode.
+        dagger: walk the intention y_tilde instead of the way-points y_hat.
+        noise_size: size of the fluctuation noise z; 0 for models that run without it.
+        seed: seeds each episode's noise (with the episode's name).
+        checkpoint: where the weights came from.
+    """
+
+    generator: NaviganGenerator | GoalSocialGenerator
+    dagger: bool
+    noise_size: int
+    seed: int
+    checkpoint: Path
+
+    @classmethod
+    def load(cls, path: str | Path, dagger: bool = False, seed: int = 0) -> Policy:
+        """The policy of a checkpoint file.
+
+        Raises:
+            NaviganError: the checkpoint cannot be read.
+        """
+        record = ckpt.load(path)
+        noise = record.model.noise if record.model.recipe.fluctuation else 0
+        return cls(record.build_generator(), dagger, noise, seed, Path(path))
+
+    def noise(self, names: list[str]) -> np.ndarray | None:
+        """(E, CUTOFF_STEPS, noise) each episode's noise for each step, or None without noise."""
+        if not self.noise_size:
+            return None
+        return np.stack([
+            np.random.default_rng([self.seed, zlib.crc32(name.encode())])
+            .standard_normal((CUTOFF_STEPS, self.noise_size), dtype=np.float32)
+            for name in names
+        ])
+
+    @torch.inference_mode()
+    def plan(self, histories: np.ndarray, others: np.ndarray, goals: np.ndarray, noise: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(B, T_PRED, 2) way-points, intention and forces for B targets among their (B, N, T_OBS, 2) others."""
+        filled, present = fill_tracks(others)
+        scene = np.concatenate([histories[:, None], filled], axis=1).astype(np.float32)
+        mask = np.concatenate([np.ones((len(histories), 1), dtype=bool), present], axis=1)
+        targets = np.zeros_like(mask)
+        targets[:, 0] = True
+        out = self.generator(
+            torch.from_numpy(scene), torch.from_numpy(mask), torch.from_numpy(goals.astype(np.float32)),
+            targets=torch.from_numpy(targets), noise=None if noise is None else torch.from_numpy(noise),
+        )
+        return out.waypoints.numpy(), out.intention.numpy(), out.forces.numpy()
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """The walked paths of some episodes.
+
+    Attributes:
+        paths: (E, CUTOFF_STEPS + 1, 2) positions from time 0 (the last observed), NaN after the end.
+        steps: (E,) steps walked.
+        plans: (E, CUTOFF_STEPS, 3, T_PRED, 2) each step's way-points, intention and forces, when recorded.
+    """
+
+    paths: np.ndarray
+    steps: np.ndarray
+    plans: np.ndarray | None = None
+
+    def path(self, e: int) -> np.ndarray:
+        return self.paths[e, : self.steps[e] + 1]
+
+
+def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
+    """(B, N, T_OBS, 2) the recorded last T_OBS positions of the agents present around each active
+    episode's target at `step`, in column order, padded with NaN rows."""
+    scene = episodes.scene[active]
+    parts: list[tuple[np.ndarray, np.ndarray]] = []
+    for s in np.unique(scene):
+        rows = np.flatnonzero(scene == s)
+        chosen = active[rows]
+        frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1)
+        window = episodes.scenes[s].positions[frames].transpose(0, 2, 1, 3).copy()
+        window[np.arange(len(chosen)), episodes.agent[chosen]] = np.nan
+        present = ~np.isnan(window[:, :, -1, 0])
+        order = np.argsort(~present, axis=1, kind="stable")[:, : present.sum(axis=1).max()]
+        parts.append((rows, np.take_along_axis(window, order[:, :, None, None], axis=1)))
+    width = max(p.shape[1] for _, p in parts)
+    out = np.full((len(active), width, T_OBS, 2), np.nan, dtype=np.float32)
+    for rows, part in parts:
+        out[rows, : part.shape[1]] = part
+    return out
+
+
+def roll_out(
+    policy: Policy,
+    episodes: Episodes,
+    record: bool = False,
+    progress: Callable[[int], object] | None = None,
+) -> Rollout:
+    """Walk every episode with `policy`, all active episodes in one batch per step.
+
+    Args:
+        record: keep each step's plan (for figures; memory grows with the episodes).
+        progress: called with 1 after each step.
+    """
+    count = len(episodes)
+    track = np.full((count, T_OBS + CUTOFF_STEPS, 2), np.nan, dtype=np.float32)
+    track[:, :T_OBS] = episodes.history()
+    noise = policy.noise(episodes.ids)
+    plans = np.full((count, CUTOFF_STEPS, 3, T_PRED, 2), np.nan, dtype=np.float32) if record else None
+    steps = np.zeros(count, dtype=np.int64)
+    active = np.arange(count)
+    for step in range(CUTOFF_STEPS):
+        if not len(active):
+            break
+        waypoints, intention, forces = policy.plan(
+            track[active, step : step + T_OBS], neighbours(episodes, active, step), episodes.goal[active],
+            None if noise is None else noise[active, step],
+        )
+        track[active, step + T_OBS] = (intention if policy.dagger else waypoints)[:, 0]
+        if plans is not None:
+            plans[active, step] = np.stack([waypoints, intention, forces], axis=1)
+        reached = np.linalg.norm(track[active, step + T_OBS] - episodes.goal[active], axis=-1) <= GOAL_RADIUS
+        ended = reached | (step + 1 >= episodes.steps[active])
+        steps[active[ended]] = step + 1
+        active = active[~ended]
+        if progress is not None:
+            progress(1)
+    paths = np.full((count, CUTOFF_STEPS + 1, 2), np.nan, dtype=np.float32)
+    for e in range(count):
+        paths[e, : steps[e] + 1] = track[e, T_OBS - 1 : T_OBS + steps[e]]
+    return Rollout(paths, steps, plans)
+
+
+def recorded_rollout(episodes: Episodes) -> Rollout:
+    """The human row: each target's own recorded path, to its arrival or the cut-off."""
+    count = len(episodes)
+    paths = np.full((count, CUTOFF_STEPS + 1, 2), np.nan, dtype=np.float32)
+    steps = np.zeros(count, dtype=np.int64)
+    for e in range(count):
+        recorded = episodes.recorded(e)
+        near = np.flatnonzero(np.linalg.norm(recorded[1:] - episodes.goal[e], axis=-1) <= GOAL_RADIUS)
+        steps[e] = near[0] + 1 if len(near) else episodes.steps[e]
+        paths[e, : steps[e] + 1] = recorded[: steps[e] + 1]
+    return Rollout(paths, steps)

@@ -1,0 +1,100 @@
+"""`trials playback`: outputs, resuming, and one-line errors (exit 2) for bad requests."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+import torch
+
+from trials.cli import main
+
+QUICK = ["--split", "zara1", "--episodes", "3", "--threads", "1", "--quiet"]
+COLUMNS = "navigan-r,navigan-r-dagger,human"
+
+
+@pytest.fixture(autouse=True, scope="module")
+def keep_threads():
+    before = torch.get_num_threads()
+    yield
+    torch.set_num_threads(before)
+
+
+def playback(data, out, *extra: str) -> int:
+    return main(["playback", "--data", str(data), "--out", str(out), *QUICK, *extra])
+
+
+def error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: "), err
+    return err
+
+
+def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, capsys):
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
+    assert "| C (comfort rate) |" in capsys.readouterr().out
+    with (out / "table1.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0])[3:] == ["R", "R-dagger", "human"]
+    pooled = {(r["metric"], r["source"]): r for r in rows if r["scope"] == "all"}
+    assert {("S", "paper"), ("C", "paper"), ("A", "paper"), ("ade", "ours")} <= set(pooled)
+    assert pooled["episodes", "ours"]["human"] == "3"
+    assert float(pooled["A", "ours"]["human"]) == 1.0 and pooled["C", "paper"]["R"] == "n/a"
+    assert {r["scope"] for r in rows} == {"all", "zara1"}
+    with (out / "episodes.csv").open() as f:
+        episodes = list(csv.DictReader(f))
+    assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
+    markdown = (out / "table1.md").read_text()
+    assert "0.9^((k-1) * 0.4 s * 1 m/s)" in markdown and "| zara1 | crowds_zara01.txt | 3 | 0 |" in markdown
+    for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
+        assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    stored = {p: p.stat().st_mtime_ns for p in (out / "episodes" / "zara1").glob("*.json")}
+    assert len(stored) == 3
+    record = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
+    assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["seed"] == 0
+    assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
+
+    (out / "episodes" / "zara1" / "navigan-r-dagger.json").unlink()  # as if interrupted before it
+    assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
+    for path, mtime in stored.items():
+        if path.name != "navigan-r-dagger.json":
+            assert path.stat().st_mtime_ns == mtime  # not walked again
+    assert (out / "episodes" / "zara1" / "navigan-r-dagger.json").is_file()
+
+    before = (out / "episodes" / "zara1" / "human.json").read_bytes()
+    assert playback(eth_ucy_dir, out, "--models", "human", "--gamma", "0.95") == 2
+    assert "other settings" in error_line(capsys)
+    assert (out / "episodes" / "zara1" / "human.json").read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--split", "mars"], "unknown split mars"),
+        (["--models", "navigan,teleport"], "unknown model teleport"),
+        (["--models", "human", "--gamma", "0"], "--gamma"),
+        (["--models", "human", "--v-pref", "-1"], "--v-pref"),
+        (["--models", "human", "--episodes", "0"], "--episodes"),
+    ],
+)
+def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, *args) == 2
+    assert message in error_line(capsys)
+    assert not out.exists()
+
+
+def test_missing_checkpoint_is_named(eth_ucy_dir, tmp_path, capsys):
+    empty = tmp_path / "weights"
+    empty.mkdir()
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, "--models", "navil2-dagger,human", "--checkpoints", str(empty)) == 2
+    assert f"missing checkpoint: {empty / 'navil2-zara1.pt'}" in error_line(capsys)
+    assert not out.exists()
+
+
+def test_missing_data_folder(tmp_path, capsys):
+    assert playback(tmp_path / "nowhere", tmp_path / "pb", "--models", "human") == 2
+    assert "splits.json" in error_line(capsys)

@@ -1,0 +1,121 @@
+"""Playback episodes and roll-outs on the real zara1 test scene with the shipped NaviGAN-R weights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from navigan import checkpoint as ckpt
+from navigan.data import load_split
+from navigan.playback.episodes import GOAL_STEPS, SceneGrid, episodes_of, load_episodes
+from navigan.playback.evaluate import Playback, Settings, score_rollout
+from navigan.playback.metrics import Scoring
+from navigan.playback.rollout import Policy, neighbours, recorded_rollout, roll_out
+
+WEIGHTS = ckpt.WEIGHTS_DIR / "navigan-r-zara1.pt"
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """Tiny tensors run fastest on one thread, and a shared 2-core machine thrashes with more."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def zara1(eth_ucy_dir):
+    return load_episodes(load_split(eth_ucy_dir, "zara1").test)
+
+
+@pytest.fixture(scope="module")
+def few(zara1):
+    return zara1.subset(range(6))
+
+
+def test_episodes_follow_the_protocol(zara1):
+    assert len(zara1) == 19 and zara1.standing == 0
+    assert len(set(zara1.ids)) == 19
+    history = zara1.history()
+    for e in range(len(zara1)):
+        recorded = zara1.recorded(e)
+        np.testing.assert_array_equal(history[e, -1], recorded[0])
+        np.testing.assert_array_equal(zara1.goal[e], recorded[GOAL_STEPS])
+        assert zara1.steps[e] <= 60 and not np.isnan(history[e]).any()
+        assert np.linalg.norm(zara1.goal[e] - recorded[0]) > 0.5
+
+
+def test_who_makes_an_episode():
+    frames = 50
+    positions = np.full((frames, 3, 2), np.nan, dtype=np.float32)
+    positions[:, 0] = np.stack([np.arange(frames) * 0.4, np.zeros(frames)], axis=1)  # walks all along
+    positions[:, 1] = (5.0, 5.0)  # stands all along
+    positions[10:40, 2] = (1.0, 1.0)  # leaves before its goal time
+    episodes = episodes_of([SceneGrid("toy.txt", np.array([1, 2, 3]), positions)])
+    assert episodes.ids == ["toy.txt:1"] and episodes.standing == 1
+    assert episodes.start[0] == 7 and episodes.steps[0] == min(60, frames - 1 - 7)
+    np.testing.assert_allclose(episodes.goal[0], [(7 + 36) * 0.4, 0.0])
+
+
+def test_batched_and_one_at_a_time_roll_outs_agree(few):
+    for dagger in (False, True):
+        policy = Policy.load(WEIGHTS, dagger=dagger, seed=3)
+        batched = roll_out(policy, few)
+        for e in range(len(few)):
+            alone = roll_out(policy, few.subset([e]))
+            assert alone.steps[0] == batched.steps[e]
+            np.testing.assert_allclose(alone.path(0), batched.path(e), atol=1e-4, rtol=0)
+        scores = score_rollout(few, batched, Scoring())
+        singles = [score_rollout(few.subset([e]), roll_out(policy, few.subset([e])), Scoring())[0]
+                   for e in range(len(few))]
+        for a, b in zip(scores, singles):
+            assert (a["arrived"], a["comfortable"], a["collided"], a["steps"]) == \
+                   (b["arrived"], b["comfortable"], b["collided"], b["steps"])
+            assert a["social_score"] == pytest.approx(b["social_score"], abs=1e-6)
+
+
+def test_noise_comes_from_the_seed_and_episode(few):
+    a = roll_out(Policy.load(WEIGHTS, seed=1), few)
+    b = roll_out(Policy.load(WEIGHTS, seed=1), few)
+    c = roll_out(Policy.load(WEIGHTS, seed=2), few)
+    np.testing.assert_array_equal(a.paths, b.paths)
+    assert not np.allclose(a.paths, c.paths, equal_nan=True)
+    reordered = roll_out(Policy.load(WEIGHTS, seed=1), few.subset([5, 4, 3, 2, 1, 0]))
+    np.testing.assert_allclose(reordered.paths[::-1], a.paths, atol=1e-4)
+
+
+def test_full_walks_the_way_points_and_dagger_the_intention(few):
+    first = few.subset([0])
+    history = first.history()
+    for dagger in (False, True):
+        policy = Policy.load(WEIGHTS, dagger=dagger)
+        waypoints, intention, forces = policy.plan(history, neighbours(first, np.array([0]), 0), first.goal,
+                                                   policy.noise(first.ids)[:, 0])
+        np.testing.assert_allclose(waypoints, intention + forces, atol=1e-5)
+        walked = roll_out(policy, first, record=True)
+        expected = intention if dagger else waypoints
+        np.testing.assert_allclose(walked.paths[0, 1], expected[0, 0], atol=1e-6)
+        np.testing.assert_allclose(walked.plans[0, 0, 1], intention[0], atol=1e-6)
+
+
+def test_human_row_is_the_recording_itself(eth_ucy_dir, zara1, tmp_path):
+    # read the file independently of the grid code
+    rows = np.loadtxt(eth_ucy_dir / "all_data" / "crowds_zara01.txt")
+    human = recorded_rollout(zara1)
+    for e, name in enumerate(zara1.ids):
+        ped = float(name.split(":")[1])
+        track = rows[rows[:, 1] == ped]
+        track = track[np.argsort(track[:, 0])]
+        start = int(np.flatnonzero(np.all(np.isclose(track[:, 2:], zara1.history()[e, -1], atol=1e-5), axis=1))[0])
+        np.testing.assert_allclose(human.path(e), track[start : start + human.steps[e] + 1, 2:], atol=1e-5)
+        assert np.linalg.norm(human.path(e)[-1] - zara1.goal[e]) <= 0.5
+        assert human.steps[e] <= GOAL_STEPS
+    # no weights needed: an empty checkpoint folder is fine for the human row
+    (tmp_path / "none").mkdir()
+    playback = Playback(data=eth_ucy_dir, out=tmp_path / "out", checkpoints=tmp_path / "none",
+                        settings=Settings(limit=5))
+    table = playback.evaluate(["zara1"], ["human"], progress=False)[0]
+    assert table.values["human"]["A"] == 1.0 and table.values["human"]["ade"] == 0.0
+    assert table.values["human"]["path_ratio"] == pytest.approx(1.0)

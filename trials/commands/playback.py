@@ -1,0 +1,78 @@
+"""`trials playback`: the paper's long-term playback navigation (Table I) on the ETH/UCY test scenes."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
+ALL_MODELS = ("goal-social-lstm,navil2,navil2-dagger,navigan,navigan-dagger,navigan-r,navigan-r-dagger,human")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "playback",
+        help="long-term playback navigation on ETH/UCY: the paper's Table I",
+        description=(
+            "Each model walks as a recorded pedestrian of each split's test scene toward where that "
+            "pedestrian was 14.4 s later, among the others as recorded; it is scored for social score S, "
+            "comfort rate C, arrival rate A and path measures. Writes OUT/table1.md, table1.csv, "
+            "episodes.csv, episodes/<split>/<model>.json and figures/. An interrupted run resumes."
+        ),
+    )
+    parser.add_argument("--split", default="all", help=f"{SPLIT_CHOICES} (default all: the five splits)")
+    parser.add_argument("--models", default=ALL_MODELS, metavar="LIST",
+                        help=f"comma-separated columns (default: all, {ALL_MODELS})")
+    parser.add_argument("--checkpoints", type=Path, metavar="DIR",
+                        help="folder of MODEL-SPLIT.pt checkpoints (default: the shipped weights)")
+    parser.add_argument("--out", type=Path, default=Path("playback"), metavar="DIR",
+                        help="where results go (default: ./playback)")
+    parser.add_argument("--data", type=Path, metavar="DIR",
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+    parser.add_argument("--gamma", type=float, default=0.9, help="discount factor of S, per second at the preferred speed (default 0.9)")
+    parser.add_argument("--v-pref", type=float, default=1.0, help="preferred speed in S's discount, m/s (default 1.0)")
+    parser.add_argument("--collision", type=float, default=0.1,
+                        help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
+    parser.add_argument("--episodes", type=int, metavar="N", help="only the first N episodes of each split (a quick look)")
+    parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from navigan import checkpoint as ckpt
+    from navigan.data import SPLITS, data_dir
+    from navigan.errors import NaviganError
+    from navigan.playback.evaluate import Playback, Settings
+    from navigan.playback.metrics import Scoring
+
+    if not 0 < args.gamma <= 1:
+        raise NaviganError(f"--gamma: expected a number in (0, 1], got {args.gamma:g}")
+    if not args.v_pref > 0:
+        raise NaviganError(f"--v-pref: expected a positive speed, got {args.v_pref:g}")
+    if not 0 <= args.collision < 0.2:
+        raise NaviganError(f"--collision: expected a distance in [0, 0.2) m, got {args.collision:g}")
+    for name in ("episodes", "threads"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    splits = list(SPLITS) if args.split == "all" else [args.split]
+    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    if not models:
+        raise NaviganError("--models: name at least one column")
+    checkpoints = args.checkpoints or ckpt.WEIGHTS_DIR
+    if not checkpoints.is_dir():
+        raise NaviganError(f"--checkpoints: {checkpoints} is not a folder")
+    playback = Playback(
+        data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
+        settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes),
+    )
+    tables = playback.evaluate(splits, models, progress=not args.quiet)
+    print(tables[0].markdown({}).rstrip())
+    print(f"wrote {args.out / 'table1.md'}, table1.csv, episodes.csv, figures/")
+    return 0
