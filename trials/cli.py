@@ -10,17 +10,16 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from analysis.errors import AnalysisError
 from designs.errors import DesignError
 from navigan.errors import NaviganError
 from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report")
+COMMANDS: tuple[str, ...] = ("design", "log", "lattice", "train", "evaluate", "playback")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError)
 
 EXIT_USAGE = 2
 
