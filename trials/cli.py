@@ -16,7 +16,7 @@ from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "log", "lattice", "train", "evaluate", "playback")
+COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
 USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError)

@@ -1,0 +1,94 @@
+"""`trials run`: run the study's pending plan rows in the closed-loop simulator, logging each to MCAP."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "run",
+        help="run the pending rows of the plan in simulation (blinded when the study is)",
+        description=(
+            "Run every pending row of plan.csv in plan order: build its scenario, drive the robot with "
+            "the row's controller in closed loop among social-force pedestrians, write runs/<code>.mcap "
+            "and append the run's row to outcomes.csv. Interrupted, it keeps every finished run; run it "
+            "again to continue. A blinded study always runs blind."
+        ),
+    )
+    parser.add_argument("--blind", action="store_true", help="run blind (implied by a blinded study; an error on an open one)")
+    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--workers", type=int, default=1, metavar="N", help="runs in parallel, one process each (default 1)")
+    parser.add_argument("--only", nargs="+", default=[], metavar="CODE", help="run only these rows (if pending)")
+    parser.add_argument("--rerun", nargs="+", default=[], metavar="CODE", help="redo these finished runs; the old log and row move to superseded/")
+    parser.add_argument("--perception", choices=("positions", "lidar"), default="positions",
+                        help="what the controller is told: true positions with noise and dropouts (default), or "
+                        "simulated laser scans through the person tracker")
+    parser.add_argument("--noise", type=float, default=0.05, metavar="M", help="positions: position noise, standard deviation in metres (default 0.05)")
+    parser.add_argument("--dropout", type=float, default=0.05, metavar="P", help="positions: chance a pedestrian is missed at a step (default 0.05)")
+    parser.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
+    parser.add_argument("--timeout", type=float, default=60.0, metavar="S", help="simulated seconds before a run times out (default 60)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import signal
+    import sys
+
+    from tqdm import tqdm
+
+    from trials.errors import StudyError
+    from trials.runner import RunDone, RunOptions, StudyRun, run_study
+    from trials.sim.perception import PositionNoise
+    from trials.study import StudyFolder
+
+    if not args.noise >= 0:
+        raise StudyError(f"--noise must be 0 or more metres, got {args.noise}")
+    if not 0 <= args.dropout < 1:
+        raise StudyError(f"--dropout must be at least 0 and below 1, got {args.dropout}")
+    if not args.timeout > 0:
+        raise StudyError(f"--timeout must be positive, got {args.timeout}")
+    study = StudyRun.open(StudyFolder(args.study), args.blind)
+    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout)
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
+    # A blinded study's console shows no run times: they differ by controller.
+    bar_format = "{l_bar}{bar}| {n_fmt}/{total_fmt}" if study.blind else None
+    bar = tqdm(total=0, unit="run", desc="running", disable=None, bar_format=bar_format)
+
+    def started(count: int) -> None:
+        if study.blind:
+            bar.write("Blinded study: each worker opens the sealed key itself; controller records go to sealed/runs/.")
+        bar.reset(total=count)
+
+    def done(run: RunDone) -> None:
+        row = run.row
+        gap = f", closest {row['min_distance_m']} m" if row["min_distance_m"] else ""
+        bar.write(f"{run.code}: {row['status']} after {row['duration_s']} s{gap}")
+        bar.update(1)
+
+    def failed(code: str, message: str) -> None:
+        bar.write(f"{code}: failed: {message}", file=sys.stderr)
+        bar.update(1)
+
+    try:
+        summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
+    finally:
+        bar.close()
+    for code in summary.skipped:
+        print(f"{code} has already finished (`trials run --rerun {code}` redoes it)")
+    if summary.superseded is not None:
+        print(f"The earlier logs and rows of {', '.join(args.rerun)} moved to {summary.superseded}")
+    statuses = [run.row["status"] for run in summary.finished]
+    counts = ", ".join(f"{statuses.count(s)} {s}" for s in ("goal", "collision", "timeout") if s in statuses)
+    print(f"{len(summary.finished)} runs finished{f' ({counts})' if counts else ''}; {summary.done} of {len(study.codes)} "
+          f"plan rows are done (outcomes in {study.folder.path('outcomes.csv')})")
+    if summary.failed:
+        print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
+        return 1
+    return 0
+

@@ -1,0 +1,81 @@
+"""NaviGAN-R as a trial controller: the shipped all-scenes weights planning for the robot.
+
+Each step the scene is moved into the robot's frame (origin at the robot, x along its heading),
+so the network sees its own track and the goal as the robot does; the generator then plans in its
+target-centric frame (origin at the robot's oldest observed position). The goal is passed as a
+sub-goal `reach_m` ahead in the direction of the real one, since the network was trained on goals
+one prediction horizon (4.8 s) away; near the end it lies beyond the goal, so the robot drives
+up to the goal (where the trial ends) instead of creeping toward a point it must stop at. The way-points, the intention path and the social
+forces come back in the world frame; the last two and the timing go to the plan's record.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
+
+#: A sub-goal one prediction horizon ahead at the Husky's 1 m/s.
+REACH_M = 1.0 * T_PRED * STEP_S
+
+
+def _rotation(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+class NaviganRController:
+    """NaviGAN-R (the `Controller` protocol) on a `navigan.planner.Planner`.
+
+    Args:
+        weights: a checkpoint path or shipped name (default: the shipped all-scenes NaviGAN-R).
+        reach_m: how far ahead of the robot the sub-goal lies.
+
+    Raises:
+        NaviganError: the weights cannot be read.
+    """
+
+    name = "navigan-r"
+
+    def __init__(self, weights: str | Path | None = None, reach_m: float = REACH_M) -> None:
+        from navigan.planner import Planner
+
+        self.planner = Planner(weights)
+        self.reach_m = reach_m
+
+    @property
+    def weights(self) -> Path:
+        return self.planner.path
+
+    def reset(self, seed: int) -> None:
+        self.planner.reset(seed)
+
+    def subgoal(self, position: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """The point `reach_m` from `position` in the direction of `goal`."""
+        offset = goal - position
+        distance = float(np.hypot(*offset))
+        return position + offset * (self.reach_m / max(distance, 1e-9))
+
+    def plan(self, observation: Observation) -> Plan:
+        started = time.perf_counter()
+        origin = np.asarray(observation.robot_pose[:2], dtype=float)
+        rotation = _rotation(float(observation.robot_pose[2]))
+
+        def to_robot(points: np.ndarray) -> np.ndarray:
+            return (np.asarray(points, dtype=float) - origin) @ rotation
+
+        subgoal = self.subgoal(origin, np.asarray(observation.goal, dtype=float)[:2])
+        out = self.planner.plan(to_robot(observation.robot_history), to_robot(observation.pedestrian_history), to_robot(subgoal))
+        waypoints = out.waypoints.astype(float) @ rotation.T + origin
+        record = {
+            "controller": self.name,
+            "subgoal": subgoal.tolist(),
+            "intention": (out.intention.astype(float) @ rotation.T + origin).tolist(),
+            "forces": (out.forces.astype(float) @ rotation.T).tolist(),
+            "plan_seconds": time.perf_counter() - started,
+        }
+        return Plan(waypoints, out.step, record)

@@ -1,0 +1,134 @@
+"""The metrics of a run (one `outcomes.csv` row), computed from its trace at the physics rate.
+
+The same function scores a run as it finishes and a run read back from its MCAP
+(`trials log show`), so the two always agree. Gaps are between the robot's footprint and each
+pedestrian's body disc; times count the physics steps at which a condition held.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from trials.sim.robot import RobotLimits, footprint_gaps
+
+INTIMATE_M, PERSONAL_M = 0.5, 1.2
+STILL_SPEED, TURNING_RATE = 0.05, 0.3
+#: Standing still during the first second (starting up) does not count as stopping.
+STARTUP_S = 1.0
+
+#: outcomes.csv columns in order; `controller` is left out when the study is blind.
+COLUMNS = (
+    "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m",
+    "min_distance_m", "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2",
+    "max_jerk_mps3", "path_irregularity_rad_per_m", "turn_in_place_s", "backing_up_s", "stopped_s",
+    "controller", "finished_utc",
+)
+
+
+def columns(blind: bool) -> tuple[str, ...]:
+    """The header of outcomes.csv for a blind or an open study."""
+    return tuple(c for c in COLUMNS if not (blind and c == "controller"))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A run's metrics (units in the names; None where a metric has no value, e.g. with nobody around)."""
+
+    status: str
+    duration_s: float
+    path_length_m: float
+    min_distance_m: float | None
+    time_within_0_5m_s: float
+    time_within_1_2m_s: float
+    collisions: int
+    max_deceleration_mps2: float
+    max_jerk_mps3: float
+    path_irregularity_rad_per_m: float | None
+    turn_in_place_s: float
+    backing_up_s: float
+    stopped_s: float
+
+    @property
+    def time_to_goal_s(self) -> float | None:
+        return self.duration_s if self.status == "goal" else None
+
+    def fields(self) -> dict[str, str]:
+        """The metric columns as CSV text (3 decimals; empty for no value)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values["time_to_goal_s"] = self.time_to_goal_s
+        return {name: _text(value) for name, value in values.items()}
+
+
+def _text(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    return str(value)
+
+
+def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
+            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = 0.25) -> Outcome:
+    """Score a run.
+
+    Args:
+        status: how it ended ("goal", "collision", "timeout").
+        time: (K,) sample times (s); pose: (K, 3); velocity: (K, 2) linear and angular.
+        pedestrians: (K, N, 2) true pedestrian positions.
+    """
+    time, pose, velocity = np.asarray(time, float), np.asarray(pose, float), np.asarray(velocity, float)
+    dt = np.diff(time)
+    later = slice(1, None)
+    step = np.diff(pose[:, :2], axis=0)
+    path = float(np.hypot(step[:, 0], step[:, 1]).sum())
+    turned = float(np.abs((np.diff(pose[:, 2]) + np.pi) % (2.0 * np.pi) - np.pi).sum())
+    v, w = velocity[:, 0], velocity[:, 1]
+    acceleration = np.diff(v) / dt if len(dt) else np.zeros(0)
+    jerk = np.diff(acceleration) / dt[1:] if len(dt) > 1 else np.zeros(0)
+    n = pedestrians.shape[1] if pedestrians.ndim == 3 else 0
+    if n:
+        gaps = np.array([footprint_gaps(p, q, limits, pedestrian_radius).min() for p, q in zip(pose, pedestrians)])
+        nearest = gaps[later]
+        min_distance: float | None = max(float(gaps.min()), 0.0)
+    else:
+        nearest, min_distance = np.full(len(dt), np.inf), None
+    still = np.abs(v[later]) < STILL_SPEED
+    turning = np.abs(w[later]) > TURNING_RATE
+    return Outcome(
+        status=status,
+        duration_s=float(time[-1] - time[0]),
+        path_length_m=path,
+        min_distance_m=min_distance,
+        time_within_0_5m_s=float(dt[nearest < INTIMATE_M].sum()),
+        time_within_1_2m_s=float(dt[nearest < PERSONAL_M].sum()),
+        collisions=int(status == "collision"),
+        max_deceleration_mps2=float(max(-acceleration.min(), 0.0)) if len(acceleration) else 0.0,
+        max_jerk_mps3=float(np.abs(jerk).max()) if len(jerk) else 0.0,
+        path_irregularity_rad_per_m=turned / path if path > 1e-6 else None,
+        turn_in_place_s=float(dt[still & turning].sum()),
+        backing_up_s=float(dt[v[later] < -STILL_SPEED].sum()),
+        stopped_s=float(dt[still & ~turning & (time[later] > time[0] + STARTUP_S)].sum()),
+    )
+
+
+def read_outcomes(path: Path) -> tuple[tuple[str, ...], list[dict[str, str]]]:
+    """The header and rows of an outcomes.csv ((), [] when there is none)."""
+    if not path.exists():
+        return (), []
+    with path.open(newline="", encoding="utf-8") as handle:
+        reader = csv.DictReader(handle)
+        return tuple(reader.fieldnames or ()), list(reader)
+
+
+def outcomes_text(header: tuple[str, ...], rows: list[dict[str, str]]) -> str:
+    """outcomes.csv content: the header, then one line per row."""
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=header, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return out.getvalue()

@@ -1,0 +1,376 @@
+"""`trials run`'s engine: pending plan rows to simulated runs, in worker processes, resumable and blind.
+
+The parent process checks the plan, decides which rows are pending (a row of outcomes.csv marks a
+finished run), starts the workers and appends each finished run's outcome row. The workers build
+their controllers once, and in a blinded study only they open the sealed key, to map a row's arm
+label to its controller; the parent never learns the mapping, and nothing public names it.
+
+Order of writes for one run, so an interruption anywhere loses and duplicates nothing: the MCAP
+is written under a hidden partial name; the sealed record (blinded studies) is written; the MCAP is
+renamed into place; the outcome row is appended (outcomes.csv rewritten through a temporary
+name). A run without a row is pending and runs again (with the same seed); partial files of
+interrupted runs are deleted when the next `trials run` starts.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from designs.errors import DesignError
+from navigan.errors import NaviganError
+from robot_logs.errors import LogError
+from trials.atomic import write_files, write_text
+from trials.errors import StudyError
+from trials.outcomes import columns, outcomes_text, read_outcomes
+from trials.pool import Failure, PoolError, WorkerPool
+from trials.scenario import CONTROLLER, settings_from_row
+from trials.sim.perception import PositionNoise
+from trials.study import OUTCOMES, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
+
+NAVIGAN_R, LATTICE = "NaviGAN-R", "Lattice"
+#: The controller levels a plan may name, and the controller of a study without a Controller factor.
+CONTROLLER_LEVELS = (NAVIGAN_R, LATTICE)
+DEFAULT_CONTROLLER = NAVIGAN_R
+SEALED_RUNS = f"{SEALED}/runs"
+PERCEPTIONS = ("positions", "lidar")
+USER_ERRORS = (StudyError, NaviganError, LogError, DesignError)
+LOCK = ".lock"
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How runs are simulated: the perception model and its noise, and NaviGAN-R's weights."""
+
+    perception: str = "positions"
+    noise: PositionNoise = PositionNoise()
+    weights: str | None = None
+    timeout_s: float = 60.0
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One plan row to run: its code, the plan's columns (arm label when blind) and its seed."""
+
+    code: str
+    row: dict[str, str]
+    seed: int
+
+
+@dataclass(frozen=True)
+class RunDone:
+    """A finished run as the parent sees it: its public outcome row."""
+
+    code: str
+    row: dict[str, str]
+
+
+@dataclass
+class Summary:
+    """What one `trials run` did."""
+
+    finished: list[RunDone] = field(default_factory=list)
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    superseded: Path | None = None
+    done: int = 0
+
+
+def run_seed(study_seed: int, code: str) -> int:
+    """The seed of run `code`: a 63-bit hash of the study's seed and the run code."""
+    digest = hashlib.sha256(f"navtrials-run:{study_seed}:{code}".encode()).digest()
+    return int.from_bytes(digest[:8], "big") >> 1
+
+
+def utc_stamp(blind: bool) -> str:
+    """Now as ISO 8601 UTC; to the minute in a blinded study, whose run times differ by controller."""
+    now = datetime.now(timezone.utc).replace(microsecond=0)
+    return (now.replace(second=0) if blind else now).isoformat()
+
+
+# --- the parent: what to run ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StudyRun:
+    """A checked study folder, ready to run: its plan, blinding and the controller levels it names."""
+
+    folder: StudyFolder
+    name: str
+    seed: int
+    blind: bool
+    plan: list[dict[str, str]]
+    levels: tuple[str, ...]
+
+    @classmethod
+    def open(cls, folder: StudyFolder, blind_flag: bool) -> StudyRun:
+        """Check the plan row by row (factor values the simulator can run, known controllers or arms).
+
+        Raises:
+            StudyError: no plan, `--blind` on an open study, or a row it cannot run.
+        """
+        design = folder.read_design()
+        blinding = design.get("blinding")
+        if blind_flag and not blinding:
+            raise StudyError(f"--blind: the study in {folder.root} is not blinded (design.json has no sealed allocation); run it without --blind")
+        plan = folder.read_plan()
+        arms = tuple(blinding["arms"]) if blinding else CONTROLLER_LEVELS
+        for line, row in enumerate(plan, start=2):
+            where = f"{folder.path('plan.csv')} line {line} (run {row.get('run_code', '?')})"
+            settings_from_row(row, where)
+            level = row.get(CONTROLLER)
+            if level is not None and level not in arms:
+                kind = "arm" if blinding else "controller"
+                raise StudyError(f"{where}: {CONTROLLER} {level!r} is not a known {kind} ({', '.join(arms)})")
+        seed = design.get("seed")
+        if not isinstance(seed, int):
+            raise StudyError(f"{folder.path('design.json')}: no integer study seed to derive the run seeds from")
+        levels = () if blinding else tuple(dict.fromkeys(row.get(CONTROLLER, DEFAULT_CONTROLLER) for row in plan))
+        return cls(folder, str(design.get("study", "")), seed, bool(blinding), plan, levels)
+
+    @property
+    def codes(self) -> list[str]:
+        return [row["run_code"] for row in self.plan]
+
+    def task(self, code: str) -> RunTask:
+        row = next(r for r in self.plan if r["run_code"] == code)
+        return RunTask(code, dict(row), run_seed(self.seed, code))
+
+
+@contextmanager
+def study_lock(folder: StudyFolder) -> Iterator[None]:
+    """Hold the study's run lock (one `trials run` per study at a time)."""
+    runs = folder.path(RUNS)
+    runs.mkdir(parents=True, exist_ok=True)
+    with (runs / LOCK).open("a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            raise StudyError(f"another `trials run` is running on {folder.root} (pid {handle.read().strip() or '?'}); wait for it or stop it") from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(str(os.getpid()))
+        handle.flush()
+        yield
+
+
+def clean_partials(folder: StudyFolder) -> list[Path]:
+    """Delete the partial files of interrupted runs (hidden `.…partial` and `.…tmp` files); returns them."""
+    stale = []
+    for where in (folder.path(RUNS), folder.path(SEALED_RUNS), folder.root):
+        if where.is_dir():
+            stale += [p for p in where.glob(".*") if p.is_file() and p.name.endswith((".partial", ".tmp"))]
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return stale
+
+
+class Outcomes:
+    """outcomes.csv: its rows, checked header, and atomic appends and removals."""
+
+    def __init__(self, folder: StudyFolder, blind: bool) -> None:
+        self.path = folder.path(OUTCOMES)
+        self.header = columns(blind)
+        header, self.rows = read_outcomes(self.path)
+        if self.rows and header != self.header:
+            what = "a blinded" if blind else "an open"
+            raise StudyError(f"{self.path} has the columns {','.join(header)}, not those of {what} study ({','.join(self.header)})")
+
+    @property
+    def finished(self) -> set[str]:
+        return {row["run_code"] for row in self.rows}
+
+    def append(self, row: dict[str, str]) -> None:
+        self.rows.append(row)
+        write_text(self.path, outcomes_text(self.header, self.rows))
+
+    def remove(self, codes: set[str]) -> None:
+        self.rows = [row for row in self.rows if row["run_code"] not in codes]
+        write_text(self.path, outcomes_text(self.header, self.rows))
+
+
+def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], stamp: str) -> Path:
+    """Move finished runs aside for --rerun: their rows, logs (and PNGs) to superseded/<stamp>/, their
+    sealed records to sealed/superseded/<stamp>/. Copies are made before the rows are removed, so an
+    interruption never loses a run."""
+    target = folder.path(SUPERSEDED) / stamp
+    secret = folder.path(SEALED) / SUPERSEDED / stamp
+    moved_rows = [row for row in outcomes.rows if row["run_code"] in codes]
+    old = target / OUTCOMES
+    _, earlier = read_outcomes(old)
+    files: dict[Path, bytes] = {old: outcomes_text(outcomes.header, earlier + moved_rows).encode()}
+    originals = []
+    for code in codes:
+        for source, base in ((folder.path(RUNS) / f"{code}.mcap", target / RUNS), (folder.path(RUNS) / f"{code}.png", target / RUNS),
+                             (folder.path(SEALED_RUNS) / f"{code}.json", secret / RUNS)):
+            if source.exists():
+                files[base / source.name] = source.read_bytes()
+                originals.append(source)
+    write_files(files)
+    outcomes.remove(set(codes))
+    for source in originals:
+        source.unlink()
+    return target
+
+
+def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], options: RunOptions,
+              on_start: Callable[[int], None], on_done: Callable[[RunDone], None],
+              on_failed: Callable[[str, str], None]) -> Summary:
+    """Run the pending rows (or the `only` / `rerun` ones) with `workers` processes.
+
+    `on_start(n)` is called once the workers are ready and n runs are about to start;
+    `on_done` / `on_failed` after each run. Ctrl-C (KeyboardInterrupt) stops the workers at once;
+    finished runs are kept.
+
+    Raises:
+        StudyError: unknown codes, a --rerun of an unfinished run, outcomes.csv of another study
+            kind, a broken sealed key, unreadable weights or a controller that cannot be built.
+    """
+    folder = study.folder
+    if workers < 1:
+        raise StudyError(f"--workers must be at least 1, got {workers}")
+    if options.perception not in PERCEPTIONS:
+        raise StudyError(f"--perception must be one of {', '.join(PERCEPTIONS)}, got {options.perception!r}")
+    unknown = [code for code in only + rerun if code not in study.codes]
+    if unknown:
+        raise StudyError(f"run {unknown[0]} is not in {folder.path('plan.csv')}")
+    summary = Summary()
+    with study_lock(folder):
+        clean_partials(folder)
+        outcomes = Outcomes(folder, study.blind)
+        finished = outcomes.finished
+        unfinished = [code for code in rerun if code not in finished]
+        if unfinished:
+            raise StudyError(f"--rerun {unfinished[0]}: the run has not finished yet; `trials run --only {unfinished[0]}` runs it")
+        wanted = [c for c in study.codes if c in set(only) | set(rerun)] if only or rerun else study.codes
+        summary.skipped = [c for c in wanted if c in finished and c not in rerun]
+        todo = [c for c in wanted if c not in finished or c in rerun]
+        summary.done = len(finished & set(study.codes))
+        if not todo:
+            return summary
+        try:
+            setup = (str(folder.root), study.name, study.blind, study.levels, options)
+            with WorkerPool(min(workers, len(todo)), setup_worker, setup, USER_ERRORS) as pool:
+                try:
+                    pool.ready()
+                except PoolError as exc:
+                    raise StudyError(str(exc)) from None
+                if rerun:
+                    summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
+                on_start(len(todo))
+                for code, answer in pool.run((code, study.task(code)) for code in todo):
+                    if isinstance(answer, Failure):
+                        message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
+                        summary.failed.append((code, message))
+                        on_failed(code, message)
+                        continue
+                    outcomes.append(answer.row)
+                    summary.finished.append(answer)
+                    on_done(answer)
+        finally:
+            clean_partials(folder)
+            summary.done = len(outcomes.finished & set(study.codes))
+    return summary
+
+
+# --- the workers: running one row ----------------------------------------------------------------
+
+def setup_worker(root: str, name: str, blind: bool, levels: tuple[str, ...], options: RunOptions) -> Callable[[RunTask], RunDone]:
+    """Build a worker's controllers once (opening the sealed key when blind); returns its task handler."""
+    import warnings
+
+    import torch
+
+    torch.set_num_threads(1)
+    if blind:
+        warnings.simplefilter("ignore")  # a warning naming a module would name the controller
+    return TrialWorker(StudyFolder(Path(root)), name, blind, levels, options)
+
+
+def build_controller(level: str, options: RunOptions) -> Any:
+    """The controller a plan level names, built once per worker."""
+    if level == NAVIGAN_R:
+        from trials.controllers.navigan_r import NaviganRController
+
+        return NaviganRController(options.weights)
+    if level == LATTICE:
+        from trials.controllers.lattice.controller import LatticeController
+
+        return LatticeController()
+    raise StudyError(f"no controller is called {level!r} (known: {', '.join(CONTROLLER_LEVELS)})")
+
+
+class TrialWorker:
+    """Runs plan rows in one worker process with controllers built once."""
+
+    def __init__(self, folder: StudyFolder, name: str, blind: bool, levels: tuple[str, ...], options: RunOptions) -> None:
+        self.folder, self.name, self.blind, self.options = folder, name, blind, options
+        self._arms: dict[str, str] = folder.read_sealed().arms if blind else {}
+        wanted = tuple(dict.fromkeys(self._arms.values())) if blind else levels
+        self._controllers = {level: build_controller(level, options) for level in sorted(wanted)}
+
+    def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
+        label = row.get(CONTROLLER)
+        if self.blind:
+            return self._arms[label], label
+        return label or DEFAULT_CONTROLLER, None
+
+    def __call__(self, task: RunTask) -> RunDone:
+        from trials.outcomes import measure
+        from trials.run_log import RunLog, jsonable
+        from trials.scenario import build_scenario
+        from trials.sim.closed_loop import SimConfig, simulate
+        from trials.sim.perception import LidarPerception, PositionPerception
+
+        options = self.options
+        level, arm = self._level(task.row)
+        controller = self._controllers[level]
+        scenario_seed, crowd_seed, perception_seed, controller_seed = (
+            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(task.seed).spawn(4))
+        scenario = build_scenario(settings_from_row(task.row, f"run {task.code}"), scenario_seed)
+        perception = (LidarPerception(perception_seed) if options.perception == "lidar"
+                      else PositionPerception(options.noise, perception_seed))
+        config = SimConfig(timeout_s=options.timeout_s)
+        metadata = self._metadata(task, scenario.variation(), level)
+        controller.reset(controller_seed)
+        with RunLog(self.folder.path(RUNS) / f"{task.code}.mcap", metadata, scenario.goal, scenario.cone, self.blind,
+                    config.limits) as log:
+            result = simulate(scenario, controller, perception, log, config, crowd_seed)
+            if self.blind:
+                record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
+                          **self._controller_details(level), "steps": log.records}
+                write_text(self.folder.path(SEALED_RUNS) / f"{task.code}.json", json.dumps(jsonable(record)) + "\n")
+        trace = result.trace
+        outcome = measure(result.status, np.array(trace.time), np.array(trace.pose), np.array(trace.velocity),
+                          np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
+                          config.limits, config.pedestrian_radius_m)
+        row = {"run_code": task.code, "seed": str(task.seed), "perception": options.perception, **outcome.fields(),
+               "controller": level, "finished_utc": utc_stamp(self.blind)}
+        return RunDone(task.code, {name: row[name] for name in columns(self.blind)})
+
+    def _controller_details(self, level: str) -> dict[str, str]:
+        controller = self._controllers[level]
+        return {"weights": str(controller.weights)} if level == NAVIGAN_R else {}
+
+    def _metadata(self, task: RunTask, variation: list[dict[str, Any]], level: str) -> dict[str, str]:
+        options = self.options
+        factors = {k: v for k, v in task.row.items() if k not in ("order", "run_code")}
+        meta = {"run_code": task.code, "study": self.name, "seed": str(task.seed),
+                "perception": options.perception, "timeout_s": f"{options.timeout_s:g}", **factors,
+                "variation": json.dumps(variation)}
+        if options.perception == "positions":
+            noise = options.noise
+            meta.update(noise_std_m=f"{noise.std_m:g}", dropout=f"{noise.dropout:g}", range_m=f"{noise.range_m:g}")
+        if not self.blind:
+            meta.update(controller=level, **self._controller_details(level))
+        return meta
