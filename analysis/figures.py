@@ -7,6 +7,7 @@ import io
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 
 def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str) -> bytes:
@@ -23,6 +24,117 @@ def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str
     figure.colorbar(image, ax=axes, label="|correlation|")
     axes.set_title(title)
     figure.tight_layout()
+    return _png(figure)
+
+
+def _png(figure: Figure) -> bytes:
     buffer = io.BytesIO()
     FigureCanvasAgg(figure).print_png(buffer)
     return buffer.getvalue()
+
+
+def arm_colours(arms: list[str]) -> dict[str, str]:
+    """One colour per arm, the same in every figure of a report."""
+    palette = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
+    return {arm: palette[i % len(palette)] for i, arm in enumerate(arms)}
+
+
+def score_distribution_png(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> bytes:
+    """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]), with the paper's shares as markers."""
+    figure = Figure(figsize=(6.5, 3.6))
+    axes = figure.add_subplot()
+    width = 0.8 / max(len(groups), 1)
+    colours = arm_colours(list(groups))
+    for i, (group, counts) in enumerate(groups.items()):
+        total = max(sum(counts), 1)
+        x = np.arange(3) + (i - (len(groups) - 1) / 2) * width
+        shares = [100.0 * c / total for c in counts]
+        bars = axes.bar(x, shares, width, color=colours[group], label=f"{group} (n = {sum(counts)})")
+        axes.bar_label(bars, [str(c) for c in counts], fontsize=8)
+    if paper is not None:
+        axes.scatter(range(3), [paper[s] for s in (1, 2, 3)], marker="D", color="black", zorder=3, label="paper")
+    axes.set_xticks(range(3), ["1: collision", "2: unnatural", "3: natural"])
+    axes.set_ylabel("% of runs")
+    axes.set_ylim(0, 110)
+    axes.legend(fontsize=8, loc="upper left")
+    axes.set_title(title)
+    figure.tight_layout()
+    return _png(figure)
+
+
+def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> bytes:
+    """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm."""
+    columns = min(6, max(len(panels), 1))
+    rows = max(1, -(-len(panels) // columns))
+    figure = Figure(figsize=(2.2 * columns, 2.2 * rows + 0.3))
+    every = [p for _, _, robot, peds in panels for p in [robot, *peds] if len(p)]
+    points = np.vstack(every) if every else np.zeros((1, 2))
+    low, high = points.min(axis=0) - 0.5, points.max(axis=0) + 0.5
+    for index, (title, arm, robot, pedestrians) in enumerate(panels):
+        axes = figure.add_subplot(rows, columns, index + 1)
+        for path in pedestrians:
+            axes.plot(path[:, 0], path[:, 1], color="0.6", linewidth=0.8)
+            axes.plot(path[-1:, 0], path[-1:, 1], "o", color="0.45", markersize=2)
+        axes.plot(robot[:, 0], robot[:, 1], color=colours.get(arm, "black"), linewidth=1.6)
+        axes.plot(robot[-1:, 0], robot[-1:, 1], "s", color=colours.get(arm, "black"), markersize=3)
+        axes.set_xlim(low[0], high[0])
+        axes.set_ylim(low[1], high[1])
+        axes.set_aspect("equal")
+        axes.set_title(title, fontsize=7)
+        axes.tick_params(labelsize=5)
+    figure.suptitle(f"Robot (colour: {arm_word}) and pedestrian (grey) paths, m; markers at the end", fontsize=9)
+    handles = [Line2D([], [], color=colour, linewidth=1.6, label=arm) for arm, colour in colours.items()]
+    handles.append(Line2D([], [], color="0.6", linewidth=0.8, label="pedestrian"))
+    height = figure.get_figheight()
+    figure.subplots_adjust(left=0.03, right=0.99, bottom=0.25 / height, top=1 - 0.6 / height, wspace=0.3, hspace=0.45)
+    figure.legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles), frameon=False)
+    return _png(figure)
+
+
+def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]], paper: dict[str, dict[int, float]] | None, title: str) -> bytes:
+    """Share judged compliant (with its interval) per arm for runs with >= k pedestrians: rows of (k, arm -> (share, low, high))."""
+    arms = list(rows[0][1]) if rows else []
+    colours = arm_colours(arms)
+    figure = Figure(figsize=(6.5, 3.6))
+    axes = figure.add_subplot()
+    width = 0.8 / max(len(arms), 1)
+    for i, arm in enumerate(arms):
+        x = np.arange(len(rows)) + (i - (len(arms) - 1) / 2) * width
+        share = np.array([100.0 * r[1][arm][0] for r in rows])
+        low = np.array([100.0 * r[1][arm][1] for r in rows])
+        high = np.array([100.0 * r[1][arm][2] for r in rows])
+        axes.errorbar(x, share, yerr=[share - low, high - share], fmt="o", color=colours[arm], capsize=4, label=f"{arm} (Wilson 95 %)")
+        if paper is not None and arm in paper:
+            axes.scatter(x, [paper[arm].get(k, np.nan) for k, _ in rows], marker="D", facecolors="none", edgecolors=colours[arm], label=f"{arm}: paper")
+    axes.set_xticks(range(len(rows)), [f">= {k} pedestrians" for k, _ in rows])
+    axes.set_ylabel("% judged socially compliant")
+    axes.set_ylim(0, 105)
+    axes.legend(fontsize=7, loc="lower left")
+    axes.set_title(title)
+    figure.tight_layout()
+    return _png(figure)
+
+
+def min_distance_png(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> bytes:
+    """Minimum gap of each run against its pedestrian count, one colour per arm: points (arm, pedestrians, gap)."""
+    colours = arm_colours(arms)
+    figure = Figure(figsize=(6.5, 3.6))
+    axes = figure.add_subplot()
+    offsets = np.linspace(-0.15, 0.15, len(arms)) if len(arms) > 1 else [0.0]
+    for offset, arm in zip(offsets, arms):
+        mine = [(p, d) for a, p, d in points if a == arm]
+        if not mine:
+            continue
+        peds, gaps = np.array(mine).T
+        axes.plot(peds + offset, gaps, "o", color=colours[arm], alpha=0.8, label=arm)
+        levels = sorted(set(peds))
+        axes.plot(np.array(levels) + offset, [gaps[peds == level].mean() for level in levels], "-", color=colours[arm], linewidth=1)
+    axes.axhline(intimate_m, color="0.5", linestyle=":", linewidth=1)
+    axes.text(axes.get_xlim()[0], intimate_m, f" intimate distance {intimate_m:g} m", fontsize=7, va="bottom", color="0.4")
+    axes.set_xlabel("pedestrians")
+    axes.set_ylabel("minimum gap to a pedestrian (m)")
+    axes.set_ylim(bottom=0)
+    axes.legend(fontsize=8)
+    axes.set_title(title)
+    figure.tight_layout()
+    return _png(figure)

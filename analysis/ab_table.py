@@ -1,0 +1,73 @@
+"""The A/B table (the paper's Table II): the share of "socially compliant" judgments per arm among
+runs with at least k pedestrians, with Wilson 95 % intervals and Fisher's exact test per row.
+
+Judgments of one run share that run, so they are not independent; the intervals treat them as if
+they were, as the paper's percentages do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from analysis.intervals import Proportion, exact_difference, wilson
+from analysis.records import HUMAN, Response
+
+#: Table II of the paper: % judged socially compliant among runs with >= 2, 4, 6 pedestrians.
+#: The paper's SBPL planner is this toolkit's lattice planner.
+PAPER_TABLE_II = {"Lattice": {2: 67.0, 4: 64.0, 6: 58.0}, "NaviGAN-R": {2: 67.0, 4: 75.0, 6: 75.0}}
+PAPER_NAMES = {"Lattice": "SBPL", "NaviGAN-R": "NaviGAN-R"}
+
+
+@dataclass(frozen=True)
+class RunJudgments:
+    """The judgments of one run, counted."""
+
+    code: str
+    arm: str
+    pedestrians: int
+    yes: int
+    total: int
+
+
+@dataclass(frozen=True)
+class TableRow:
+    """One row of Table II: each arm's share, and the exact test's p-value when there are two arms."""
+
+    min_pedestrians: int
+    shares: dict[str, Proportion]
+    p_value: float
+
+
+def judgments_used(responses: Iterable[Response]) -> tuple[list[Response], str]:
+    """The judgments the analysis uses and their source: human ones when there are any, else the simulated
+    ones; a participant's latest judgment of a run replaces earlier ones."""
+    responses = list(responses)
+    human = [r for r in responses if r.source == HUMAN]
+    chosen = human or responses
+    latest = {(r.run_code, r.participant): r for r in chosen}
+    source = "none" if not chosen else ("human" if human else "simulated")
+    return list(latest.values()), source
+
+
+def count_judgments(responses: Iterable[Response], arms: dict[str, str], pedestrians: dict[str, int]) -> list[RunJudgments]:
+    """Per run with judgments: its arm, pedestrian count, yes count and total."""
+    tally: dict[str, list[int]] = {}
+    for response in responses:
+        yes_total = tally.setdefault(response.run_code, [0, 0])
+        yes_total[0] += response.compliant
+        yes_total[1] += 1
+    return [RunJudgments(code, arms[code], pedestrians[code], yes, total) for code, (yes, total) in tally.items()]
+
+
+def table_ii(judged: list[RunJudgments], arms: list[str]) -> list[TableRow]:
+    """One row per pedestrian count k present: judgments of runs with at least k pedestrians."""
+    rows = []
+    for k in sorted({run.pedestrians for run in judged}):
+        shares = {}
+        for arm in arms:
+            chosen = [run for run in judged if run.arm == arm and run.pedestrians >= k]
+            shares[arm] = wilson(sum(r.yes for r in chosen), sum(r.total for r in chosen))
+        p_value = exact_difference(*shares.values()) if len(arms) == 2 else float("nan")
+        rows.append(TableRow(k, shares, p_value))
+    return rows

@@ -1,0 +1,131 @@
+"""A report as a list of blocks, rendered to Markdown (figures as files) and to one self-contained HTML page.
+
+Inline text may mark `code` with backticks and **bold** with double asterisks; both renderers understand them.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import re
+from dataclasses import dataclass, field
+from typing import Union
+
+
+@dataclass(frozen=True)
+class Heading:
+    text: str
+    level: int = 2
+
+
+@dataclass(frozen=True)
+class Paragraph:
+    text: str
+
+
+@dataclass(frozen=True)
+class Bullets:
+    items: list[str]
+
+
+@dataclass(frozen=True)
+class Table:
+    header: list[str]
+    rows: list[list[str]]
+    caption: str = ""
+    align_right: set[int] = field(default_factory=set)
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A PNG figure; `name` is its file name under report/figures/."""
+
+    name: str
+    png: bytes
+    caption: str
+
+
+Block = Union[Heading, Paragraph, Bullets, Table, Figure]
+
+_CODE = re.compile(r"`([^`]+)`")
+_BOLD = re.compile(r"\*\*([^*]+)\*\*")
+_NUMBER = ' class="num"'
+
+STYLE = """
+body { font-family: "DejaVu Sans", Arial, sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.4; }
+h1 { border-bottom: 2px solid #444; padding-bottom: .2em; }
+h2 { border-bottom: 1px solid #bbb; margin-top: 2em; }
+table { border-collapse: collapse; margin: .8em 0 1.2em; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; vertical-align: top; }
+th { background: #f0f0f0; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+caption { caption-side: bottom; font-size: .85em; color: #555; text-align: left; padding-top: .3em; }
+figure { margin: 1em 0 2em; }
+figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
+figcaption { font-size: .85em; color: #555; }
+code { background: #f4f4f4; padding: 0 .2em; }
+"""
+
+
+def _inline_html(text: str) -> str:
+    escaped = html.escape(text, quote=False)
+    return _BOLD.sub(r"<strong>\1</strong>", _CODE.sub(r"<code>\1</code>", escaped))
+
+
+def _cell_markdown(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def to_markdown(title: str, blocks: list[Block], figure_dir: str = "figures") -> str:
+    """The report as Markdown; figures are linked as `figure_dir/name`."""
+    lines = [f"# {title}", ""]
+    for block in blocks:
+        if isinstance(block, Heading):
+            lines += ["#" * block.level + " " + block.text, ""]
+        elif isinstance(block, Paragraph):
+            lines += [block.text, ""]
+        elif isinstance(block, Bullets):
+            lines += [f"- {item}" for item in block.items] + [""]
+        elif isinstance(block, Table):
+            rule = ["---:" if i in block.align_right else "---" for i in range(len(block.header))]
+            lines.append("| " + " | ".join(_cell_markdown(h) for h in block.header) + " |")
+            lines.append("| " + " | ".join(rule) + " |")
+            lines += ["| " + " | ".join(_cell_markdown(c) for c in row) + " |" for row in block.rows]
+            lines += ([""] + [f"*{block.caption}*"] if block.caption else []) + [""]
+        else:
+            lines += [f"![{block.caption}]({figure_dir}/{block.name})", "", f"*{block.caption}*", ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def to_html(title: str, blocks: list[Block]) -> str:
+    """The report as one HTML page with its figures embedded as base64 PNG (no outside references)."""
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title>",
+        f"<style>{STYLE}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
+    for block in blocks:
+        if isinstance(block, Heading):
+            parts.append(f"<h{block.level}>{_inline_html(block.text)}</h{block.level}>")
+        elif isinstance(block, Paragraph):
+            parts.append(f"<p>{_inline_html(block.text)}</p>")
+        elif isinstance(block, Bullets):
+            parts.append("<ul>" + "".join(f"<li>{_inline_html(item)}</li>" for item in block.items) + "</ul>")
+        elif isinstance(block, Table):
+            head = "".join(f"<th>{_inline_html(h)}</th>" for h in block.header)
+            body = "".join(
+                "<tr>" + "".join(f"<td{_NUMBER if i in block.align_right else ''}>{_inline_html(c)}</td>" for i, c in enumerate(row)) + "</tr>"
+                for row in block.rows
+            )
+            caption = f"<caption>{_inline_html(block.caption)}</caption>" if block.caption else ""
+            parts.append(f"<table>{caption}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+        else:
+            data = base64.b64encode(block.png).decode("ascii")
+            parts.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block.caption)}">'
+                f"<figcaption>{_inline_html(block.caption)}</figcaption></figure>"
+            )
+    parts.append("</body></html>")
+    return "\n".join(parts) + "\n"

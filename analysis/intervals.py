@@ -1,0 +1,48 @@
+"""Proportions with Wilson score intervals, and an exact test of the difference of two.
+
+Wilson (1927): for k successes in n trials and z the normal quantile of the level,
+    centre = (k + z^2/2) / (n + z^2),  half-width = z sqrt(k (n - k) / n + z^2/4) / (n + z^2).
+It stays inside [0, 1] and keeps close to its nominal coverage for small n, unlike the Wald interval.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from scipy.stats import fisher_exact, norm
+
+
+@dataclass(frozen=True)
+class Proportion:
+    """k of n with its Wilson interval (NaN share and interval when n is 0)."""
+
+    k: int
+    n: int
+    low: float
+    high: float
+
+    @property
+    def share(self) -> float:
+        return self.k / self.n if self.n else math.nan
+
+
+def wilson(k: int, n: int, level: float = 0.95) -> Proportion:
+    """The Wilson score interval of k successes in n trials at the given level."""
+    if not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n, got k={k}, n={n}")
+    if n == 0:
+        return Proportion(0, 0, math.nan, math.nan)
+    z = float(norm.ppf(0.5 + level / 2.0))
+    denominator = n + z * z
+    centre = (k + z * z / 2.0) / denominator
+    half = z * math.sqrt(k * (n - k) / n + z * z / 4.0) / denominator
+    return Proportion(k, n, max(0.0, centre - half), min(1.0, centre + half))
+
+
+def exact_difference(first: Proportion, second: Proportion) -> float:
+    """Two-sided p-value of Fisher's exact test that two proportions are equal (NaN if either is empty)."""
+    if first.n == 0 or second.n == 0:
+        return math.nan
+    table = [[first.k, first.n - first.k], [second.k, second.n - second.k]]
+    return float(fisher_exact(table, alternative="two-sided").pvalue)

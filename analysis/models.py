@@ -1,0 +1,249 @@
+"""The design's model fitted to results: logistic regression on judgments, least squares on metrics.
+
+Both fits use the model matrix of the plan (coded factors, effect-coded categories) and report,
+per column, the estimate, its standard error and a Wald p-value, and per term an effect test:
+a likelihood-ratio chi-square (logistic) or a partial F test (least squares) of dropping the term.
+A column the runs cannot estimate (aliased with earlier columns, or too few runs) is left out
+with a note. When judgments are perfectly separated the maximum-likelihood estimates do not
+exist; the logistic fit then uses Firth's bias-reduced (penalized) likelihood and says so.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog
+from scipy.special import expit
+from scipy.stats import chi2, f as f_dist, norm, t as t_dist
+
+from designs.model import Model
+
+_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class DesignMatrix:
+    """Model-matrix rows of the runs with data, with the column labels and each term's columns."""
+
+    x: np.ndarray
+    columns: list[str]
+    terms: list[tuple[str, list[int]]]
+
+    @classmethod
+    def from_model(cls, model: Model, settings: np.ndarray) -> DesignMatrix:
+        """The rows of `settings` ((n, k) coded factor settings) under `model`."""
+        terms = [(name, list(range(s.start, s.stop))) for name, s in zip(model.term_names, model.term_slices)]
+        return cls(model.matrix(settings), model.columns, terms)
+
+    def rows(self, keep: np.ndarray) -> DesignMatrix:
+        return DesignMatrix(self.x[keep], self.columns, self.terms)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model column: estimate, standard error, Wald statistic and p-value (NaN when not estimable)."""
+
+    column: str
+    estimate: float
+    std_error: float
+    statistic: float
+    p_value: float
+
+
+@dataclass(frozen=True)
+class EffectTest:
+    """The test that all of a term's coefficients are zero."""
+
+    term: str
+    df: int
+    statistic: float
+    p_value: float
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted model: what was fitted how, the parameters, the effect tests and what to know."""
+
+    response: str
+    method: str
+    runs: int
+    observations: int
+    statistic: str
+    test: str
+    parameters: list[Parameter]
+    effects: list[EffectTest]
+    notes: list[str] = field(default_factory=list)
+
+
+def estimable_columns(x: np.ndarray) -> np.ndarray:
+    """Mask of the columns that are not linear combinations of earlier columns."""
+    keep: list[int] = []
+    for j in range(x.shape[1]):
+        if np.linalg.matrix_rank(x[:, keep + [j]]) > len(keep):
+            keep.append(j)
+    mask = np.zeros(x.shape[1], dtype=bool)
+    mask[keep] = True
+    return mask
+
+
+def _estimability_notes(dm: DesignMatrix, keep: np.ndarray, runs: int) -> list[str]:
+    notes = []
+    if runs < len(dm.columns):
+        notes.append(f"Too few runs: {runs} runs with data for {len(dm.columns)} model columns.")
+    for name, columns in dm.terms:
+        lost = [dm.columns[j] for j in columns if not keep[j]]
+        if lost:
+            notes.append(
+                f"{name} cannot be estimated from these runs: {', '.join(lost)} "
+                "is a combination of earlier columns (aliased); it is left out of the fit."
+            )
+    return notes
+
+
+def separation(x: np.ndarray, successes: np.ndarray, trials: np.ndarray) -> np.ndarray | None:
+    """A direction b with b.x >= 0 for every yes and <= 0 for every no, if one exists (Konis' LP)."""
+    signed = np.vstack([x[successes > 0], -x[successes < trials]])
+    result = linprog(-signed.sum(axis=0), A_ub=-signed, b_ub=np.zeros(len(signed)), bounds=(-1.0, 1.0), method="highs")
+    if result.status != 0 or -result.fun <= 1e-7:
+        return None
+    return np.asarray(result.x)
+
+
+def _logistic(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    """Newton-Raphson (with step halving) for the binomial log-likelihood, or Firth's penalized one.
+
+    Returns the estimates, their covariance (inverse Fisher information) and the maximised objective.
+    """
+
+    def information(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p = expit(x @ beta)
+        w = trials * p * (1.0 - p)
+        return p, w, x.T @ (w[:, None] * x)
+
+    def objective(beta: np.ndarray) -> float:
+        eta = x @ beta
+        value = float(np.sum(successes * eta - trials * np.logaddexp(0.0, eta)))
+        if firth:
+            value += 0.5 * np.linalg.slogdet(information(beta)[2])[1]
+        return value
+
+    beta = np.zeros(x.shape[1])
+    current = objective(beta)
+    for _ in range(200):
+        p, w, info = information(beta)
+        inverse = np.linalg.inv(info)
+        score = x.T @ (successes - trials * p)
+        if firth:
+            leverage = w * np.einsum("ij,jk,ik->i", x, inverse, x)
+            score = score + x.T @ (leverage * (0.5 - p))
+        step = inverse @ score
+        scale = 1.0
+        while scale > 1e-10:
+            candidate = objective(beta + scale * step)
+            if candidate >= current - 1e-12:
+                break
+            scale /= 2.0
+        beta = beta + scale * step
+        current = objective(beta)
+        if np.max(np.abs(scale * step)) < 1e-10:
+            break
+    return beta, np.linalg.inv(information(beta)[2]), current
+
+
+def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, response: str) -> Fit:
+    """Binomial logistic regression of `successes` of `trials` per run on the model matrix."""
+    successes = np.asarray(successes, dtype=float)
+    trials = np.asarray(trials, dtype=float)
+    keep = estimable_columns(dm.x)
+    notes = _estimability_notes(dm, keep, len(trials))
+    x = dm.x[:, keep]
+    direction = separation(x, successes, trials)
+    firth = direction is not None
+    if direction is not None:
+        involved = [dm.columns[j] for j, b in zip(np.flatnonzero(keep), direction) if abs(b) > 1e-6]
+        notes.append(
+            "The judgments are perfectly separated (along " + ", ".join(involved) + "): maximum-likelihood "
+            "estimates do not exist, so Firth's bias-reduced estimates are shown and the effect tests "
+            "use the penalized likelihood."
+        )
+    beta, covariance, objective = _logistic(x, successes, trials, firth)
+    se = np.sqrt(np.diag(covariance))
+    z = beta / se
+    parameters = _parameters(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+
+    def reduced_objective(columns: np.ndarray) -> float:
+        return _logistic(dm.x[:, columns], successes, trials, firth)[2]
+
+    effects = _effects(dm, keep, lambda columns, df: _chi_square_test(objective, reduced_objective(columns), df))
+    method = "logistic regression, Firth's penalized likelihood" if firth else "logistic regression, maximum likelihood"
+    return Fit(response, method, len(trials), int(trials.sum()), "z", "likelihood-ratio chi-square", parameters, effects, notes)
+
+
+def _chi_square_test(full: float, reduced: float, df: int) -> tuple[float, float]:
+    statistic = max(0.0, 2.0 * (full - reduced))
+    return statistic, float(chi2.sf(statistic, df))
+
+
+def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
+    """Ordinary least squares of one value per run on the model matrix, with partial F tests."""
+    y = np.asarray(y, dtype=float)
+    keep = estimable_columns(dm.x)
+    notes = _estimability_notes(dm, keep, len(y))
+    x = dm.x[:, keep]
+    beta = np.linalg.lstsq(x, y, rcond=None)[0]
+    sse = float(np.sum((y - x @ beta) ** 2))
+    df_error = len(y) - x.shape[1]
+    if np.ptp(y) == 0.0:
+        notes.append(f"{response} is the same in every run: nothing to explain.")
+    if df_error == 0:
+        notes.append(f"No residual degrees of freedom ({len(y)} runs for {x.shape[1]} estimable columns): no standard errors or tests.")
+        sigma2 = math.nan
+    else:
+        sigma2 = sse / df_error
+    if sigma2 == 0.0 and np.ptp(y) > 0.0:
+        notes.append(f"The model reproduces {response} exactly in every run: no error left to test against.")
+    se = np.sqrt(sigma2 * np.diag(np.linalg.inv(x.T @ x)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = beta / se
+        p = 2.0 * t_dist.sf(np.abs(t), df_error) if df_error else np.full(len(beta), math.nan)
+    parameters = _parameters(dm, keep, beta, se, t, p)
+
+    def partial_f(columns: np.ndarray, df: int) -> tuple[float, float]:
+        if not df_error or sigma2 == 0.0:
+            return math.nan, math.nan
+        reduced = dm.x[:, columns]
+        sse_reduced = float(np.sum((y - reduced @ np.linalg.lstsq(reduced, y, rcond=None)[0]) ** 2))
+        statistic = max(0.0, (sse_reduced - sse) / df) / sigma2
+        return statistic, float(f_dist.sf(statistic, df, df_error))
+
+    effects = _effects(dm, keep, partial_f)
+    return Fit(response, "least squares", len(y), len(y), "t", f"partial F (error df {df_error})", parameters, effects, notes)
+
+
+def _parameters(dm: DesignMatrix, keep: np.ndarray, beta: np.ndarray, se: np.ndarray, statistic: np.ndarray, p: np.ndarray) -> list[Parameter]:
+    """One Parameter per model column; columns left out get NaN."""
+    values = iter(zip(beta, se, statistic, p))
+    rows = []
+    for column, kept in zip(dm.columns, keep):
+        b, s, stat, pv = next(values) if kept else (math.nan,) * 4
+        rows.append(Parameter(column, float(b), float(s), float(stat), float(pv)))
+    return rows
+
+
+def _effects(dm: DesignMatrix, keep: np.ndarray, test: Callable[[np.ndarray, int], tuple[float, float]]) -> list[EffectTest]:
+    """Each non-intercept term's test of dropping its estimable columns; `test(columns kept, df)`."""
+    effects = []
+    for name, columns in dm.terms:
+        if name == "Intercept":
+            continue
+        dropped = [j for j in columns if keep[j]]
+        if not dropped:
+            effects.append(EffectTest(name, 0, math.nan, math.nan))
+            continue
+        remaining = np.flatnonzero(keep & ~np.isin(np.arange(len(keep)), dropped))
+        statistic, p = test(remaining, len(dropped))
+        effects.append(EffectTest(name, len(dropped), statistic, p))
+    return effects

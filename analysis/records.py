@@ -1,0 +1,131 @@
+"""Records of a study's results as the report reads them: outcome rows, human scores, judgments, runs.
+
+The columns follow docs/study_folder.md; `trials.results` reads and writes the CSV files.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from designs.model import Model
+from designs.spec import StudySpec
+
+#: Sources of a participant's judgment.
+HUMAN = "human"
+SIMULATED = "simulated"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One row of outcomes.csv: the metrics of a finished run (None where the cell is empty)."""
+
+    run_code: str
+    status: str
+    seed: int
+    perception: str
+    duration_s: float
+    time_to_goal_s: float | None
+    path_length_m: float
+    min_distance_m: float
+    time_within_0_5m_s: float
+    time_within_1_2m_s: float
+    collisions: int
+    max_deceleration_mps2: float
+    max_jerk_mps3: float
+    path_irregularity_rad_per_m: float
+    turn_in_place_s: float
+    backing_up_s: float
+    stopped_s: float
+    finished_utc: str
+    controller: str | None = None
+
+
+@dataclass(frozen=True)
+class HumanScore:
+    """One evaluator's 1-2-3 score of a run (a row of scores.csv)."""
+
+    run_code: str
+    score: int
+    scorer: str
+    note: str
+    recorded_utc: str
+
+
+@dataclass(frozen=True)
+class Response:
+    """One participant's judgment of a run (a row of responses.csv); `seed` only when simulated."""
+
+    run_code: str
+    participant: str
+    compliant: bool
+    source: str
+    recorded_utc: str
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """A planned run: its plan row, the arm it belongs to as the report may name it, its results."""
+
+    order: int
+    code: str
+    values: dict[str, str]
+    arm: str
+    outcome: Outcome | None
+    log: Path | None
+
+    @property
+    def finished(self) -> bool:
+        return self.outcome is not None
+
+
+@dataclass(frozen=True)
+class Blinding:
+    """How the report may name arms.
+
+    `factor` is the plan column that holds a run's arm (None when the study compares no
+    controllers); `labels` maps its plan values to what the report shows: arm labels while
+    blind, controller names once unblinded. `revealed` says this report opened the key;
+    `unblinded_utc` lists every verified unblinding of the study so far.
+    """
+
+    blinded: bool
+    factor: str | None
+    labels: dict[str, str]
+    revealed: bool = False
+    commitment: str | None = None
+    unblinded_utc: tuple[str, ...] = ()
+
+    @property
+    def open(self) -> bool:
+        """Whether the report may name controllers."""
+        return not self.blinded or self.revealed
+
+    @property
+    def arm_word(self) -> str:
+        return "Controller" if self.open else "Arm"
+
+
+@dataclass(frozen=True)
+class StudyData:
+    """Everything the report needs from a study folder."""
+
+    root: Path
+    spec: StudySpec
+    model: Model
+    seed: int | None
+    runs: list[StudyRun]
+    scores: list[HumanScore]
+    responses: list[Response]
+    blinding: Blinding
+    correlations: tuple[list[str], list[list[float | None]]]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def finished(self) -> list[StudyRun]:
+        return [run for run in self.runs if run.finished]
+
+    @property
+    def unfinished(self) -> list[StudyRun]:
+        return [run for run in self.runs if not run.finished]

@@ -1,0 +1,490 @@
+"""The study report: scores, the A/B table, model fits, figures and methods, as one document.
+
+`build_report` turns a study's data into blocks (rendered to report.md and a self-contained
+report.html), a JSON record of every number shown, and the console summary. While a blinded
+study is not unblinded, every arm is named by its label and no controller is named anywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
+from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, to_html, to_markdown
+from analysis.figures import ab_shares_png, arm_colours, correlation_map_png, min_distance_png, score_distribution_png, trajectories_png
+from analysis.intervals import wilson
+from analysis.models import Fit
+from analysis.participants import ParticipantModel
+from analysis.records import SIMULATED, Response, StudyData
+from analysis.run_log import RunLog, read_run_log
+from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
+from analysis.scoring import Rubric
+from analysis.study_fits import fit_judgments, fit_metrics
+from designs.factors import FixedFactor
+from robot_logs.errors import LogError
+
+FORMAT = "navtrials.report/1"
+PEDESTRIANS = "Pedestrians"
+NOT_AVAILABLE = "n/a"
+
+
+@dataclass(frozen=True)
+class Report:
+    """The report's title, content blocks, JSON record and console summary."""
+
+    title: str
+    blocks: list[Block]
+    record: dict[str, Any]
+    summary: list[str]
+
+    @property
+    def figures(self) -> list[Figure]:
+        return [block for block in self.blocks if isinstance(block, Figure)]
+
+    def markdown(self) -> str:
+        return to_markdown(self.title, self.blocks)
+
+    def html(self) -> str:
+        return to_html(self.title, self.blocks)
+
+
+def percent(share: float) -> str:
+    return NOT_AVAILABLE if math.isnan(share) else f"{100.0 * share:.1f} %"
+
+
+def p_text(p: float) -> str:
+    if math.isnan(p):
+        return NOT_AVAILABLE
+    return "< 0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def _equals(text: str) -> str:
+    return text if text.startswith("<") else f"= {text}"
+
+
+def number(value: float, digits: int = 3) -> str:
+    return NOT_AVAILABLE if math.isnan(value) or math.isinf(value) else f"{value:.{digits}f}"
+
+
+@dataclass(frozen=True)
+class _Analysis:
+    """What the sections share: logs, scores, arms, pedestrian counts, judgments and fits."""
+
+    data: StudyData
+    rubric: Rubric
+    logs: dict[str, RunLog | None]
+    scores: dict[str, RunScore]
+    arms: list[str]
+    pedestrians: dict[str, int]
+    judgments: list[Response]
+    judgment_source: str
+    judged: list[RunJudgments]
+    table: list[TableRow]
+    judgment_fit: Fit | None
+    metric_fits: list[Fit]
+    notes: list[str]
+
+
+def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_utc: str, participants: ParticipantModel = ParticipantModel()) -> Report:
+    """The whole report of a study folder's data."""
+    analysis = _analyse(data, rubric)
+    title = f"Study report: {data.spec.name}"
+    blocks = [
+        *_overview(analysis, generated_utc),
+        *_scores_section(analysis),
+        *_ab_section(analysis),
+        *_figures_section(analysis),
+        *_models_section(analysis),
+        *_methods_section(analysis, rubric_source, participants),
+    ]
+    return Report(title, blocks, _record(analysis, generated_utc, rubric_source), _summary(analysis))
+
+
+def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
+    notes = list(data.notes)
+    logs: dict[str, RunLog | None] = {}
+    for run in data.finished:
+        if run.log is None:
+            logs[run.code] = None
+            continue
+        try:
+            logs[run.code] = read_run_log(run.log)
+        except LogError as exc:
+            logs[run.code] = None
+            notes.append(f"Run {run.code}: its log cannot be read ({exc}); it is scored from its outcome row only.")
+    scores = score_runs(data.runs, logs, data.scores, rubric)
+    finished = {run.code for run in data.finished}
+    early = sorted({s.run_code for s in data.scores if s.run_code not in finished})
+    if early:
+        notes.append(f"Human scores of runs not finished yet are left out: {', '.join(early)}.")
+    waiting = sorted({r.run_code for r in data.responses if r.run_code not in finished})
+    if waiting:
+        notes.append(f"Judgments of runs not finished yet are left out: {', '.join(waiting)}.")
+    judgments, source = judgments_used(r for r in data.responses if r.run_code in finished)
+    skipped = [r for r in data.responses if r.source == SIMULATED and r.run_code in finished] if source == "human" else []
+    if skipped:
+        notes.append(f"Human judgments are used; {len(skipped)} simulated judgments are left out of the analysis.")
+    pedestrians = {run.code: _pedestrian_count(run.values, logs.get(run.code)) for run in data.finished}
+    arm_of = {run.code: run.arm for run in data.runs}
+    arms = _arm_order(data)
+    judged = count_judgments(judgments, arm_of, pedestrians)
+    table = table_ii(judged, arms) if judged else []
+    judgment_fit = fit_judgments(data, judged) if judged else None
+    metric_fits = fit_metrics(data) if data.finished else []
+    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fit, metric_fits, notes)
+
+
+def _pedestrian_count(values: dict[str, str], log: RunLog | None) -> int:
+    """The plan's pedestrian count, else the number of pedestrians in the run's log."""
+    if PEDESTRIANS in values:
+        return int(float(values[PEDESTRIANS]))
+    return len(log.pedestrians) if log is not None else 0
+
+
+def _arm_order(data: StudyData) -> list[str]:
+    """Arms in the order of the arm factor's levels (arm labels A, B, ... when blinded)."""
+    blinding = data.blinding
+    factor = next((f for f in data.spec.factors if f.name == blinding.factor), None)
+    if factor is not None and not isinstance(factor, FixedFactor) and hasattr(factor, "levels"):
+        return [blinding.labels[str(level)] for level in factor.levels if str(level) in blinding.labels]
+    return list(dict.fromkeys(run.arm for run in data.runs))
+
+
+# ----------------------------------------------------------------------------------------- sections
+
+
+def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
+    data, blinding = a.data, a.data.blinding
+    items = [
+        f"Study `{data.spec.name}`: {len(data.runs)} planned runs, model `{data.spec.model}`, design seed {data.seed}; report made {generated_utc}.",
+        f"Finished runs: {len(data.finished)} of {len(data.runs)}."
+        + (f" **Not finished yet ({len(data.unfinished)}):** {', '.join(r.code for r in data.unfinished)}; this report covers the finished runs only." if data.unfinished else ""),
+    ]
+    if blinding.blinded and not blinding.revealed:
+        items.append(f"**Blinded:** runs are shown by arm label ({', '.join(a.arms)}); the sealed key was not opened. `trials report --unblind` names the controllers.")
+        if blinding.unblinded_utc:
+            items.append(f"The key was opened before (first at {blinding.unblinded_utc[0]}).")
+    elif blinding.blinded:
+        mapping = ", ".join(f"{arm} = {name}" for arm, name in sorted(blinding.labels.items()))
+        items.append(
+            f"**Unblinded** at {blinding.unblinded_utc[-1]}: the sealed key matched the commitment "
+            f"(sha256 {str(blinding.commitment)[:16]}...) in design.json. Arms: {mapping}. First unblinded at {blinding.unblinded_utc[0]}."
+        )
+    else:
+        items.append("Not blinded.")
+    human = {s.run_code for s in data.scores if s.run_code in a.scores}
+    items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
+    items.append(_judgment_line(a))
+    if blinding.unblinded_utc:
+        late = [s for s in data.scores if s.recorded_utc and s.recorded_utc > blinding.unblinded_utc[0]]
+        if late:
+            items.append(f"**{len(late)} human score(s) were recorded after the study was first unblinded** (runs {', '.join(sorted({s.run_code for s in late}))}): those evaluators may not have been blind.")
+    blocks: list[Block] = [Heading("Study"), Bullets(items)]
+    if a.notes:
+        blocks += [Paragraph("**Notes on the data:**"), Bullets(a.notes)]
+    return blocks
+
+
+def _judgment_line(a: _Analysis) -> str:
+    if not a.judgments:
+        return "Judgments: none recorded (`trials respond`, or `trials respond --simulate` for simulated runs)."
+    participants = len({r.participant for r in a.judgments})
+    line = f"Judgments: {len(a.judgments)} from {participants} participants on {len(a.judged)} runs"
+    if a.judgment_source == SIMULATED:
+        seeds = sorted({str(r.seed) for r in a.judgments if r.seed is not None})
+        return line + f", **simulated** by the participant model (seed {', '.join(seeds) or 'unrecorded'}), not real people."
+    return line + ", from people."
+
+
+def _scores_section(a: _Analysis) -> list[Block]:
+    if not a.scores:
+        return [Heading("Scores"), Paragraph("No finished runs to score.")]
+    final = {code: s.final for code, s in a.scores.items()}
+    total = counts(final.values())
+    n = sum(total)
+    rows = []
+    for score, count in zip(SCORES, total):
+        interval = wilson(count, n)
+        rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", f"{PAPER_SCORE_SHARES[score]:.1f} %"])
+    rubric_only = counts(s.auto.score for s in a.scores.values())
+    blocks: list[Block] = [
+        Heading("Scores"),
+        Paragraph("1 = collision, 2 = no collision but unnatural (turning in place, backing up, stopping or hesitating, passing within intimate distance), 3 = natural and comfortable."),
+        Table(
+            ["Score", "Runs", "Share", "Wilson 95 %", "Paper (Tsai & Oh)"],
+            rows + [["all", str(n), "", "", ""]],
+            f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3.",
+            {1, 2},
+        ),
+    ]
+    arm_runs = {arm: [final[r.code] for r in a.data.finished if r.arm == arm] for arm in a.arms}
+    if len(a.arms) > 1:
+        word = a.data.blinding.arm_word
+        blocks.append(
+            Table(
+                [word, "Runs", "Score 1", "Score 2", "Score 3", "Share scored 3"],
+                [[arm, str(len(v)), *map(str, counts(v)), percent(counts(v)[2] / len(v) if v else math.nan)] for arm, v in arm_runs.items()],
+                f"Scores by {word.lower()}.",
+                {1, 2, 3, 4, 5},
+            )
+        )
+    level_rows = by_factor(a.data.spec, a.data.finished, final, a.data.blinding.factor)
+    blocks.append(Heading("Scores against each factor", 3))
+    blocks.append(
+        Table(
+            ["Factor", "Level", "Runs", "Score 1", "Score 2", "Score 3", "Mean score"],
+            [[row.factor if row.factor != a.data.blinding.factor else a.data.blinding.arm_word, row.level, str(sum(row.counts)), *map(str, row.counts), number(row.mean, 2)] for row in level_rows],
+            align_right={2, 3, 4, 5, 6},
+        )
+    )
+    blocks += [Heading("Every run", 3), _runs_table(a)]
+    return blocks
+
+
+def _runs_table(a: _Analysis) -> Table:
+    data = a.data
+    shown = [f.name for f in data.spec.factors if not isinstance(f, FixedFactor) and f.name != data.blinding.factor]
+    header = ["Order", "Run", *shown, data.blinding.arm_word, "Status", "Min gap (m)", "Rubric", "Human scores", "Score"]
+    rows = []
+    for run in data.runs:
+        cells = [str(run.order), run.code, *(run.values[name] for name in shown), run.arm]
+        scored = a.scores.get(run.code)
+        if run.outcome is None or scored is None:
+            rows.append(cells + ["not run yet", "", "", "", ""])
+            continue
+        rubric = f"{scored.auto.score}" + (f" ({'; '.join(scored.auto.reasons)})" if scored.auto.reasons else "")
+        human = "; ".join(f"{s.score} by {s.scorer or 'unnamed'}" + (f" ({s.note})" if s.note else "") for s in scored.human)
+        rows.append(cells + [run.outcome.status, f"{run.outcome.min_distance_m:.2f}", rubric, human, f"**{scored.final}**"])
+    return Table(header, rows, "In run order. Score: the latest human score, else the rubric's.", {0, len(shown) + 4})
+
+
+def _ab_section(a: _Analysis) -> list[Block]:
+    blinding = a.data.blinding
+    if len(a.arms) < 2 and not a.judged:
+        return []
+    heading = "A/B comparison (Table II)" if len(a.arms) > 1 else "Judgments (share judged socially compliant)"
+    blocks: list[Block] = [Heading(heading)]
+    if not a.table:
+        return blocks + [Paragraph("No judgments of finished runs yet: record them with `trials respond` (or `trials respond --simulate` for simulated runs).")]
+    paper = blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms)
+    header = ["Runs with"]
+    for arm in a.arms:
+        header += [f"{arm}: yes / judged", f"{arm}: % (Wilson 95 %)"]
+        if paper:
+            header.append(f"{PAPER_NAMES[arm]} (paper)")
+    two = len(a.arms) == 2
+    if two:
+        header.append("Fisher's exact p")
+    rows = []
+    for row in a.table:
+        cells = [f">= {row.min_pedestrians} pedestrians"]
+        for arm in a.arms:
+            share = row.shares[arm]
+            cells += [f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
+            if paper:
+                cells.append(f"{PAPER_TABLE_II[arm].get(row.min_pedestrians, math.nan):.0f} %")
+        if two:
+            cells.append(p_text(row.p_value))
+        rows.append(cells)
+    source = "simulated participants" if a.judgment_source == SIMULATED else "participants"
+    caption = (
+        f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians. Wilson 95 % intervals; "
+        "two-sided Fisher's exact test of the difference between the two arms. Judgments of one run are not independent, "
+        "so the intervals are narrower than the runs alone would support."
+    )
+    blocks.append(Table(header, rows, caption, set(range(1, len(header)))))
+    if blinding.blinded and not blinding.revealed:
+        blocks.append(Paragraph("The paper's values are per controller; they appear beside these once the study is unblinded (`trials report --unblind`)."))
+    elif not paper and len(a.arms) > 1:
+        blocks.append(Paragraph("The paper's Table II compares its two planners; these arms are not those, so its values are not shown."))
+    return blocks
+
+
+def _models_section(a: _Analysis) -> list[Block]:
+    blocks: list[Block] = [Heading("The design's model fitted to the results")]
+    terms = ", ".join(a.data.model.term_names[1:]) or "intercept only"
+    blocks.append(Paragraph(f"Model terms (from the plan): {terms}. Factors are coded as in the design: numeric ones on [-1, 1], categorical ones effect-coded (the last level is minus the sum of the others)."))
+    if a.judgment_fit is not None:
+        blocks += [Heading("Judgments: logistic regression", 3), *_fit_blocks(a.judgment_fit)]
+    else:
+        blocks.append(Paragraph("No judgments to fit yet."))
+    if a.metric_fits:
+        blocks.append(Heading("Outcome metrics: least squares", 3))
+        terms_rows = []
+        for index, effect in enumerate(a.metric_fits[0].effects):
+            terms_rows.append([effect.term, str(effect.df), *(p_text(fit.effects[index].p_value) for fit in a.metric_fits)])
+        blocks.append(
+            Table(["Term", "df", *(f"p: {fit.response}" for fit in a.metric_fits)], terms_rows, "Partial F tests of each term (effect tests), per metric.", set(range(1, 2 + len(a.metric_fits))))
+        )
+        for fit in a.metric_fits:
+            blocks += [Heading(f"{fit.response}", 4), *_fit_blocks(fit, effects=False)]
+    return blocks
+
+
+def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
+    blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations.")]
+    if effects:
+        blocks.append(
+            Table(
+                ["Term", "df", fit.test, "p"],
+                [[e.term, str(e.df), number(e.statistic), p_text(e.p_value)] for e in fit.effects],
+                "Effect tests: dropping all of a term's columns.",
+                {1, 2, 3},
+            )
+        )
+    blocks.append(
+        Table(
+            ["Column", "Estimate", "Std error", fit.statistic, "p"],
+            [[p.column, number(p.estimate), number(p.std_error), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
+            "Parameter estimates (n/a: not estimable from these runs).",
+            {1, 2, 3, 4},
+        )
+    )
+    if fit.notes:
+        blocks.append(Bullets([f"**Note:** {note}" for note in fit.notes]))
+    return blocks
+
+
+def _figures_section(a: _Analysis) -> list[Block]:
+    data = a.data
+    word = data.blinding.arm_word.lower()
+    colours = arm_colours(a.arms)
+    blocks: list[Block] = [Heading("Figures")]
+    if a.scores:
+        groups = {arm: counts(a.scores[r.code].final for r in data.finished if r.arm == arm) for arm in a.arms}
+        groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(s.final for s in a.scores.values())}
+        blocks.append(Figure("scores.png", score_distribution_png(groups, PAPER_SCORE_SHARES, "Score distribution"), f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top) and the paper's shares (diamonds)."))
+    panels = []
+    for run in data.finished:
+        log = a.logs.get(run.code)
+        if log is None:
+            continue
+        title = f"{run.order}. {run.code} | {run.arm} | {a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
+        panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
+    if panels:
+        blocks.append(Figure("trajectories.png", trajectories_png(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
+    if a.table:
+        rows = [(row.min_pedestrians, {arm: (row.shares[arm].share, row.shares[arm].low, row.shares[arm].high) for arm in a.arms}) for row in a.table]
+        paper = PAPER_TABLE_II if data.blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms) else None
+        blocks.append(Figure("ab_shares.png", ab_shares_png(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
+    if data.finished:
+        points = [(run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m) for run in data.finished if run.outcome is not None]
+        blocks.append(Figure("min_distance.png", min_distance_png(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+    columns, matrix = data.correlations
+    if columns:
+        labels = _open_labels(columns, data)
+        values = np.array([[math.nan if v is None else v for v in row] for row in matrix], dtype=float)
+        blocks.append(Figure("correlation_map.png", correlation_map_png(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
+    return blocks
+
+
+def _open_labels(columns: list[str], data: StudyData) -> list[str]:
+    blinding = data.blinding
+    if not (blinding.blinded and blinding.revealed) or blinding.factor is None:
+        return columns
+    names = {f"{blinding.factor}[{arm}]": f"{blinding.factor}[{name}]" for arm, name in blinding.labels.items()}
+    return ["*".join(names.get(part, part) for part in column.split("*")) for column in columns]
+
+
+def _methods_section(a: _Analysis, rubric_source: str, participants: ParticipantModel) -> list[Block]:
+    blocks: list[Block] = [
+        Heading("Methods"),
+        Heading("Rubric (automatic score)", 3),
+        Paragraph(f"Thresholds: {rubric_source}. Score 1: the run ended in a collision (status `collision`, a collision event, or a minimum gap of 0 m). Score 2 (no collision, but unnatural) when any of these holds:"),
+        Bullets(a.rubric.unnatural_rules()),
+        Paragraph("Score 3: natural and comfortable (none of the above)."),
+    ]
+    if a.judgment_source == SIMULATED:
+        blocks += [Heading("Simulated participants", 3), Bullets(participants.describe())]
+    blocks += [
+        Heading("Statistics", 3),
+        Bullets(
+            [
+                "Shares: Wilson score intervals at 95 %.",
+                "Differences between two arms: two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments.",
+                "Judgments: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum likelihood "
+                "(Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are perfectly "
+                "separated, Firth's penalized likelihood replaces maximum likelihood (its tests use the penalized likelihood).",
+                "Outcome metrics: least squares on the same terms; t tests per column, partial F tests per term.",
+                "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
+            ]
+        ),
+    ]
+    return blocks
+
+
+# ----------------------------------------------------------------------------------------- record and summary
+
+
+def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, Any]:
+    data, blinding = a.data, a.data.blinding
+    return {
+        "format": FORMAT,
+        "generated_utc": generated_utc,
+        "study": data.spec.name,
+        "seed": data.seed,
+        "blinding": {
+            "blinded": blinding.blinded,
+            "controllers_named": blinding.open,
+            "unblinded_utc": list(blinding.unblinded_utc) if blinding.revealed else [],
+            "arms": dict(blinding.labels) if blinding.revealed else None,
+        },
+        "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished]},
+        "rubric": {"source": rubric_source, "thresholds": asdict(a.rubric)},
+        "scores": {
+            code: {"arm": next(r.arm for r in data.runs if r.code == code), "rubric": s.auto.score, "reasons": list(s.auto.reasons), "human": [h.score for h in s.human], "final": s.final}
+            for code, s in a.scores.items()
+        },
+        "score_counts": dict(zip(map(str, SCORES), counts(s.final for s in a.scores.values()))),
+        "judgments": {"source": a.judgment_source, "count": len(a.judgments)},
+        "table_ii": [
+            {
+                "min_pedestrians": row.min_pedestrians,
+                "arms": {arm: {"yes": p.k, "judged": p.n, "share": _json_number(p.share), "low": _json_number(p.low), "high": _json_number(p.high)} for arm, p in row.shares.items()},
+                "fisher_p": _json_number(row.p_value),
+            }
+            for row in a.table
+        ],
+        "fits": [_fit_record(fit) for fit in ([a.judgment_fit] if a.judgment_fit else []) + a.metric_fits],
+        "notes": a.notes,
+    }
+
+
+def _json_number(value: float) -> float | None:
+    return None if math.isnan(value) or math.isinf(value) else value
+
+
+def _fit_record(fit: Fit) -> dict[str, Any]:
+    return {
+        "response": fit.response,
+        "method": fit.method,
+        "parameters": [{"column": p.column, "estimate": _json_number(p.estimate), "std_error": _json_number(p.std_error), "p": _json_number(p.p_value)} for p in fit.parameters],
+        "effects": [{"term": e.term, "df": e.df, "statistic": _json_number(e.statistic), "p": _json_number(e.p_value)} for e in fit.effects],
+        "notes": fit.notes,
+    }
+
+
+def _summary(a: _Analysis) -> list[str]:
+    data = a.data
+    lines = [f"Study {data.spec.name!r}: {len(data.finished)} of {len(data.runs)} runs finished"]
+    if data.unfinished:
+        lines.append(f"  not finished yet: {', '.join(r.code for r in data.unfinished)}")
+    if a.scores:
+        total = counts(s.final for s in a.scores.values())
+        n = sum(total)
+        shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
+        lines.append(f"Scores {shares}   [paper: 3: 86.7 %, 1: 0 %]")
+    if a.table:
+        lines.append(f"Judged socially compliant ({a.judgment_source}):")
+        for row in a.table:
+            cells = "   ".join(f"{arm} {percent(p.share)} ({p.k}/{p.n})" for arm, p in row.shares.items())
+            test = f"   Fisher p {_equals(p_text(row.p_value))}" if len(row.shares) == 2 else ""
+            lines.append(f"  >= {row.min_pedestrians} pedestrians: {cells}{test}")
+    if data.blinding.blinded:
+        lines.append("Controllers named (unblinded)" if data.blinding.revealed else "Blinded: arms shown by label")
+    lines += [f"Note: {note}" for note in a.notes]
+    return lines

@@ -1,0 +1,65 @@
+"""The study's own model (its plan's terms) fitted to the judgments and to the outcome metrics of its runs."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from analysis.ab_table import RunJudgments
+from analysis.models import DesignMatrix, Fit, fit_least_squares, fit_logistic
+from analysis.records import Blinding, StudyData, StudyRun
+from designs.factors import CategoricalFactor
+
+#: Outcome metrics fitted by least squares: (column of outcomes.csv, how the report names it).
+METRICS = (
+    ("min_distance_m", "minimum gap (m)"),
+    ("time_within_1_2m_s", "time in personal space (s)"),
+    ("duration_s", "duration (s)"),
+    ("path_irregularity_rad_per_m", "path irregularity (rad/m)"),
+)
+
+
+def settings(data: StudyData, runs: list[StudyRun]) -> np.ndarray:
+    """(n, k) coded settings of the runs' plan values, one column per design factor."""
+    factors = data.model.factors
+    rows = []
+    for run in runs:
+        row = []
+        for factor in factors:
+            value = run.values[factor.name]
+            row.append(factor.encode(value) if isinstance(factor, CategoricalFactor) else factor.encode(float(value)))
+        rows.append(row)
+    return np.asarray(rows, dtype=float).reshape(len(runs), len(factors))
+
+
+def relabel(fit: Fit, blinding: Blinding) -> Fit:
+    """Column labels with controller names instead of arm labels, once the report may name them."""
+    if not (blinding.blinded and blinding.open) or blinding.factor is None:
+        return fit
+    names = {f"{blinding.factor}[{arm}]": f"{blinding.factor}[{name}]" for arm, name in blinding.labels.items()}
+
+    def rename(column: str) -> str:
+        return "*".join(names.get(part, part) for part in column.split("*"))
+
+    return replace(fit, parameters=[replace(p, column=rename(p.column)) for p in fit.parameters])
+
+
+def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """Logistic regression of each run's yes / total judgments on the plan's terms."""
+    by_code = {run.code: run for run in data.runs}
+    runs = [by_code[j.code] for j in judged]
+    dm = DesignMatrix.from_model(data.model, settings(data, runs))
+    fit = fit_logistic(dm, np.array([j.yes for j in judged]), np.array([j.total for j in judged]), "judged socially compliant")
+    return relabel(fit, data.blinding)
+
+
+def fit_metrics(data: StudyData) -> list[Fit]:
+    """Least squares of each outcome metric of the finished runs on the plan's terms."""
+    runs = data.finished
+    dm = DesignMatrix.from_model(data.model, settings(data, runs))
+    fits = []
+    for column, name in METRICS:
+        y = np.array([getattr(run.outcome, column) for run in runs], dtype=float)
+        fits.append(relabel(fit_least_squares(dm, y, name), data.blinding))
+    return fits

@@ -1,0 +1,216 @@
+"""`trials report` on synthesised study folders: blinded, unblinded, qualitative, unfinished."""
+
+from __future__ import annotations
+
+import base64
+import csv
+import io
+import json
+import re
+import shutil
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import pytest
+from scipy.stats import fisher_exact
+
+from synthetic_study import Behaviour, design, run_all, write_run
+from trials.cli import main
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from screenshot_report import find_browser, screenshot  # noqa: E402
+
+CONTROLLER_NAMES = ("navigan", "lattice", "sbpl")
+DATA_URI = re.compile(r"data:image/png;base64,[A-Za-z0-9+/=]+")
+
+
+@pytest.fixture(scope="module")
+def ab_template(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The blinded 18-run A/B plan, every run finished (blind), simulated judgments (seed 5)."""
+    root = tmp_path_factory.mktemp("ab") / "study"
+    run_all(design(root))
+    assert main(["respond", "--simulate", "--seed", "5", "--study", str(root)]) == 0
+    return root
+
+
+@pytest.fixture
+def ab_study(ab_template: Path, tmp_path: Path) -> Path:
+    return Path(shutil.copytree(ab_template, tmp_path / "study"))
+
+
+def _report_text(root: Path) -> str:
+    """Every file under report/ as text, embedded images left out."""
+    return "\n".join(DATA_URI.sub("", p.read_bytes().decode("latin-1")) for p in sorted((root / "report").rglob("*")) if p.is_file())
+
+
+def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["report", "--study", str(ab_study)]) == 0
+    console = capsys.readouterr()
+    text = _report_text(ab_study)
+    for name in CONTROLLER_NAMES:
+        assert name not in text.lower(), name
+        assert name not in (console.out + console.err).lower(), name
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None}
+    assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
+    assert "| Runs with | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
+    assert not (ab_study / "report" / "unblinding.json").exists()
+    assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {
+        "scores.png", "trajectories.png", "ab_shares.png", "min_distance.png", "correlation_map.png"
+    }
+
+
+def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
+    """Table II counted independently: plan, sealed key and responses.csv."""
+    arms = json.loads((root / "sealed" / "allocation.json").read_text())["arms"]
+    with (root / "plan.csv").open() as handle:
+        plan = {row["run_code"]: row for row in csv.DictReader(handle)}
+    with (root / "responses.csv").open() as handle:
+        responses = list(csv.DictReader(handle))
+    table: dict[int, dict[str, tuple[int, int]]] = {}
+    for k in (2, 4, 6):
+        for controller in arms.values():
+            chosen = [r for r in responses if arms[plan[r["run_code"]]["Controller"]] == controller and int(plan[r["run_code"]]["Pedestrians"]) >= k]
+            table.setdefault(k, {})[controller] = (sum(r["compliant"] == "yes" for r in chosen), len(chosen))
+    return table
+
+
+def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    out = capsys.readouterr().out
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    key = json.loads((ab_study / "sealed" / "allocation.json").read_text())["arms"]
+    assert record["blinding"]["arms"] == key and record["blinding"]["controllers_named"]
+    expected = _expected_table(ab_study)
+    assert [row["min_pedestrians"] for row in record["table_ii"]] == [2, 4, 6]
+    for row in record["table_ii"]:
+        counted = expected[row["min_pedestrians"]]
+        assert {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} == counted
+        (y1, n1), (y2, n2) = counted.values()
+        assert row["fisher_p"] == pytest.approx(fisher_exact([[y1, n1 - y1], [y2, n2 - y2]]).pvalue)
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "SBPL (paper)" in markdown and "| >= 6 pedestrians |" in markdown
+    row_four = next(line for line in markdown.splitlines() if line.startswith("| >= 4 pedestrians |"))
+    assert "| 64 % |" in row_four and "| 75 % |" in row_four  # the paper's SBPL and NaviGAN-R
+    assert "Lattice" in out and "NaviGAN-R" in out
+    assert "Controller[Lattice]" in markdown or "Controller[NaviGAN-R]" in markdown
+    first = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    assert len(first) == 1
+    # Unblinding again keeps the first time; a blinded report afterwards still names no controller.
+    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    times = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    assert times[0] == first[0] and len(times) == 2
+    capsys.readouterr()
+    assert main(["report", "--study", str(ab_study)]) == 0
+    console = capsys.readouterr().out
+    text = _report_text(ab_study)
+    assert not any(name in text.lower() or name in console.lower() for name in CONTROLLER_NAMES)
+    assert f"The key was opened before (first at {first[0]})" in (ab_study / "report" / "report.md").read_text()
+
+
+def test_tampered_key_is_refused_and_changes_nothing(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["report", "--study", str(ab_study)]) == 0
+    before = {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()}
+    key_path = ab_study / "sealed" / "allocation.json"
+    key = json.loads(key_path.read_text())
+    key["arms"] = {"A": key["arms"]["B"], "B": key["arms"]["A"]}
+    key_path.write_text(json.dumps(key))
+    before[key_path] = key_path.read_bytes()
+    capsys.readouterr()
+    assert main(["report", "--study", str(ab_study), "--unblind"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "does not match the commitment" in err
+    assert {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()} == before
+
+
+def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = design(tmp_path / "q", ab=False)
+    plan = folder.read_plan()
+    run_all(folder, limit=25, blind=False)
+    collided = write_run(folder, plan[25], Behaviour(collide=True), 7, "NaviGAN-R")
+    backed = write_run(folder, plan[26], Behaviour(backup_s=1.0), 8, "NaviGAN-R")
+    assert collided["status"] == "collision"
+    root = str(folder.root)
+    assert main(["score", collided["run_code"], "3", "--by", "ana", "--note", "brushed, no harm", "--study", root]) == 0
+    assert main(["score", collided["run_code"], "2", "--by", "ben", "--study", root]) == 0
+    capsys.readouterr()
+    assert main(["report", "--study", root]) == 0
+    out = capsys.readouterr().out
+    record = json.loads((folder.root / "report" / "report.json").read_text())
+    scores = record["scores"]
+    assert scores[collided["run_code"]] == {"arm": "NaviGAN-R", "rubric": 1, "reasons": ["collision"], "human": [3, 2], "final": 2}
+    assert scores[backed["run_code"]]["rubric"] == 2 and "backed up 1.0 s" in scores[backed["run_code"]]["reasons"]
+    finals = [s["final"] for s in scores.values()]
+    assert record["score_counts"] == {"1": finals.count(1), "2": finals.count(2), "3": finals.count(3)}
+    assert finals.count(3) == 25  # the smooth runs
+    assert "Scores 1: 0 (0.0 %), 2: 2 (7.4 %), 3: 25 (92.6 %)" in out
+    markdown = (folder.root / "report" / "report.md").read_text()
+    assert "| 3 | 25 | 92.6 % |" in markdown and "86.7 %" in markdown
+    assert "### Scores against each factor" in markdown and "| CrossingDistance |" in markdown
+    assert "3 by ana (brushed, no harm); 2 by ben" in markdown
+    assert record["table_ii"] == [] and "Table II" not in markdown
+
+
+def test_unfinished_runs_are_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = design(tmp_path / "ab")
+    run_all(folder, limit=10)
+    missing = [row["run_code"] for row in folder.read_plan()[10:]]
+    capsys.readouterr()
+    assert main(["report", "--study", str(folder.root)]) == 0
+    out = capsys.readouterr().out
+    assert f"not finished yet: {', '.join(missing)}" in out
+    record = json.loads((folder.root / "report" / "report.json").read_text())
+    assert record["runs"] == {"planned": 18, "finished": 10, "not_finished": missing}
+    markdown = (folder.root / "report" / "report.md").read_text()
+    assert f"**Not finished yet (8):** {', '.join(missing)}" in markdown
+    assert "No judgments of finished runs yet" in markdown
+    assert markdown.count("not run yet") == 8
+
+
+class _Sources(HTMLParser):
+    """Every src and href of an HTML page, and the tags that could load something."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.images: list[str] = []
+        self.references: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        values = dict(attrs)
+        if tag == "img":
+            self.images.append(values.get("src") or "")
+        self.references += [value or "" for key, value in attrs if key in ("src", "href") and tag != "img"]
+        if tag in ("script", "link", "iframe", "object", "embed"):
+            self.references.append(tag)
+
+
+def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
+    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    page = (ab_study / "report" / "report.html").read_text(encoding="utf-8")
+    parser = _Sources()
+    parser.feed(page)
+    assert parser.references == []
+    assert "url(" not in page and "@import" not in page
+    assert len(parser.images) == 5
+    for source in parser.images:
+        prefix = "data:image/png;base64,"
+        assert source.startswith(prefix)
+        image = mpimg.imread(io.BytesIO(base64.b64decode(source[len(prefix):], validate=True)), format="png")
+        assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 400
+        assert image[..., :3].std() > 0.05  # not blank
+    assert page.count("<table>") >= 5 and "A/B comparison (Table II)" in page
+
+
+@pytest.mark.skipif(find_browser() is None, reason="no Chromium installed (apt-get install chromium)")
+def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> None:
+    assert main(["report", "--study", str(ab_study)]) == 0
+    shot = tmp_path / "shot.png"
+    screenshot(ab_study / "report" / "report.html", shot, width=1200, height=8000)
+    image = mpimg.imread(shot)
+    assert image.shape[:2] == (8000, 1200)
+    # The figures are drawn: plenty of saturated (coloured) pixels, which text and tables do not have.
+    rgb = image[..., :3]
+    saturated = (rgb.max(axis=2) - rgb.min(axis=2)) > 0.3
+    assert saturated.mean() > 0.005

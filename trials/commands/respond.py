@@ -1,0 +1,115 @@
+"""`trials respond`: record participants' judgments (socially compliant yes / no) by run code, or simulate them."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from trials.study import StudyFolder
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "respond",
+        help="record a participant's judgment of a run (or import them, or simulate them)",
+        description=(
+            "Record whether a participant judged a finished run socially compliant (yes / no) in "
+            "responses.csv. --import adds a CSV of judgments; --simulate judges every finished run that "
+            "has no judgments with the simulated-participant model (from each run's log), recorded as "
+            "source=simulated with the seed. A participant's later judgment of a run replaces the earlier one."
+        ),
+    )
+    parser.add_argument("run_code", nargs="?", metavar="CODE", help="the run's code from plan.csv")
+    parser.add_argument("participant", nargs="?", metavar="PARTICIPANT", help="the participant's name or id")
+    parser.add_argument("answer", nargs="?", metavar="yes|no", help="judged socially compliant?")
+    action = parser.add_mutually_exclusive_group()
+    action.add_argument("--import", dest="import_file", type=Path, metavar="FILE", help="add every row of a CSV with columns run_code, participant, compliant (and optionally source, recorded_utc, seed)")
+    action.add_argument("--simulate", action="store_true", help="simulate judgments of every finished run that has none")
+    parser.add_argument("--participants", type=int, metavar="N", help="with --simulate: judgments per run (default: one per pedestrian of the run)")
+    parser.add_argument("--seed", type=int, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
+    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from trials.errors import StudyError
+    from trials.results import read_outcomes
+    from trials.study import StudyFolder
+
+    folder = StudyFolder(args.study)
+    positional = [args.run_code, args.participant, args.answer]
+    if (args.import_file is not None or args.simulate) and any(positional):
+        raise StudyError("give either CODE PARTICIPANT yes|no, or --import FILE, or --simulate; not several")
+    if (args.participants is not None or args.seed is not None) and not args.simulate:
+        raise StudyError("--participants and --seed go with --simulate")
+    plan_codes = [row["run_code"] for row in folder.read_plan()]
+    finished = [o.run_code for o in read_outcomes(folder)]
+    if args.simulate:
+        return _simulate(folder, finished, args.participants, args.seed)
+    if args.import_file is not None:
+        return _import(folder, args.import_file, plan_codes, finished)
+    if not all(positional):
+        raise StudyError("give a run code, a participant and yes or no (e.g. `trials respond NGAC3 P07 yes`), --import FILE or --simulate")
+    return _record_one(folder, args.run_code, args.participant, args.answer, plan_codes, finished)
+
+
+def _record_one(folder: StudyFolder, code: str, participant: str, answer: str, plan_codes: list[str], finished: list[str]) -> int:
+    from analysis.records import HUMAN, Response
+    from trials.errors import StudyError
+    from trials.results import append_responses, check_run_codes, parse_answer, read_responses
+    from trials.study import RESPONSES, utc_now
+
+    try:
+        compliant = parse_answer(answer)
+    except ValueError as exc:
+        raise StudyError(str(exc)) from None
+    check_run_codes([code], plan_codes, finished, "a judgment")
+    earlier = [r for r in read_responses(folder.path(RESPONSES)) if r.run_code == code and r.participant == participant and r.source == HUMAN]
+    append_responses(folder, [Response(code, participant, compliant, HUMAN, utc_now())])
+    print(f"Recorded: {participant} judged run {code} {'socially compliant' if compliant else 'not socially compliant'}" + ("; this replaces their earlier judgment." if earlier else "."))
+    return 0
+
+
+def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: list[str]) -> int:
+    from dataclasses import replace
+
+    from trials.errors import StudyError
+    from trials.results import append_responses, check_run_codes, read_responses
+    from trials.study import RESPONSES, utc_now
+
+    if not path.is_file():
+        raise StudyError(f"no responses file at {path}")
+    now = utc_now()
+    new = [replace(r, recorded_utc=r.recorded_utc or now) for r in read_responses(path)]
+    check_run_codes([r.run_code for r in new], plan_codes, finished, f"{path.name} has judgments")
+    known = {(r.run_code, r.participant, r.compliant, r.source) for r in read_responses(folder.path(RESPONSES))}
+    fresh = [r for r in new if (r.run_code, r.participant, r.compliant, r.source) not in known]
+    if fresh:
+        append_responses(folder, fresh)
+    print(f"Imported {len(fresh)} judgment(s) from {path}" + (f"; {len(new) - len(fresh)} already recorded were skipped" if len(fresh) < len(new) else "") + ".")
+    return 0
+
+
+def _simulate(folder: StudyFolder, finished: list[str], participants: int | None, seed: int | None) -> int:
+    import secrets
+
+    from trials.errors import StudyError
+    from trials.simulated_participants import simulate_runs
+
+    if participants is not None and participants < 1:
+        raise StudyError(f"--participants must be at least 1, got {participants}")
+    if seed is not None and seed < 0:
+        raise StudyError(f"--seed must be >= 0, got {seed}")
+    if not finished:
+        raise StudyError("no finished runs in outcomes.csv to simulate judgments of: run `trials run` first")
+    seed = secrets.randbits(31) if seed is None else seed
+    responses, skipped = simulate_runs(folder, finished, seed, participants)
+    runs = len({r.run_code for r in responses})
+    print(f"Simulated {len(responses)} judgment(s) of {runs} run(s) with seed {seed} (source=simulated in responses.csv).")
+    if len(responses) == 0 and not skipped:
+        print("Every finished run already has judgments.")
+    for entry in skipped:
+        print(f"skipped {entry}")
+    return 0

@@ -1,0 +1,52 @@
+"""Simulated judgments of finished runs, appended to responses.csv (source `simulated`, with their seed).
+
+The model is `analysis.participants`; the runner calls `simulate_run` after each finished
+simulated run, `trials respond --simulate` calls `simulate_runs` for every run still unjudged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from analysis.participants import ParticipantModel, judge_run
+from analysis.records import SIMULATED, Response
+from analysis.run_log import read_run_log
+from robot_logs.errors import LogError
+from trials.results import append_responses, read_responses
+from trials.study import RESPONSES, RUNS, StudyFolder, utc_now
+
+
+def simulate_runs(
+    folder: StudyFolder, codes: Iterable[str], seed: int, participants: int | None = None, model: ParticipantModel = ParticipantModel()
+) -> tuple[list[Response], list[str]]:
+    """Judge each run that has no judgments yet from its log; returns the judgments appended and the
+    runs skipped because their log cannot be read (with the reason)."""
+    judged = {r.run_code for r in read_responses(folder.path(RESPONSES))}
+    now = utc_now()
+    responses: list[Response] = []
+    skipped: list[str] = []
+    for code in codes:
+        if code in judged:
+            continue
+        try:
+            log = read_run_log(folder.path(RUNS) / f"{code}.mcap")
+        except LogError as exc:
+            skipped.append(f"{code} ({exc})")
+            continue
+        for judgment in judge_run(log, code, seed, participants, model):
+            responses.append(Response(code, judgment.participant, judgment.compliant, SIMULATED, now, seed))
+    if responses:
+        append_responses(folder, responses)
+    return responses, skipped
+
+
+def simulate_run(folder: StudyFolder, run_code: str, seed: int, participants: int | None = None) -> list[Response]:
+    """Append the simulated judgments of one finished run (none if it has judgments already).
+
+    Raises:
+        LogError: the run's log runs/<code>.mcap is missing or unreadable.
+    """
+    responses, skipped = simulate_runs(folder, [run_code], seed, participants)
+    if skipped:
+        raise LogError(f"cannot simulate judgments of run {skipped[0]}")
+    return responses

@@ -1,0 +1,118 @@
+"""Everything `trials report` reads from a study folder, checked, as one `analysis.records.StudyData`.
+
+Blinding: without unblinding a blinded study's arms keep their labels. Unblinding opens the
+sealed key only after checking it against design.json's commitment, and the time of every
+verified unblinding is kept in report/unblinding.json (the report's metadata), first one first.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
+from designs.model import parse_model
+from designs.spec import read_spec
+from trials.errors import StudyError
+from trials.results import read_outcomes, read_responses, read_scores
+from trials.study import REPORT, RESPONSES, RUNS, SCORES, SPEC, StudyFolder
+
+UNBLINDING = f"{REPORT}/unblinding.json"
+UNBLINDING_FORMAT = "navtrials.unblinding/1"
+#: The controller of a run when the study has no controller factor (docs/study_folder.md).
+DEFAULT_CONTROLLER = "NaviGAN-R"
+CONTROLLER_FACTOR = "Controller"
+
+
+def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
+    """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked."""
+    folder.require_plan()
+    spec = read_spec(folder.path(SPEC))
+    design = folder.read_design()
+    plan = folder.read_plan()
+    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    codes = [row["run_code"] for row in plan]
+    notes: list[str] = []
+
+    outcomes = read_outcomes(folder)
+    _no_unknown_codes([o.run_code for o in outcomes], codes, "outcomes.csv has rows")
+    latest = {}
+    for outcome in outcomes:
+        if outcome.run_code in latest:
+            notes.append(f"outcomes.csv holds run {outcome.run_code} twice; the later row (finished {outcome.finished_utc}) is used.")
+        latest[outcome.run_code] = outcome
+    scores: list[HumanScore] = read_scores(folder.path(SCORES))
+    _no_unknown_codes([s.run_code for s in scores], codes, "scores.csv has scores")
+    responses: list[Response] = read_responses(folder.path(RESPONSES))
+    _no_unknown_codes([r.run_code for r in responses], codes, "responses.csv has judgments")
+
+    blinding = _blinding(folder, design, spec_factor_names=[f.name for f in spec.factors], unblind=unblind, now=now, notes=notes)
+    runs = []
+    for row in plan:
+        code = row["run_code"]
+        outcome = latest.get(code)
+        log = folder.path(RUNS) / f"{code}.mcap"
+        if blinding.factor is not None:
+            arm = blinding.labels[row[blinding.factor]]
+        else:
+            arm = (outcome.controller if outcome is not None and outcome.controller else None) or DEFAULT_CONTROLLER
+        values = {f.name: row[f.name] for f in spec.factors}
+        runs.append(StudyRun(int(row["order"]), code, values, arm, outcome, log if log.exists() else None))
+    for run in runs:
+        if run.finished and run.log is None:
+            notes.append(f"Run {run.code} has an outcome row but no log runs/{run.code}.mcap; it is scored from its outcome row only.")
+    correlation = design.get("diagnostics", {}).get("correlation_map", {})
+    return StudyData(
+        root=folder.root,
+        spec=spec,
+        model=model,
+        seed=design.get("seed"),
+        runs=runs,
+        scores=scores,
+        responses=responses,
+        blinding=blinding,
+        correlations=(correlation.get("columns", []), correlation.get("matrix", [])),
+        notes=notes,
+    )
+
+
+def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:
+    unknown = list(dict.fromkeys(c for c in found if c not in set(codes)))
+    if unknown:
+        raise StudyError(f"{what} for unknown run code(s) {', '.join(unknown)}: not in plan.csv")
+
+
+def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: list[str], unblind: bool, now: str, notes: list[str]) -> Blinding:
+    record = design.get("blinding")
+    if not record:
+        if unblind:
+            notes.append("The study is not blinded: --unblind had nothing to open.")
+        factor = CONTROLLER_FACTOR if CONTROLLER_FACTOR in spec_factor_names else None
+        plan_values = {row[factor] for row in folder.read_plan()} if factor else set()
+        return Blinding(False, factor, {v: v for v in plan_values})
+    digest = record["commitment"]["digest"]
+    history = read_unblinding(folder, digest)
+    if not unblind:
+        return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history)
+    sealed = folder.read_sealed()
+    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now))
+
+
+def read_unblinding(folder: StudyFolder, commitment: str) -> tuple[str, ...]:
+    """Earlier verified unblindings of this design (by its commitment), oldest first."""
+    path = folder.path(UNBLINDING)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return ()
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise StudyError(f"{path} is damaged: {exc}") from None
+    if data.get("commitment") != commitment:
+        return ()
+    return tuple(str(t) for t in data.get("unblinded_utc", []))
+
+
+def unblinding_record(blinding: Blinding) -> bytes:
+    """report/unblinding.json: when the key of this design was opened, every time."""
+    data = {"format": UNBLINDING_FORMAT, "commitment": blinding.commitment, "unblinded_utc": list(blinding.unblinded_utc)}
+    return (json.dumps(data, indent=1) + "\n").encode()
