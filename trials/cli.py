@@ -10,16 +10,17 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from analysis.errors import AnalysisError
 from designs.errors import DesignError
 from navigan.errors import NaviganError
 from robot_logs.errors import LogError
 from trials.errors import StudyError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback")
+COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)
 
 EXIT_USAGE = 2
 
