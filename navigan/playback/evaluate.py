@@ -12,9 +12,7 @@ A file made with other settings, weights or data is an error, never silently reu
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import json
 import math
 import os
@@ -34,7 +32,9 @@ from navigan.playback import figures
 from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
 from navigan.playback.rollout import Policy, Rollout, recorded_rollout, roll_out
-from navigan.playback.table import COLUMNS, Table, csv_text, paper_values, summarize
+from navigan.playback.table import (
+    COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, paper_values, summarize,
+)
 
 MODELS: tuple[str, ...] = tuple(COLUMNS)
 HUMAN = "human"
@@ -149,8 +149,7 @@ class Playback:
     def identity(self, split: str, model: str, episodes: Episodes) -> dict[str, Any]:
         """What a stored result must match to be reused."""
         path = checkpoint_file(model, split, self.checkpoints)
-        return {"settings": self.settings.record(), "checkpoint_sha256": path and _digest(path),
-                "episodes": episodes.ids}
+        return {"settings": self.settings.record(), "weights": path and _digest(path), "episodes": episodes.ids}
 
     def stored(self, split: str, model: str, identity: dict[str, Any]) -> dict[str, Any] | None:
         """The stored result of a (split, model), None if there is none.
@@ -177,10 +176,10 @@ class Playback:
         path = checkpoint_file(model, split, self.checkpoints)
         if path is None:
             return recorded_rollout(episodes), None
-        policy = Policy.load(path, dagger=model.endswith("-dagger"), seed=self.settings.seed)
         record = ckpt.load(path)
+        policy = Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.settings.seed)
         about = {"file": path.name, "trained_on": record.split.get("name"), "epochs": record.epoch,
-                 "kept_epoch": (record.best or {}).get("epoch")}
+                 "kept_epoch": (record.best or {}).get("epoch"), "finished": record.finished}
         return roll_out(policy, episodes, progress=progress), about
 
     def evaluate(self, splits: Sequence[str], models: Sequence[str], progress: bool = True) -> list[Table]:
@@ -228,62 +227,13 @@ class Playback:
         tables = [Table("all", columns, pooled)]
         tables += [Table(s, columns, {m: summarize(results[s, m]["results"]) for m in models}) for s in splits]
         paper = paper_values()
-        write_atomic(self.out / "table1.md", self.markdown(tables, loaded, results, paper).encode())
+        scenes = [SceneCount(s, loaded[s][1], len(loaded[s][0]), loaded[s][0].standing) for s in splits]
+        weights = {(s, m): results[s, m]["checkpoint"] for s in splits for m in models}
+        write_atomic(self.out / "table1.md", document(tables, scenes, weights, self.settings.record(), paper).encode())
         write_atomic(self.out / "table1.csv", csv_text(tables, paper).encode())
-        keys = ["split", "model", "episode"] + [k for k in results[splits[0], models[0]]["results"][0]
-                                               if k not in ("episode", "path")]
-        buffer = io.StringIO()
-        writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow(keys)
-        for s in splits:
-            for m in models:
-                for r in results[s, m]["results"]:
-                    writer.writerow([s, m] + [("" if r[k] is None else r[k]) for k in keys[2:]])
-        write_atomic(self.out / "episodes.csv", buffer.getvalue().encode())
+        write_atomic(self.out / "episodes.csv",
+                     episodes_csv({(s, m): results[s, m]["results"] for s in splits for m in models}).encode())
         return tables
-
-    def markdown(self, tables: list[Table], loaded: dict[str, tuple[Episodes, list[str]]],
-                 results: dict[tuple[str, str], dict[str, Any]], paper: dict) -> str:
-        s = self.settings.scoring
-        splits = [t.scope for t in tables[1:]]
-        total = sum(len(loaded[x][0]) for x in splits)
-        lines = [
-            "# Table I: long-term playback navigation", "",
-            "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
-            "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
-            "as recorded; it plans 12 steps every 0.4 s and walks the first. The episode ends on arrival "
-            "(within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The human column is the "
-            "recorded path itself.", "",
-            f"- S: mean over episodes of sum_k {s.gamma:g}^((k-1) * 0.4 s * {s.v_pref:g} m/s) * r_k, with "
-            f"r_k = -0.25 if the step's closest approach d_k < {s.collision:g} m (collision), else +1 if the "
-            "step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 (CrowdNav's reward and discount; "
-            "d_k is the closest approach to any other pedestrian during step k, both moving straight).",
-            "- C: fraction of episodes never closer than 0.2 m to another pedestrian (the reading the "
-            "paper's numbers need; its prose states the opposite).",
-            "- A: fraction of episodes reaching the goal within 0.5 m before the cut-off.",
-            f"- Seed {self.settings.seed}" + (f"; first {self.settings.limit} episodes of each split only"
-                                              if self.settings.limit is not None else "") + ".", "",
-            f"## All splits pooled ({', '.join(splits)}; {total} episodes)", "",
-            tables[0].markdown(paper), "",
-            "## Episodes per split", "",
-            "| split | test recordings | episodes | left out: goal within 0.5 m of the start |",
-            "|---|---|---:|---:|",
-        ]
-        for x in splits:
-            episodes, files = loaded[x]
-            lines.append(f"| {x} | {', '.join(files)} | {len(episodes)} | {episodes.standing} |")
-        lines += ["", "## Weights", "", "| split | " + " | ".join(COLUMNS[m] for m in tables[0].columns) + " |",
-                  "|---" * (len(tables[0].columns) + 1) + "|"]
-        for x in splits:
-            cells = []
-            for m in tables[0].columns:
-                about = results[x, m]["checkpoint"]
-                cells.append("recordings" if about is None else
-                             f"{about['file']} (epoch {about['kept_epoch']} of {about['epochs']})")
-            lines.append(f"| {x} | " + " | ".join(cells) + " |")
-        for table in tables[1:]:
-            lines += ["", f"## {table.scope} ({len(loaded[table.scope][0])} episodes)", "", table.markdown(paper)]
-        return "\n".join(lines)
 
     def write_figures(self, splits: Sequence[str], models: Sequence[str],
                       loaded: dict[str, tuple[Episodes, list[str]]],

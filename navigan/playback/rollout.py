@@ -49,9 +49,13 @@ class Policy:
         Raises:
             NaviganError: the checkpoint cannot be read.
         """
-        record = ckpt.load(path)
+        return cls.of(ckpt.load(path), Path(path), dagger, seed)
+
+    @classmethod
+    def of(cls, record: ckpt.Checkpoint, path: Path, dagger: bool = False, seed: int = 0) -> Policy:
+        """The policy of a loaded checkpoint (read from `path`)."""
         noise = record.model.noise if record.model.recipe.fluctuation else 0
-        return cls(record.build_generator(), dagger, noise, seed, Path(path))
+        return cls(record.build_generator(), dagger, noise, seed, path)
 
     def noise(self, names: list[str]) -> np.ndarray | None:
         """(E, CUTOFF_STEPS, noise) each episode's noise for each step, or None without noise."""

@@ -129,3 +129,82 @@ def csv_text(tables: Sequence[Table], paper: Mapping[str, Mapping[str, float | N
             by_model = dict(zip(table.columns, cells))
             writer.writerow([table.scope, key, source] + [by_model.get(m, "") for m in models])
     return out.getvalue()
+
+
+@dataclass(frozen=True)
+class SceneCount:
+    """How many episodes a split's test recordings gave, and how many standing pedestrians were left out."""
+
+    split: str
+    files: Sequence[str]
+    episodes: int
+    standing: int
+
+
+def _weights_cell(about: Mapping[str, Any] | None) -> str:
+    if about is None:
+        return "recordings"
+    state = "" if about.get("finished") else ", still training"
+    return f"{about['file']} (epoch {about['kept_epoch']} of {about['epochs']}{state})"
+
+
+def document(
+    tables: Sequence[Table],
+    scenes: Sequence[SceneCount],
+    weights: Mapping[tuple[str, str], Mapping[str, Any] | None],
+    settings: Mapping[str, Any],
+    paper: Mapping[str, Mapping[str, float | None]],
+) -> str:
+    """table1.md: the protocol and exact metric definitions, the pooled table beside the paper's,
+    the episodes per split, the weights used, and one table per split.
+
+    Args:
+        tables: the pooled table first, then one per split.
+        weights: (split, model) -> the checkpoint's description (None for the recordings).
+        settings: gamma, v_pref, collision, seed and limit.
+    """
+    columns = tables[0].columns
+    limit = settings["limit"]
+    lines = [
+        "# Table I: long-term playback navigation", "",
+        "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
+        "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
+        "as recorded; it plans 12 steps every 0.4 s and walks the first. The episode ends on arrival "
+        "(within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The human column is the "
+        "recorded path itself.", "",
+        f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
+        f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
+        "(collision), else +1 if the step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 "
+        "(CrowdNav's reward and discount; d_k is the closest approach to any other pedestrian during "
+        "step k, both moving straight).",
+        "- C: fraction of episodes never closer than 0.2 m to another pedestrian (the reading the "
+        "paper's numbers need; its prose states the opposite).",
+        "- A: fraction of episodes reaching the goal within 0.5 m before the cut-off.",
+        f"- Seed {settings['seed']}" + (f"; first {limit} episodes of each split only" if limit else "") + ".", "",
+        f"## All splits pooled ({', '.join(c.split for c in scenes)}; {sum(c.episodes for c in scenes)} episodes)",
+        "", tables[0].markdown(paper), "",
+        "## Episodes per split", "",
+        "| split | test recordings | episodes | left out: goal within 0.5 m of the start |",
+        "|---|---|---:|---:|",
+    ]
+    lines += [f"| {c.split} | {', '.join(c.files)} | {c.episodes} | {c.standing} |" for c in scenes]
+    lines += ["", "## Weights", "", "| split | " + " | ".join(COLUMNS[m] for m in columns) + " |",
+              "|---" * (len(columns) + 1) + "|"]
+    lines += [f"| {c.split} | " + " | ".join(_weights_cell(weights[c.split, m]) for m in columns) + " |"
+              for c in scenes]
+    for table, count in zip(tables[1:], scenes):
+        lines += ["", f"## {table.scope} ({count.episodes} episodes)", "", table.markdown(paper)]
+    return "\n".join(lines)
+
+
+def episodes_csv(results: Mapping[tuple[str, str], Scores]) -> str:
+    """Every episode's scores: split, model, episode, then each score (the walked path left out)."""
+    first = next(iter(results.values()))[0]
+    keys = [k for k in first if k not in ("episode", "path")]
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["split", "model", "episode", *keys])
+    for (split, model), scores in results.items():
+        for r in scores:
+            writer.writerow([split, model, r["episode"]] + ["" if r[k] is None else r[k] for k in keys])
+    return out.getvalue()
