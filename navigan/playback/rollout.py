@@ -98,6 +98,7 @@ class Rollout:
     plans: np.ndarray | None = None
 
     def path(self, e: int) -> np.ndarray:
+        """(steps + 1, 2) episode `e`'s walked path."""
         return self.paths[e, : self.steps[e] + 1]
 
 
@@ -109,12 +110,14 @@ def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
     for s in np.unique(scene):
         rows = np.flatnonzero(scene == s)
         chosen = active[rows]
+        positions = episodes.scenes[s].positions
         frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1)
-        window = episodes.scenes[s].positions[frames].transpose(0, 2, 1, 3).copy()
-        window[np.arange(len(chosen)), episodes.agent[chosen]] = np.nan
-        present = ~np.isnan(window[:, :, -1, 0])
+        present = ~np.isnan(positions[frames[:, -1], :, 0])
+        present[np.arange(len(chosen)), episodes.agent[chosen]] = False
         order = np.argsort(~present, axis=1, kind="stable")[:, : present.sum(axis=1).max()]
-        parts.append((rows, np.take_along_axis(window, order[:, :, None, None], axis=1)))
+        window = positions[frames[:, :, None], order[:, None, :]].transpose(0, 2, 1, 3)
+        window[~np.take_along_axis(present, order, axis=1)] = np.nan
+        parts.append((rows, window))
     width = max(p.shape[1] for _, p in parts)
     out = np.full((len(active), width, T_OBS, 2), np.nan, dtype=np.float32)
     for rows, part in parts:
