@@ -34,7 +34,8 @@ def error_line(capsys) -> str:
 def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, capsys):
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
-    assert "| C (comfort rate) |" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "| C (comfort rate) |" in printed and "episodes per split: zara1 3" in printed
     with (out / "table1.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert list(rows[0])[3:] == ["R", "R-dagger", "human"]

@@ -74,5 +74,7 @@ def run(args: argparse.Namespace) -> int:
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
     print(tables[0].markdown({}).rstrip())
+    counts = ", ".join(f"{t.scope} {int(next(iter(t.values.values()))['episodes'])}" for t in tables[1:])
+    print(f"episodes per split: {counts}")
     print(f"wrote {args.out / 'table1.md'}, table1.csv, episodes.csv, figures/")
     return 0
