@@ -77,12 +77,17 @@ def test_batched_and_one_at_a_time_roll_outs_agree(few):
 
 
 def test_noise_comes_from_the_seed_and_episode(few):
-    a = roll_out(Policy.load(WEIGHTS, seed=1), few)
-    b = roll_out(Policy.load(WEIGHTS, seed=1), few)
-    c = roll_out(Policy.load(WEIGHTS, seed=2), few)
-    np.testing.assert_array_equal(a.paths, b.paths)
-    assert not np.allclose(a.paths, c.paths, equal_nan=True)
-    reordered = roll_out(Policy.load(WEIGHTS, seed=1), few.subset([5, 4, 3, 2, 1, 0]))
+    policy = Policy.load(WEIGHTS, seed=1)
+    names = few.ids
+    table = policy.noise(names)
+    assert table.shape == (len(names), 60, 8)
+    np.testing.assert_array_equal(policy.noise(names[::-1])[::-1], table)  # order does not matter
+    np.testing.assert_array_equal(policy.noise(names[2:3])[0], table[2])
+    assert not np.allclose(Policy.load(WEIGHTS, seed=2).noise(names), table)
+    assert Policy.load(WEIGHTS.with_name("navil2-zara1.pt")).noise(names) is None  # NaviL2 runs without z
+    a = roll_out(policy, few)
+    np.testing.assert_array_equal(roll_out(Policy.load(WEIGHTS, seed=1), few).paths, a.paths)
+    reordered = roll_out(policy, few.subset([5, 4, 3, 2, 1, 0]))
     np.testing.assert_allclose(reordered.paths[::-1], a.paths, atol=1e-4)
 
 
