@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from navigan import config
+from navigan.checkpoint import load
 from trials.cli import main
 from trials.commands import train as train_command
 
@@ -57,13 +58,14 @@ def test_train_then_resume_then_evaluate(data, tmp_path, capsys):
 def test_recorded_command_reproduces_the_settings(data, tmp_path):
     out = tmp_path / "m.pt"
     assert main(["train", "--model", "goal-social-lstm", "--split", "zara2", "--epochs", "1", "--patience", "3",
-                 "--batch", "48", "--seed", "4", "--data", str(data), "--out", str(out), "--quiet"]) == 0
-    from navigan.checkpoint import load
-
-    assert load(out).command == (
-        "trials train --model goal-social-lstm --split zara2 --epochs 1 --patience 3 --batch 48 --lr 0.001 "
-        "--seed 4 --out m.pt"
+                 "--hidden", "16", "--batch", "48", "--seed", "4", "--data", str(data), "--out", str(out),
+                 "--quiet"]) == 0
+    record = load(out)
+    assert record.command == (
+        "trials train --model goal-social-lstm --split zara2 --epochs 1 --patience 3 --hidden 16 --batch 48 "
+        "--lr 0.001 --seed 4 --out m.pt"
     )
+    assert record.model.hidden == 16 and record.train.batch == 48 and record.train.patience == 3
 
 
 def test_constant_velocity_baseline(data, tmp_path, capsys):

@@ -28,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch", type=int, default=32,
                         help="target agents per batch, whole scenes (default 32, as the paper)")
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
+    parser.add_argument("--hidden", type=int, default=32, help="LSTM hidden size (default 32, as the paper)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
@@ -43,6 +44,7 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
     parts = [
         f"trials train --model {args.model} --split {args.split} --epochs {args.epochs}",
         f"--patience {args.patience}" if args.patience is not None else "",
+        f"--hidden {args.hidden}" if args.hidden != 32 else "",
         f"--batch {args.batch} --lr {args.lr:g} --seed {args.seed} --out {out.name}",
     ]
     return " ".join(p for p in parts if p)
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.errors import NaviganError
     from navigan.training import train
 
-    for name in ("epochs", "batch", "patience", "threads"):
+    for name in ("epochs", "batch", "patience", "threads", "hidden"):
         value = getattr(args, name)
         if value is not None and value < 1:
             raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed
     )
     record = train(
-        ModelConfig(args.model), config, train_scenes, val_scenes, split.describe(), out,
+        ModelConfig(args.model, hidden=args.hidden), config, train_scenes, val_scenes, split.describe(), out,
         command=command_line(args, out), device=args.device, progress=not args.quiet,
     )
     best = record.best or {"epoch": 0, "val": {}}
