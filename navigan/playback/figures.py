@@ -20,6 +20,10 @@ from navigan.playback.episodes import GOAL_RADIUS, Episodes
 from navigan.playback.metrics import DISCOMFORT_DISTANCE, step_distances
 
 
+#: Fig. 4 shows the footprints of the agents that come this close (m) to either walked path.
+NEAR = 2.0
+
+
 def _png(figure: Figure) -> bytes:
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=130)
@@ -34,21 +38,22 @@ def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray,
         full, dagger: (n + 1, 2) the full model's and the dagger variant's paths from time 0.
         forces: (n, 2) the social force on the first way-point at each step of the full path.
     """
-    figure = Figure(figsize=(7, 6))
+    figure = Figure(figsize=(7, 7))
     ax = figure.add_subplot()
     steps = max(len(full), len(dagger))
     others = episodes.others(e)[:steps]
     history = episodes.history()[e]
     recorded = episodes.recorded(e)
     view = np.concatenate([full, dagger, history, episodes.goal[e][None]])
-    low, high = view.min(axis=0) - 2.0, view.max(axis=0) + 2.0
-    for j in range(others.shape[1]):
+    centre, half = (view.min(axis=0) + view.max(axis=0)) / 2, np.ptp(view, axis=0).max() / 2 + 2.0
+    walked = np.full((steps, 2, 2), np.nan)
+    walked[: len(full), 0], walked[: len(dagger), 1] = full, dagger
+    gap = np.linalg.norm(others[:, :, None] - walked[:, None], axis=-1)  # (steps, others, 2)
+    near = np.nanmin(np.where(np.isnan(gap), np.inf, gap), axis=(0, 2)) < NEAR
+    for j in np.flatnonzero(near):
         track = others[:, j]
-        if np.isnan(track[:, 0]).all():
-            continue
-        ax.plot(track[:, 0], track[:, 1], color="0.75", lw=0.8, zorder=1)
-        ax.scatter(track[:, 0], track[:, 1], s=6, color="0.6", zorder=1)
-    ax.plot([], [], color="0.6", marker=".", lw=0.8, label="others (recorded footprints)")
+        ax.plot(track[:, 0], track[:, 1], color="0.7", lw=0.8, marker=".", ms=4, mfc="0.55", mec="none", zorder=1)
+    ax.plot([], [], color="0.6", marker=".", lw=0.8, label=f"others within {NEAR:g} m (recorded footprints)")
     ax.plot(recorded[:, 0], recorded[:, 1], color="tab:green", lw=1, ls=":", label="recorded path")
     ax.plot(history[:, 0], history[:, 1], color="black", marker="o", ms=3, lw=1.5, label="observed")
     ax.plot(dagger[:, 0], dagger[:, 1], color="tab:orange", ls="--", marker=".", ms=4, lw=1.5,
@@ -59,13 +64,13 @@ def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray,
               scale_units="xy", scale=0.2, width=0.004, zorder=4, label="social force (x5)")
     ax.add_patch(Circle(tuple(episodes.goal[e]), GOAL_RADIUS, fill=False, ls=":", color="tab:red"))
     ax.scatter(*episodes.goal[e], marker="*", s=180, color="tab:red", zorder=5, label="goal")
-    ax.set_xlim(low[0], high[0])
-    ax.set_ylim(low[1], high[1])
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3)
     figure.tight_layout()
     return _png(figure)
 
