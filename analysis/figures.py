@@ -66,10 +66,14 @@ def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]]
     """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm."""
     columns = min(6, max(len(panels), 1))
     rows = max(1, -(-len(panels) // columns))
-    figure = Figure(figsize=(2.2 * columns, 2.2 * rows + 0.3))
     every = [p for _, _, robot, peds in panels for p in [robot, *peds] if len(p)]
     points = np.vstack(every) if every else np.zeros((1, 2))
     low, high = points.min(axis=0) - 0.5, points.max(axis=0) + 0.5
+    aspect = float(np.clip((high[1] - low[1]) / (high[0] - low[0]), 0.3, 1.5))
+    width, left, right, wspace, gap, top, bottom = 2.2 * columns, 0.03, 0.99, 0.3, 0.5, 0.6, 0.25
+    panel = width * (right - left) / (columns + (columns - 1) * wspace)
+    height = rows * panel * aspect + (rows - 1) * gap + top + bottom
+    figure = Figure(figsize=(width, height))
     for index, (title, arm, robot, pedestrians) in enumerate(panels):
         axes = figure.add_subplot(rows, columns, index + 1)
         for path in pedestrians:
@@ -85,8 +89,7 @@ def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]]
     figure.suptitle(f"Robot (colour: {arm_word}) and pedestrian (grey) paths, m; markers at the end", fontsize=9)
     handles = [Line2D([], [], color=colour, linewidth=1.6, label=arm) for arm, colour in colours.items()]
     handles.append(Line2D([], [], color="0.6", linewidth=0.8, label="pedestrian"))
-    height = figure.get_figheight()
-    figure.subplots_adjust(left=0.03, right=0.99, bottom=0.25 / height, top=1 - 0.6 / height, wspace=0.3, hspace=0.45)
+    figure.subplots_adjust(left=left, right=right, bottom=bottom / height, top=1 - top / height, wspace=wspace, hspace=gap / (panel * aspect))
     figure.legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles), frameon=False)
     return _png(figure)
 

@@ -6,7 +6,7 @@ Each participant lives one pedestrian's experience of the run, read from its log
 - abrupt motion A: the largest of (deceleration / 1 m/s^2 + change of turn rate / 2 rad/s^2),
   both over NaviGAN's 0.4 s step, while the robot was within 2.5 m of the pedestrian.
 The participant says "yes" with probability
-    sigmoid(b0 - b_d max(0, 1.2 - d) - b_t T - b_a A + u),   b0 = 2, b_d = 2 /m, b_t = 0.25 /s, b_a = 1,
+    sigmoid(b0 - b_d max(0, 1.2 - d) - b_t T - b_a A + u),   b0 = 1.5, b_d = 2 /m, b_t = 0.25 /s, b_a = 0.6,
 u ~ N(0, 0.5^2) the participant's own tolerance (drawn once per participant and seed, the same in
 every run), and 0.02 when the robot touched the pedestrian. The draw is the judgment's noise.
 A run with k pedestrians has k participants by default, participant i living pedestrian i; with a
@@ -29,11 +29,11 @@ NAVIGAN_STEP_S = 0.4
 class ParticipantModel:
     """The coefficients of the simulated judgment (see the module's docstring)."""
 
-    baseline: float = 2.0
+    baseline: float = 1.5
     personal_space_m: float = 1.2
     per_metre_closer: float = 2.0
     per_second_in_personal_space: float = 0.25
-    per_abrupt_unit: float = 1.0
+    per_abrupt_unit: float = 0.6
     abrupt_range_m: float = 2.5
     deceleration_scale_mps2: float = 1.0
     turn_rate_change_scale_radps2: float = 2.0

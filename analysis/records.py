@@ -18,7 +18,8 @@ SIMULATED = "simulated"
 
 @dataclass(frozen=True)
 class Outcome:
-    """One row of outcomes.csv: the metrics of a finished run (None where the cell is empty)."""
+    """One row of outcomes.csv: the metrics of a finished run (None where the cell is empty: no time to
+    goal without reaching it, no minimum gap without pedestrians, no irregularity without moving)."""
 
     run_code: str
     status: str
@@ -27,13 +28,13 @@ class Outcome:
     duration_s: float
     time_to_goal_s: float | None
     path_length_m: float
-    min_distance_m: float
+    min_distance_m: float | None
     time_within_0_5m_s: float
     time_within_1_2m_s: float
     collisions: int
     max_deceleration_mps2: float
     max_jerk_mps3: float
-    path_irregularity_rad_per_m: float
+    path_irregularity_rad_per_m: float | None
     turn_in_place_s: float
     backing_up_s: float
     stopped_s: float

@@ -124,6 +124,7 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     waiting = sorted({r.run_code for r in data.responses if r.run_code not in finished})
     if waiting:
         notes.append(f"Judgments of runs not finished yet are left out: {', '.join(waiting)}.")
+    notes += _stale_results(data)
     judgments, source = judgments_used(r for r in data.responses if r.run_code in finished)
     skipped = [r for r in data.responses if r.source == SIMULATED and r.run_code in finished] if source == "human" else []
     if skipped:
@@ -136,6 +137,17 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     judgment_fit = fit_judgments(data, judged) if judged else None
     metric_fits = fit_metrics(data) if data.finished else []
     return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fit, metric_fits, notes)
+
+
+def _stale_results(data: StudyData) -> list[str]:
+    """Notes on scores and judgments recorded before their run last finished: they judge an earlier run of it."""
+    notes = []
+    for run in data.finished:
+        finished = run.outcome.finished_utc if run.outcome else ""
+        older = [r for r in [*data.scores, *data.responses] if r.run_code == run.code and r.recorded_utc and finished and r.recorded_utc < finished]
+        if older:
+            notes.append(f"Run {run.code} finished again ({finished}) after {len(older)} of its scores or judgments were recorded: those judge an earlier run of it.")
+    return notes
 
 
 def _pedestrian_count(values: dict[str, str], log: RunLog | None) -> int:
@@ -258,7 +270,8 @@ def _runs_table(a: _Analysis) -> Table:
             continue
         rubric = f"{scored.auto.score}" + (f" ({'; '.join(scored.auto.reasons)})" if scored.auto.reasons else "")
         human = "; ".join(f"{s.score} by {s.scorer or 'unnamed'}" + (f" ({s.note})" if s.note else "") for s in scored.human)
-        rows.append(cells + [run.outcome.status, f"{run.outcome.min_distance_m:.2f}", rubric, human, f"**{scored.final}**"])
+        gap = run.outcome.min_distance_m
+        rows.append(cells + [run.outcome.status, NOT_AVAILABLE if gap is None else f"{gap:.2f}", rubric, human, f"**{scored.final}**"])
     return Table(header, rows, "In run order. Score: the latest human score, else the rubric's.", {0, len(shown) + 4})
 
 
@@ -371,8 +384,12 @@ def _figures_section(a: _Analysis) -> list[Block]:
         rows = [(row.min_pedestrians, {arm: (row.shares[arm].share, row.shares[arm].low, row.shares[arm].high) for arm in a.arms}) for row in a.table]
         paper = PAPER_TABLE_II if data.blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms) else None
         blocks.append(Figure("ab_shares.png", ab_shares_png(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
-    if data.finished:
-        points = [(run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m) for run in data.finished if run.outcome is not None]
+    points = [
+        (run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m)
+        for run in data.finished
+        if run.outcome is not None and run.outcome.min_distance_m is not None
+    ]
+    if points:
         blocks.append(Figure("min_distance.png", min_distance_png(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
     columns, matrix = data.correlations
     if columns:

@@ -11,6 +11,7 @@ comfortable. The thresholds are a `Rubric`; a study overrides them in `rubric.to
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, fields, replace
 from numbers import Real
@@ -103,10 +104,11 @@ def hesitations(log: RunLog, rubric: Rubric) -> int:
 
 def score_run(outcome: Outcome, log: RunLog | None, rubric: Rubric) -> AutoScore:
     """Apply the rubric to one finished run; without a log the hesitation rule is skipped."""
-    if outcome.status == "collision" or outcome.collisions > 0 or outcome.min_distance_m <= 0.0:
+    gap = math.inf if outcome.min_distance_m is None else outcome.min_distance_m
+    if outcome.status == "collision" or outcome.collisions > 0 or gap <= 0.0:
         return AutoScore(1, ("collision",))
     reasons = []
-    if outcome.min_distance_m < rubric.intimate_distance_m:
+    if gap < rubric.intimate_distance_m:
         reasons.append(f"passed within {outcome.min_distance_m:.2f} m")
     if outcome.turn_in_place_s > rubric.turn_in_place_s:
         reasons.append(f"turned in place {outcome.turn_in_place_s:.1f} s")

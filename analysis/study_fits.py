@@ -55,11 +55,11 @@ def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
 
 
 def fit_metrics(data: StudyData) -> list[Fit]:
-    """Least squares of each outcome metric of the finished runs on the plan's terms."""
-    runs = data.finished
-    dm = DesignMatrix.from_model(data.model, settings(data, runs))
+    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value."""
     fits = []
     for column, name in METRICS:
+        runs = [run for run in data.finished if getattr(run.outcome, column) is not None]
+        dm = DesignMatrix.from_model(data.model, settings(data, runs))
         y = np.array([getattr(run.outcome, column) for run in runs], dtype=float)
         fits.append(relabel(fit_least_squares(dm, y, name), data.blinding))
     return fits

@@ -45,11 +45,11 @@ def test_abrupt_stop_near_the_pedestrian() -> None:
 def test_yes_probability_formula() -> None:
     model = ParticipantModel()
     lived = Experience("1", closest_m=0.7, personal_space_s=2.0, abrupt=0.5)
-    logit = 2.0 - 2.0 * (1.2 - 0.7) - 0.25 * 2.0 - 1.0 * 0.5 + 0.3
+    logit = 1.5 - 2.0 * (1.2 - 0.7) - 0.25 * 2.0 - 0.6 * 0.5 + 0.3
     assert yes_probability(lived, 0.3, model) == pytest.approx(1 / (1 + math.exp(-logit)))
     assert yes_probability(Experience("1", 0.0, 3.0, 0.0), 5.0, model) == model.yes_after_contact
     far = Experience("1", 3.0, 0.0, 0.0)
-    assert yes_probability(far, 0.0, model) == pytest.approx(1 / (1 + math.exp(-2.0)))
+    assert yes_probability(far, 0.0, model) == pytest.approx(1 / (1 + math.exp(-1.5)))
 
 
 def test_judgments_are_seeded_and_per_pedestrian() -> None:

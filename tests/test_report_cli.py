@@ -135,6 +135,9 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     root = str(folder.root)
     assert main(["score", collided["run_code"], "3", "--by", "ana", "--note", "brushed, no harm", "--study", root]) == 0
     assert main(["score", collided["run_code"], "2", "--by", "ben", "--study", root]) == 0
+    early = tmp_path / "early.csv"
+    early.write_text(f"run_code,score,scorer,recorded_utc\n{backed['run_code']},2,cem,2025-06-01T00:00:00+00:00\n")
+    assert main(["score", "--import", str(early), "--study", root]) == 0
     capsys.readouterr()
     assert main(["report", "--study", root]) == 0
     out = capsys.readouterr().out
@@ -142,6 +145,7 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     scores = record["scores"]
     assert scores[collided["run_code"]] == {"arm": "NaviGAN-R", "rubric": 1, "reasons": ["collision"], "human": [3, 2], "final": 2}
     assert scores[backed["run_code"]]["rubric"] == 2 and "backed up 1.0 s" in scores[backed["run_code"]]["reasons"]
+    assert scores[backed["run_code"]]["human"] == [2]
     finals = [s["final"] for s in scores.values()]
     assert record["score_counts"] == {"1": finals.count(1), "2": finals.count(2), "3": finals.count(3)}
     assert finals.count(3) == 25  # the smooth runs
@@ -150,6 +154,7 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     assert "| 3 | 25 | 92.6 % |" in markdown and "86.7 %" in markdown
     assert "### Scores against each factor" in markdown and "| CrossingDistance |" in markdown
     assert "3 by ana (brushed, no harm); 2 by ben" in markdown
+    assert f"Run {backed['run_code']} finished again (2026-01-01T00:00:00+00:00) after 1 of its scores or judgments were recorded" in markdown
     assert record["table_ii"] == [] and "Table II" not in markdown
 
 
