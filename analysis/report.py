@@ -24,7 +24,7 @@ from analysis.run_log import RunLog, read_run_log
 from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
 from analysis.scoring import Rubric
 from analysis.study_fits import fit_judgments, fit_metrics
-from designs.factors import FixedFactor
+from designs.factors import CategoricalFactor, FixedFactor
 from robot_logs.errors import LogError
 
 FORMAT = "navtrials.report/1"
@@ -161,8 +161,8 @@ def _arm_order(data: StudyData) -> list[str]:
     """Arms in the order of the arm factor's levels (arm labels A, B, ... when blinded)."""
     blinding = data.blinding
     factor = next((f for f in data.spec.factors if f.name == blinding.factor), None)
-    if factor is not None and not isinstance(factor, FixedFactor) and hasattr(factor, "levels"):
-        return [blinding.labels[str(level)] for level in factor.levels if str(level) in blinding.labels]
+    if isinstance(factor, CategoricalFactor):
+        return [blinding.labels[level] for level in factor.levels if level in blinding.labels]
     return list(dict.fromkeys(run.arm for run in data.runs))
 
 
