@@ -37,7 +37,11 @@ class Failure:
 
 
 class PoolError(RuntimeError):
-    """A worker could not be set up or died."""
+    """A worker could not be set up or died; `failure` says why when the worker could tell."""
+
+    def __init__(self, message: str, failure: Failure | None = None) -> None:
+        super().__init__(message)
+        self.failure = failure
 
 
 def _die_with_parent(parent: int) -> None:
@@ -94,12 +98,12 @@ class WorkerPool:
         """Wait until every worker is set up.
 
         Raises:
-            PoolError: a worker's setup failed (the first failure, with its message) or it died.
+            PoolError: a worker's setup failed (the first failure) or it died.
         """
         for _ in self._processes:
             key, answer = self._receive()
             if isinstance(answer, Failure):
-                raise PoolError(answer.message if answer.user_error else f"{answer.kind}: {answer.message}\n{answer.details}")
+                raise PoolError(f"{answer.kind}: {answer.message}", answer)
 
     def run(self, tasks: Iterable[tuple[Any, Any]]) -> Iterator[tuple[Any, Any]]:
         """Hand out (key, task) pairs; yield (key, answer or Failure) as tasks finish."""

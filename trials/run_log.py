@@ -1,4 +1,5 @@
-"""The MCAP log of one simulated run (`runs/<code>.mcap`), topic by topic as docs/study_folder.md lists.
+"""The MCAP log of one simulated run (`runs/<code>.mcap`), topic by topic as docs/study_folder.md lists,
+and reading it back (`read_run`).
 
 The log opens in Foxglove as a 3-D scene in frame `map`. Times are simulated seconds since the
 start (log times count from 0), never wall-clock time. A blinded run's log names no controller:
@@ -10,13 +11,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 import numpy as np
 
-from robot_logs.foxglove_log import FoxgloveWriter, color, cylinder, entity, frame_transform, poses_in_frame, pose, scene_update, text
+from robot_logs.errors import LogError
+from robot_logs.foxglove_log import (FoxgloveReader, FoxgloveWriter, color, cylinder, entity, frame_transform, pose,
+                                     poses_in_frame, scene_update, text)
 from robot_logs.frames import Pose2D
 from trials.controllers.base import STEP_S, Plan
 from trials.sim.pedestrians import Crowd
@@ -137,3 +141,67 @@ class RunLog:
             self.close()
         else:
             self.abort()
+
+
+@dataclass(frozen=True)
+class LoggedRun:
+    """A run read back from its MCAP: metadata, the physics-rate trace and the events.
+
+    Attributes:
+        metadata: the `run` metadata record.
+        time: (K,) s; pose: (K, 3); velocity: (K, 2) linear, angular; command: (K, 2).
+        ids: pedestrian ids; pedestrians: (K, N, 2) their true positions.
+        events: (t, event, detail) in time order.
+        plans: number of planning steps.
+    """
+
+    metadata: dict[str, str]
+    time: np.ndarray
+    pose: np.ndarray
+    velocity: np.ndarray
+    command: np.ndarray
+    ids: tuple[int, ...]
+    pedestrians: np.ndarray
+    events: list[tuple[float, str, str]]
+    plans: int
+
+    @property
+    def status(self) -> str | None:
+        """How the run ended (the last event), None if the log has no ending."""
+        endings = [name for _, name, _ in self.events if name != "start"]
+        return endings[-1] if endings else None
+
+
+def read_run(path: Path) -> LoggedRun:
+    """Read a run log written by `RunLog`.
+
+    Raises:
+        LogError: missing, damaged, unfinished, or not a trials run log.
+    """
+    reader = FoxgloveReader(path)
+    if "run" not in reader.metadata or "/robot/state" not in reader.topics:
+        raise LogError(f"{path} is not a trials run log (no `run` metadata or /robot/state topic)")
+    robot: list[list[float]] = []
+    people: list[tuple[list[int], list[float], list[float]]] = []
+    events: list[tuple[float, str, str]] = []
+    plans = 0
+    try:
+        for message in reader.messages(["/robot/state", "/pedestrians/state", "/events", "/controller/plan"]):
+            data = message.data
+            if message.topic == "/robot/state":
+                robot.append([float(data[k]) for k in ("t", "x", "y", "theta", "v", "w", "v_cmd", "w_cmd")])
+            elif message.topic == "/pedestrians/state":
+                people.append(([int(i) for i in data["ids"]], data["x"], data["y"]))
+            elif message.topic == "/events":
+                events.append((float(data["t"]), str(data["event"]), str(data["detail"])))
+            else:
+                plans += 1
+    except (KeyError, TypeError, ValueError) as exc:
+        raise LogError(f"{path}: a message breaks the run log format ({exc!r})") from None
+    ids = tuple(people[0][0]) if people else ()
+    if len(people) != len(robot) or any(tuple(p[0]) != ids for p in people):
+        raise LogError(f"{path}: pedestrian states do not match the robot states one to one")
+    table = np.array(robot, dtype=float).reshape(-1, 8)
+    positions = np.array([np.column_stack([x, y]) for _, x, y in people], dtype=float).reshape(len(robot), len(ids), 2)
+    return LoggedRun(reader.metadata["run"], table[:, 0], table[:, 1:4], table[:, 4:6], table[:, 6:8], ids, positions,
+                     events, plans)

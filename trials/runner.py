@@ -182,7 +182,7 @@ class Outcomes:
         self.path = folder.path(OUTCOMES)
         self.header = columns(blind)
         header, self.rows = read_outcomes(self.path)
-        if self.rows and header != self.header:
+        if header and header != self.header:
             what = "a blinded" if blind else "an open"
             raise StudyError(f"{self.path} has the columns {','.join(header)}, not those of {what} study ({','.join(self.header)})")
 
@@ -264,7 +264,9 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 try:
                     pool.ready()
                 except PoolError as exc:
-                    raise StudyError(str(exc)) from None
+                    if exc.failure is None or not exc.failure.user_error:
+                        raise RuntimeError(f"a worker could not start: {exc}\n{exc.failure.details if exc.failure else ''}") from None
+                    raise StudyError(exc.failure.message.splitlines()[0]) from None
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
                 on_start(len(todo))

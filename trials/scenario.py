@@ -7,12 +7,13 @@ the right of a cone. Pedestrians walk in one of three patterns:
 - Parallel: everyone comes toward the robot on parallel lanes 1 m apart, centred on its path, in
   two staggered rows starting 11 and 12.2 m ahead, and walks on to 5 m behind the start.
 - Crossing: everyone crosses the robot's path, the first half (rounded up) from the left, the
-  others from the right, at crossing points 0.7 m apart starting max(5, d + 3.5) m ahead (d the
-  crossing distance), so that the two sides never meet on the path. People wait 2.5 m to the side
-  and set off when the robot's approach means they will cross d metres in front of its front
-  bumper, then walk on to 4 m past the path.
-- ParallelCrossing: the floor(n/2) people on the outer edges walk oncoming on lanes 1.75 m, 2.55 m,
-  ... to either side of the path, the others cross as above.
+  others from the right, at crossing points 1 m apart starting max(5, d + 3.5) m ahead (d the
+  crossing distance), so that the two sides never meet on the path. People wait 2-2.3 m to the
+  side and set off when the robot's approach means they will cross d metres in front of its front
+  bumper, then walk on to 2 m past the path and stand.
+- ParallelCrossing: the floor(n/2) people on the outer edges walk oncoming on lanes 3.2 m, 4.0 m,
+  ... to either side of the path (left first), outside the crossers' waiting spots; the others
+  cross as above.
 
 Each run varies seeded details: start offsets, walking speeds (about 1.2 m/s), start delays of
 the oncoming walkers and the timing error of the crossers; `Scenario.variation()` records them.
@@ -44,9 +45,9 @@ CONE = (10.0, 0.75)
 LANE_SPACING = 1.0
 ROW_STARTS = (11.0, 12.2)
 ONCOMING_END_X = -5.0
-OUTER_LANE_FIRST, OUTER_LANE_SPACING = 1.75, 0.8
-CROSS_FIRST, CROSS_BEYOND_D, CROSS_SPACING = 5.0, 3.5, 0.7
-CROSS_WAIT_Y, CROSS_END_Y = 2.5, 4.0
+OUTER_LANE_FIRST, OUTER_LANE_SPACING = 3.2, 0.8
+CROSS_FIRST, CROSS_BEYOND_D, CROSS_SPACING = 5.0, 3.5, 1.0
+CROSS_WAIT_Y, CROSS_END_Y = 2.0, 2.0
 
 SPEED_MEAN, SPEED_STD, SPEED_RANGE = 1.2, 0.1, (0.9, 1.5)
 

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from robot_logs.summary import LogSummary
 
 #: More `trials log` subcommand modules under trials.commands (e.g. "log_show").
-SUBCOMMANDS: tuple[str, ...] = ()
+SUBCOMMANDS: tuple[str, ...] = ("log_show",)
 
 
 def register(sub: argparse._SubParsersAction) -> None:

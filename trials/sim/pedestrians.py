@@ -85,8 +85,8 @@ class Crowd:
         params = self._params
         acceleration = driving_acceleration(self.velocity, desired, speed, params)
         robot_points = nearest_footprint_points(robot.pose, self.position, limits)
-        acceleration += social_acceleration(self.position, self.velocity, desired, robot_points, robot.velocity_vector(),
-                                            self._robot_lookahead, params)
+        acceleration += social_acceleration(self.position, self.velocity, desired, robot_points, robot.position,
+                                            robot.velocity_vector(), self._robot_lookahead, params)
         acceleration += np.where(self.walking[:, None], self._rng.normal(0.0, params.fluctuation, self.position.shape), 0.0)
         self.velocity = cap_speed(self.velocity + acceleration * dt, self.preferred, params)
         self.position = self.position + self.velocity * dt

@@ -13,6 +13,12 @@ front of someone walking than behind): 2b = sqrt((|r| + |r - s e_b|)^2 - s^2), r
 s = |v_b| lookahead. Forces from behind (outside the view cone of half-angle phi about a's desired
 direction) count with weight c < 1. For the robot, r runs from the nearest point of its footprint,
 so its size counts, and its step can be shortened per pedestrian (see `social_acceleration`). Speeds are capped at 1.3 times each pedestrian's preferred speed.
+
+One addition: with these forces alone two bodies meeting exactly head-on stop face to face (the
+repulsion has no sideways part), where people step aside early. So the part of each repulsion
+that opposes a pedestrian's desired direction is also applied sideways (times `evasion`), toward
+the side of the source the pedestrian already is on (more than `TIE_M` off its line), else to
+the right, as later models do with a sideways avoidance term (e.g. Moussaid et al. 2010).
 """
 
 from __future__ import annotations
@@ -21,6 +27,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+#: Within this distance (m) of a source's line a pedestrian steps aside to the right.
+TIE_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -37,6 +47,7 @@ class SocialForceParams:
         behind_weight: c, the weight of forces from outside the field of view.
         max_speed_factor: the cap on speed, as a multiple of the preferred speed.
         fluctuation: standard deviation of the random acceleration (m/s^2).
+        evasion: the sideways step-aside force per unit of repulsion opposing the desired direction.
     """
 
     relaxation_s: float = 0.5
@@ -49,6 +60,7 @@ class SocialForceParams:
     behind_weight: float = 0.5
     max_speed_factor: float = 1.3
     fluctuation: float = 0.1
+    evasion: float = 1.0
 
 
 def ellipse_repulsion(r: np.ndarray, step: np.ndarray, strength: float, range_m: float) -> np.ndarray:
@@ -73,11 +85,21 @@ def view_weight(direction: np.ndarray, force: np.ndarray, params: SocialForcePar
     return np.where(in_view, 1.0, params.behind_weight)
 
 
+def evasion(force: np.ndarray, direction: np.ndarray, offset: np.ndarray, params: SocialForceParams) -> np.ndarray:
+    """(..., 2) the sideways part added to repulsions `force` on walkers heading `direction`, whose
+    positions relative to the sources' centres are `offset`."""
+    opposing = np.maximum(-np.einsum("...d,...d->...", force, direction), 0.0)
+    left = np.stack([-direction[..., 1], direction[..., 0]], axis=-1)
+    side = np.where(np.einsum("...d,...d->...", left, offset) > TIE_M, 1.0, -1.0)
+    return (params.evasion * opposing * side)[..., None] * left
+
+
 def social_acceleration(
     positions: np.ndarray,
     velocities: np.ndarray,
     desired: np.ndarray,
     robot_points: np.ndarray | None,
+    robot_centre: np.ndarray,
     robot_velocity: np.ndarray,
     robot_lookahead_s: np.ndarray,
     params: SocialForceParams,
@@ -89,6 +111,7 @@ def social_acceleration(
         desired: (N, 2) each one's desired direction e_a (unit, or zero when standing).
         robot_points: (N, 2) the nearest point of the robot's footprint to each pedestrian, or
             None for no robot.
+        robot_centre: (2,) the robot's position (which side of it a pedestrian is on).
         robot_velocity: (2,) the robot's velocity.
         robot_lookahead_s: (N,) how far ahead in time each pedestrian keeps clear of the robot's
             path (the lookahead, or 0 for someone who only keeps clear of its body).
@@ -100,13 +123,15 @@ def social_acceleration(
         step = np.broadcast_to(velocities[None, :, :] * params.lookahead_s, r.shape)
         forces = ellipse_repulsion(r, step, params.strength, params.range_m)
         forces *= view_weight(desired[:, None, :], forces, params)[..., None]
+        forces += evasion(forces, np.broadcast_to(desired[:, None, :], r.shape), r, params)
         forces[np.arange(n), np.arange(n)] = 0.0
         total += forces.sum(axis=1)
     if robot_points is not None and n:
         r = positions - robot_points
         step = np.asarray(robot_velocity, dtype=float)[None, :] * np.asarray(robot_lookahead_s, dtype=float)[:, None]
         forces = ellipse_repulsion(r, step, params.robot_strength, params.robot_range_m)
-        total += forces * view_weight(desired, forces, params)[:, None]
+        forces *= view_weight(desired, forces, params)[:, None]
+        total += forces + evasion(forces, desired, positions - robot_centre, params)
     return total
 
 

@@ -1,0 +1,113 @@
+"""A blinded study runs blind: no public file, log, metadata or console line names a controller."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from run_studies import design_small_study
+
+from trials.cli import main
+
+NAMES = re.compile(rb"navigan|lattice|sbpl", re.IGNORECASE)
+
+
+def trials(*args: str) -> subprocess.CompletedProcess:
+    """The real command in its own process, workers included: everything it prints is captured."""
+    return subprocess.run([sys.executable, "-m", "trials.cli", *args], capture_output=True, timeout=300)
+
+
+def mcap_text(path: Path) -> bytes:
+    """Everything an MCAP holds, decompressed: header, metadata, schemas, topics and every message."""
+    parts = []
+    with path.open("rb") as stream:
+        reader = make_reader(stream)
+        header = reader.get_header()
+        parts += [header.library.encode(), header.profile.encode()]
+        parts += [json.dumps(m.metadata).encode() + m.name.encode() for m in reader.iter_metadata()]
+        summary = reader.get_summary()
+        parts += [s.name.encode() + s.data for s in summary.schemas.values()]
+        parts += [c.topic.encode() + json.dumps(c.metadata).encode() for c in summary.channels.values()]
+        parts += [message.data for _, _, message in reader.iter_messages()]
+    return b"\n".join(parts)
+
+
+@pytest.fixture(scope="module")
+def blind_run(tmp_path_factory):
+    study = tmp_path_factory.mktemp("blind") / "study"
+    design_small_study(study, blind=True)
+    run = trials("run", "--blind", "--workers", "2", "--study", str(study))
+    one_per_arm = {row["Controller"]: row["run_code"] for row in _plan(study)}
+    shows = [trials("log", "show", code, "--study", str(study)) for code in one_per_arm.values()]
+    return study, [run, *shows]
+
+
+def _plan(study: Path) -> list[dict[str, str]]:
+    with (study / "plan.csv").open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_the_blind_run_finishes_every_row(blind_run):
+    study, (run, *shows) = blind_run
+    assert run.returncode == 0, run.stderr.decode()
+    assert b"6 runs finished" in run.stdout
+    with (study / "outcomes.csv").open(newline="") as handle:
+        table = list(csv.DictReader(handle))
+    assert sorted(r["run_code"] for r in table) == sorted(r["run_code"] for r in _plan(study))
+    assert "controller" not in table[0]
+    assert all(show.returncode == 0 for show in shows)
+
+
+def test_nothing_public_names_a_controller(blind_run):
+    study, processes = blind_run
+    for process in processes:
+        assert not NAMES.search(process.stdout) and not NAMES.search(process.stderr), process.stdout + process.stderr
+    checked = 0
+    for path in study.rglob("*"):
+        if path.is_dir() or "sealed" in path.relative_to(study).parts:
+            continue
+        content = mcap_text(path) if path.suffix == ".mcap" else path.read_bytes()
+        assert not NAMES.search(content), f"{path} names a controller"
+        assert not NAMES.search(path.name.encode())
+        checked += 1
+    assert checked >= 6 + 2 + 5  # logs, pictures, and the study's own files were all read
+
+
+def test_the_sealed_part_holds_the_controller_records(blind_run):
+    study, _ = blind_run
+    arms = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
+    for row in _plan(study):
+        record = json.loads((study / "sealed" / "runs" / f"{row['run_code']}.json").read_text())
+        assert record["arm"] == row["Controller"] and record["controller"] == arms[row["Controller"]]
+        assert record["steps"] and all("record" in step and "t" in step for step in record["steps"])
+    assert NAMES.search((study / "sealed" / "runs" / f"{_plan(study)[0]['run_code']}.json").read_bytes())
+
+
+def test_a_log_of_a_blind_run_has_no_controller_topic(blind_run):
+    study, _ = blind_run
+    code = _plan(study)[0]["run_code"]
+    content = mcap_text(study / "runs" / f"{code}.mcap")
+    assert b"/controller/record" not in content and b"ControllerRecord" not in content
+
+
+def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):
+    study = tmp_path / "study"
+    design_small_study(study, blind=True)
+    key = study / "sealed" / "allocation.json"
+    data = json.loads(key.read_text())
+    data["arms"] = {"A": data["arms"]["B"], "B": data["arms"]["A"]}
+    key.write_text(json.dumps(data))
+    assert main(["run", "--study", str(study)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "does not match the commitment in design.json" in err[0]
+    assert not NAMES.search(err[0].encode())
+    key.unlink()
+    assert main(["run", "--study", str(study)]) == 2
+    assert f"error: the sealed key {key} is missing" in capsys.readouterr().err
+    assert not list(study.glob("runs/*.mcap")) and not (study / "outcomes.csv").exists()

@@ -1,0 +1,247 @@
+"""`trials run` and `trials log show` end to end on a small open study: files, logs, resume, rerun, bad input."""
+
+from __future__ import annotations
+
+import csv
+import fcntl
+import json
+import shutil
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+import pytest
+from run_studies import design_small_study
+
+from robot_logs.foxglove_log import FoxgloveReader
+from trials.cli import main
+from trials.outcomes import COLUMNS
+from trials.runner import run_seed
+
+CONTRACT_COLUMNS = [
+    "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m", "min_distance_m",
+    "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2", "max_jerk_mps3",
+    "path_irregularity_rad_per_m", "turn_in_place_s", "backing_up_s", "stopped_s", "controller", "finished_utc",
+]
+TOPICS = {
+    "/tf": "foxglove.FrameTransform", "/scene": "foxglove.SceneUpdate", "/robot/state": "navtrials.RobotState",
+    "/pedestrians/state": "navtrials.Pedestrians", "/perception/pedestrians": "navtrials.Pedestrians",
+    "/controller/plan": "navtrials.Plan", "/controller/plan_poses": "foxglove.PosesInFrame", "/events": "navtrials.Event",
+}
+
+
+def rows(study: Path) -> list[dict[str, str]]:
+    with (study / "outcomes.csv").open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def plan(study: Path) -> list[dict[str, str]]:
+    with (study / "plan.csv").open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("open") / "study"
+    design_small_study(folder, blind=False)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def finished(template, tmp_path_factory) -> tuple[Path, str]:
+    """The open study after one complete `trials run`, and what it printed."""
+    study = Path(shutil.copytree(template, tmp_path_factory.mktemp("finished") / "study"))
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["run", "--study", str(study)]) == 0
+    return study, out.getvalue()
+
+
+@pytest.fixture
+def study(template, tmp_path) -> Path:
+    return Path(shutil.copytree(template, tmp_path / "study"))
+
+
+def test_every_row_runs_once_in_plan_order(finished):
+    study, printed = finished
+    table = rows(study)
+    assert list(table[0]) == CONTRACT_COLUMNS == list(COLUMNS)
+    assert [r["run_code"] for r in table] == [r["run_code"] for r in plan(study)]
+    for row, planned in zip(table, plan(study)):
+        assert row["status"] in ("goal", "collision", "timeout")
+        assert row["controller"] == planned["Controller"]
+        assert int(row["seed"]) == run_seed(11, row["run_code"])
+        assert row["perception"] == "positions"
+        assert float(row["duration_s"]) <= 60.0
+        assert (row["time_to_goal_s"] == row["duration_s"]) == (row["status"] == "goal")
+        assert 0.0 <= float(row["time_within_0_5m_s"]) <= float(row["time_within_1_2m_s"]) <= float(row["duration_s"])
+        assert row["collisions"] == str(int(row["status"] == "collision"))
+        datetime.fromisoformat(row["finished_utc"])
+    assert f"6 runs finished" in printed and "6 of 6 plan rows are done" in printed
+    assert not list(study.rglob("*.partial")) and not list(study.rglob(".*.tmp"))
+    assert not (study / "sealed" / "runs").exists()
+
+
+def test_each_run_log_follows_the_contract(finished):
+    study, _ = finished
+    for planned in plan(study):
+        log = FoxgloveReader(study / "runs" / f"{planned['run_code']}.mcap")
+        assert log.topics == {**TOPICS, "/controller/record": "navtrials.ControllerRecord"}
+        meta = log.metadata["run"]
+        assert meta["run_code"] == planned["run_code"] and meta["study"] == "small-open"
+        assert meta["controller"] == planned["Controller"]
+        assert {k: meta[k] for k in ("Pedestrians", "Direction", "Controller", "CrossingDistance")} == {
+            k: planned[k] for k in ("Pedestrians", "Direction", "Controller", "CrossingDistance")}
+        assert len(json.loads(meta["variation"])) == int(planned["Pedestrians"])
+        events = [m.data["event"] for m in log.messages(["/events"])]
+        assert events[0] == "start" and events[-1] in ("goal", "collision", "timeout") and len(events) == 2
+        states = [m.data for m in log.messages(["/robot/state"])]
+        assert states[0]["t"] == 0.0 and np.allclose(np.diff([s["t"] for s in states]), 0.1)  # simulated time, 10 Hz
+        plans = [m.data for m in log.messages(["/controller/plan"])]
+        assert np.allclose(np.diff([p["t"] for p in plans]), 0.4) and len(plans[0]["waypoints"]) == 12
+
+
+def test_a_second_run_has_nothing_to_do(finished, capsys):
+    study, _ = finished
+    before = (study / "outcomes.csv").read_bytes()
+    assert main(["run", "--study", str(study)]) == 0
+    assert "0 runs finished; 6 of 6 plan rows are done" in capsys.readouterr().out
+    assert (study / "outcomes.csv").read_bytes() == before
+
+
+def test_log_show_prints_the_runs_metrics_and_draws_it(finished, capsys):
+    study, _ = finished
+    row = rows(study)[0]
+    assert main(["log", "show", row["run_code"], "--study", str(study)]) == 0
+    out = capsys.readouterr().out
+    assert f"run {row['run_code']} of study small-open" in out and f"controller: {row['controller']}" in out
+    printed = {line.split()[0]: line.split()[1] for line in out.splitlines() if line.startswith("  ")}
+    for column in ("path_length_m", "min_distance_m", "time_within_1_2m_s", "max_deceleration_mps2", "stopped_s"):
+        assert float(printed[column]) == pytest.approx(float(row[column]), abs=0.02), column
+    assert (study / "runs" / f"{row['run_code']}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_rerun_moves_the_old_run_aside_and_reproduces_it(finished, tmp_path, capsys):
+    study = Path(shutil.copytree(finished[0], tmp_path / "study"))
+    code = next(r["run_code"] for r in rows(study) if r["controller"] == "NaviGAN-R")
+    old = next(r for r in rows(study) if r["run_code"] == code)
+    assert main(["run", "--rerun", code, "--study", str(study)]) == 0
+    assert "moved to" in capsys.readouterr().out
+    (aside,) = (study / "superseded").iterdir()
+    assert (aside / "runs" / f"{code}.mcap").exists()
+    with (aside / "outcomes.csv").open(newline="") as handle:
+        assert list(csv.DictReader(handle)) == [old]
+    table = rows(study)
+    assert len(table) == 6 and table[-1]["run_code"] == code
+    new = table[-1]
+    assert {k: v for k, v in new.items() if k != "finished_utc"} == {k: v for k, v in old.items() if k != "finished_utc"}
+
+
+def test_only_runs_the_rows_named(study, capsys):
+    codes = [r["run_code"] for r in plan(study)]
+    assert main(["run", "--only", codes[3], codes[1], "--study", str(study)]) == 0
+    assert [r["run_code"] for r in rows(study)] == [codes[1], codes[3]]
+    assert main(["run", "--only", codes[1], "--study", str(study)]) == 0
+    assert f"{codes[1]} has already finished" in capsys.readouterr().out
+    assert len(rows(study)) == 2
+
+
+def test_partial_files_and_logs_without_a_row_are_redone(study):
+    code = plan(study)[0]["run_code"]
+    runs = study / "runs"
+    runs.mkdir()
+    (runs / f".{code}.mcap.partial").write_bytes(b"half a log")
+    (runs / f"{code}.mcap").write_bytes(b"a log whose row was never written")
+    assert main(["run", "--only", code, "--study", str(study)]) == 0
+    assert not (runs / f".{code}.mcap.partial").exists()
+    assert FoxgloveReader(runs / f"{code}.mcap").metadata["run"]["run_code"] == code
+    assert [r["run_code"] for r in rows(study)] == [code]
+
+
+def test_lidar_perception_runs_the_tracker(study):
+    code = next(r["run_code"] for r in plan(study) if r["Controller"] == "NaviGAN-R")
+    assert main(["run", "--only", code, "--perception", "lidar", "--study", str(study)]) == 0
+    (row,) = rows(study)
+    assert row["perception"] == "lidar"
+    log = FoxgloveReader(study / "runs" / f"{code}.mcap")
+    seen = [m.data["ids"] for m in log.messages(["/perception/pedestrians"])]
+    assert any(seen) and "noise_std_m" not in log.metadata["run"]
+
+
+def one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    return lines[0]
+
+
+def assert_nothing_ran(study: Path) -> None:
+    assert not list(study.glob("runs/*.mcap")) and not (study / "outcomes.csv").exists()
+
+
+def edit_plan(study: Path, line: int, column: str, value: str) -> None:
+    table = plan(study)
+    table[line - 2][column] = value
+    with (study / "plan.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(table[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(table)
+
+
+@pytest.mark.parametrize("change,args,message", [
+    ("empty", [], "no plan in"),
+    ("direction", [], "plan.csv line 4 (run"),
+    ("controller", [], "Controller 'Teleop' is not a known controller (NaviGAN-R, Lattice)"),
+    (None, ["--weights", "/nonexistent/weights.pt"], "no checkpoint at /nonexistent/weights.pt"),
+    ("corrupt", [], "is not a readable checkpoint"),
+    (None, ["--blind"], "--blind: the study in"),
+    (None, ["--only", "ZZZZZ"], "run ZZZZZ is not in"),
+    (None, ["--rerun", "first"], "the run has not finished yet"),
+    (None, ["--workers", "0"], "--workers must be at least 1"),
+    (None, ["--dropout", "1.5"], "--dropout must be at least 0 and below 1"),
+    (None, ["--perception", "radar"], "argument --perception: invalid choice"),
+    ("blind columns", [], "not those of an open study"),
+])
+def test_bad_input_is_one_line_exit_2_and_runs_nothing(study, tmp_path, capsys, change, args, message):
+    if change == "empty":
+        study = tmp_path / "empty"
+        study.mkdir()
+    elif change == "direction":
+        edit_plan(study, 4, "Direction", "Diagonal")
+    elif change == "controller":
+        edit_plan(study, 2, "Controller", "Teleop")
+    elif change == "corrupt":
+        (tmp_path / "bad.pt").write_bytes(b"\x00 not torch")
+        args = ["--weights", str(tmp_path / "bad.pt")]
+    elif change == "blind columns":
+        (study / "outcomes.csv").write_text(",".join(c for c in CONTRACT_COLUMNS if c != "controller") + "\n")
+    args = [a.replace("first", plan(study)[0]["run_code"]) if study.joinpath("plan.csv").exists() else a for a in args]
+    with pytest.raises(SystemExit) if message.startswith("argument") else _no_raise() as caught:
+        code = main(["run", "--study", str(study), *args])
+    code = caught.value.code if message.startswith("argument") else code
+    assert code == 2
+    assert message in one_error_line(capsys)
+    if change != "blind columns":
+        assert_nothing_ran(study)
+
+
+class _no_raise:
+    value = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+def test_a_second_trials_run_on_the_same_study_is_refused(study, capsys):
+    (study / "runs").mkdir()
+    with (study / "runs" / ".lock").open("a+") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert main(["run", "--study", str(study)]) == 2
+    assert "another `trials run` is running on" in one_error_line(capsys)
+    assert_nothing_ran(study)

@@ -1,0 +1,99 @@
+"""Interrupting `trials run` (a kill, or Ctrl-C) loses and duplicates nothing; the next run continues."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from robot_logs.foxglove_log import FoxgloveReader
+from trials.cli import main
+
+RUNS = 12
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("resume") / "study"
+    assert main(["design", "--runs", str(RUNS), "--seed", "3", "--study", str(folder)]) == 0
+    return folder
+
+
+@pytest.fixture
+def study(template, tmp_path) -> Path:
+    import shutil
+
+    return Path(shutil.copytree(template, tmp_path / "study"))
+
+
+def finished_rows(study: Path) -> list[dict[str, str]]:
+    path = study / "outcomes.csv"
+    if not path.exists():
+        return []
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def start(study: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "trials.cli", "run", "--workers", "2", "--study", str(study)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+
+
+def wait_for_rows(study: Path, process: subprocess.Popen, count: int) -> None:
+    deadline = time.monotonic() + 120
+    while len(finished_rows(study)) < count:
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline, "no runs finished in time"
+        time.sleep(0.05)
+
+
+def listing(study: Path) -> dict[str, int]:
+    return {str(p.relative_to(study)): p.stat().st_size for p in study.rglob("*") if p.is_file()}
+
+
+def check_complete(study: Path, before: list[dict[str, str]]) -> None:
+    rows = finished_rows(study)
+    codes = [r["run_code"] for r in rows]
+    with (study / "plan.csv").open(newline="") as handle:
+        planned = [r["run_code"] for r in csv.DictReader(handle)]
+    assert sorted(codes) == sorted(planned) and len(set(codes)) == RUNS  # every run exactly once
+    assert rows[: len(before)] == before  # the rows written before the interruption are untouched
+    for code in planned:
+        assert FoxgloveReader(study / "runs" / f"{code}.mcap").metadata["run"]["run_code"] == code
+    assert not [p for p in study.rglob(".*") if p.name.endswith((".partial", ".tmp"))]
+
+
+def test_a_killed_run_loses_and_duplicates_nothing(study):
+    process = start(study)
+    wait_for_rows(study, process, 3)
+    process.kill()  # SIGKILL: no clean-up of any kind in the parent
+    process.wait()
+    before = finished_rows(study)
+    assert 3 <= len(before) < RUNS
+    snapshot = listing(study)
+    time.sleep(1.5)
+    assert listing(study) == snapshot  # its workers died with it: nothing more is written
+    resumed = subprocess.run([sys.executable, "-m", "trials.cli", "run", "--workers", "2", "--study", str(study)], capture_output=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr.decode()
+    assert f"{RUNS - len(before)} runs finished".encode() in resumed.stdout
+    check_complete(study, before)
+
+
+def test_ctrl_c_stops_at_once_and_the_next_run_continues(study):
+    process = start(study)
+    wait_for_rows(study, process, 2)
+    os.killpg(process.pid, signal.SIGINT)  # what the terminal sends to the whole foreground group
+    _, err = process.communicate(timeout=30)
+    assert process.returncode == 130
+    assert b"interrupted: finished work is kept; run the command again to continue" in err
+    assert b"Traceback" not in err
+    before = finished_rows(study)
+    assert not [p for p in study.rglob(".*") if p.name.endswith((".partial", ".tmp"))]  # cleaned on the way out
+    assert main(["run", "--study", str(study)]) == 0
+    check_complete(study, before)

@@ -1,0 +1,54 @@
+"""`trials log show RUN_CODE`: a finished run's summary from its MCAP, and a PNG of its trajectories."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(group: argparse._SubParsersAction) -> None:
+    parser = group.add_parser(
+        "show",
+        help="summarise a trial run from its MCAP log and draw its trajectories",
+        description="Print a run's settings, seed, events and metrics, recomputed from runs/<code>.mcap, and "
+        "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it.",
+    )
+    parser.add_argument("run", metavar="RUN_CODE", help="a run code of the study (or the path of a run's .mcap)")
+    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.set_defaults(handler=show)
+
+
+def show(args: argparse.Namespace) -> int:
+    from trials.atomic import write_files
+    from trials.errors import StudyError
+    from trials.outcomes import measure
+    from trials.run_figure import run_png
+    from trials.run_log import read_run
+    from trials.scenario import CONE, GOAL
+    from trials.study import RUNS
+
+    path = Path(args.run)
+    if path.suffix != ".mcap":
+        path = args.study / RUNS / f"{args.run}.mcap"
+        if not path.exists():
+            raise StudyError(f"no log of run {args.run} in {(args.study / RUNS).resolve()} (has it finished? see outcomes.csv)")
+    run = read_run(path)
+    meta = dict(run.metadata)
+    code = meta.pop("run_code", path.stem)
+    status = run.status or "unfinished"
+    outcome = measure(status, run.time, run.pose, run.velocity, run.pedestrians)
+    plain = {"study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m", "controller", "weights"}
+    settings = ", ".join(f"{k} {v}" for k, v in meta.items() if k not in plain)
+    lines = [f"{path}: run {code} of study {meta.get('study', '?')}", f"settings: {settings}",
+             f"seed {meta.get('seed', '?')}, perception {meta.get('perception', '?')}"
+             + (f" (noise {meta['noise_std_m']} m, dropout {meta['dropout']}, range {meta['range_m']} m)" if "noise_std_m" in meta else "")]
+    if "controller" in meta:
+        lines.append(f"controller: {meta['controller']}" + (f" ({meta['weights']})" if "weights" in meta else ""))
+    lines.append("events: " + "; ".join(f"{t:.1f} s {name} ({detail})" for t, name, detail in run.events))
+    lines.append(f"{status} after {outcome.duration_s:.1f} s simulated; {len(run.ids)} pedestrians, {run.plans} plans")
+    lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome.fields().items() if name not in ("status", "duration_s"))
+    picture = path.with_suffix(".png")
+    write_files({picture: run_png(run, f"run {code}: {settings}; {status}", GOAL, CONE)})
+    lines.append(f"trajectories: {picture}")
+    print("\n".join(lines))
+    return 0
