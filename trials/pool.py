@@ -4,7 +4,7 @@
 must not wait for a minute-long run, and a killed `trials run` must not leave workers writing
 into the study). Each worker ignores Ctrl-C (the parent decides), asks Linux to kill it when
 the parent dies, builds its state with `setup(*args)` (reporting any error as the first thing it
-sends), then answers tasks with `state(task)` until told to stop.
+sends), then answers each task with the handler `setup` returned until told to stop.
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ class WorkerPool:
             PoolError: a worker's setup failed (the first failure) or it died.
         """
         for _ in self._processes:
-            key, answer = self._receive()
+            _, answer = self._receive()
             if isinstance(answer, Failure):
                 raise PoolError(f"{answer.kind}: {answer.message}", answer)
 

@@ -149,7 +149,7 @@ class LoggedRun:
 
     Attributes:
         metadata: the `run` metadata record.
-        time: (K,) s; pose: (K, 3); velocity: (K, 2) linear, angular; command: (K, 2).
+        time: (K,) s; pose: (K, 3); velocity: (K, 2) linear, angular.
         ids: pedestrian ids; pedestrians: (K, N, 2) their true positions.
         events: (t, event, detail) in time order.
         plans: number of planning steps.
@@ -159,7 +159,6 @@ class LoggedRun:
     time: np.ndarray
     pose: np.ndarray
     velocity: np.ndarray
-    command: np.ndarray
     ids: tuple[int, ...]
     pedestrians: np.ndarray
     events: list[tuple[float, str, str]]
@@ -189,7 +188,7 @@ def read_run(path: Path) -> LoggedRun:
         for message in reader.messages(["/robot/state", "/pedestrians/state", "/events", "/controller/plan"]):
             data = message.data
             if message.topic == "/robot/state":
-                robot.append([float(data[k]) for k in ("t", "x", "y", "theta", "v", "w", "v_cmd", "w_cmd")])
+                robot.append([float(data[k]) for k in ("t", "x", "y", "theta", "v", "w")])
             elif message.topic == "/pedestrians/state":
                 people.append(([int(i) for i in data["ids"]], data["x"], data["y"]))
             elif message.topic == "/events":
@@ -201,7 +200,6 @@ def read_run(path: Path) -> LoggedRun:
     ids = tuple(people[0][0]) if people else ()
     if len(people) != len(robot) or any(tuple(p[0]) != ids for p in people):
         raise LogError(f"{path}: pedestrian states do not match the robot states one to one")
-    table = np.array(robot, dtype=float).reshape(-1, 8)
+    table = np.array(robot, dtype=float).reshape(-1, 6)
     positions = np.array([np.column_stack([x, y]) for _, x, y in people], dtype=float).reshape(len(robot), len(ids), 2)
-    return LoggedRun(reader.metadata["run"], table[:, 0], table[:, 1:4], table[:, 4:6], table[:, 6:8], ids, positions,
-                     events, plans)
+    return LoggedRun(reader.metadata["run"], table[:, 0], table[:, 1:4], table[:, 4:6], ids, positions, events, plans)

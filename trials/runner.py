@@ -36,7 +36,7 @@ from trials.outcomes import columns, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sim.perception import PositionNoise
-from trials.study import OUTCOMES, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
+from trials.study import DESIGN, OUTCOMES, PLAN, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
 
 NAVIGAN_R, LATTICE = "NaviGAN-R", "Lattice"
 #: The controller levels a plan may name, and the controller of a study without a Controller factor.
@@ -125,7 +125,7 @@ class StudyRun:
         plan = folder.read_plan()
         arms = tuple(blinding["arms"]) if blinding else CONTROLLER_LEVELS
         for line, row in enumerate(plan, start=2):
-            where = f"{folder.path('plan.csv')} line {line} (run {row.get('run_code', '?')})"
+            where = f"{folder.path(PLAN)} line {line} (run {row.get('run_code', '?')})"
             settings_from_row(row, where)
             level = row.get(CONTROLLER)
             if level is not None and level not in arms:
@@ -133,7 +133,7 @@ class StudyRun:
                 raise StudyError(f"{where}: {CONTROLLER} {level!r} is not a known {kind} ({', '.join(arms)})")
         seed = design.get("seed")
         if not isinstance(seed, int):
-            raise StudyError(f"{folder.path('design.json')}: no integer study seed to derive the run seeds from")
+            raise StudyError(f"{folder.path(DESIGN)}: no integer study seed to derive the run seeds from")
         levels = () if blinding else tuple(dict.fromkeys(row.get(CONTROLLER, DEFAULT_CONTROLLER) for row in plan))
         return cls(folder, str(design.get("study", "")), seed, bool(blinding), plan, levels)
 
@@ -165,9 +165,10 @@ def study_lock(folder: StudyFolder) -> Iterator[None]:
 
 
 def clean_partials(folder: StudyFolder) -> list[Path]:
-    """Delete the partial files of interrupted runs (hidden `.…partial` and `.…tmp` files); returns them."""
-    stale = []
-    for where in (folder.path(RUNS), folder.path(SEALED_RUNS), folder.root):
+    """Delete what interrupted runs left half-written (hidden `.…partial` and `.…tmp` files in runs/
+    and sealed/runs/, and staged copies of outcomes.csv); returns them."""
+    stale = [p for p in folder.root.glob(f".{OUTCOMES}.*.tmp") if p.is_file()]
+    for where in (folder.path(RUNS), folder.path(SEALED_RUNS)):
         if where.is_dir():
             stale += [p for p in where.glob(".*") if p.is_file() and p.name.endswith((".partial", ".tmp"))]
     for path in stale:
@@ -243,7 +244,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         raise StudyError(f"--perception must be one of {', '.join(PERCEPTIONS)}, got {options.perception!r}")
     unknown = [code for code in only + rerun if code not in study.codes]
     if unknown:
-        raise StudyError(f"run {unknown[0]} is not in {folder.path('plan.csv')}")
+        raise StudyError(f"run {unknown[0]} is not in {folder.path(PLAN)}")
     summary = Summary()
     with study_lock(folder):
         clean_partials(folder)
@@ -270,7 +271,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
                 on_start(len(todo))
-                for code, answer in pool.run((code, study.task(code)) for code in todo):
+                for code, answer in _answers(pool, ((code, study.task(code)) for code in todo)):
                     if isinstance(answer, Failure):
                         message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
                         summary.failed.append((code, message))
@@ -283,6 +284,13 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
             clean_partials(folder)
             summary.done = len(outcomes.finished & set(study.codes))
     return summary
+
+
+def _answers(pool: WorkerPool, tasks: Iterator[tuple[str, RunTask]]) -> Iterator[tuple[str, Any]]:
+    try:
+        yield from pool.run(tasks)
+    except PoolError as exc:
+        raise StudyError(f"{exc}; the finished runs are kept, run `trials run` again to continue") from None
 
 
 # --- the workers: running one row ----------------------------------------------------------------
@@ -328,6 +336,20 @@ class TrialWorker:
         return label or DEFAULT_CONTROLLER, None
 
     def __call__(self, task: RunTask) -> RunDone:
+        """Run one row. In a blinded study a failure's details go to the sealed part (a traceback
+        names the controller's modules); the error says only where they are."""
+        try:
+            return self._run(task)
+        except Exception:
+            if not self.blind:
+                raise
+            import traceback
+
+            details = self.folder.path(SEALED_RUNS) / f"{task.code}.error.txt"
+            write_text(details, traceback.format_exc())
+            raise RuntimeError(f"the run failed; what went wrong is in {details} (reading it may unblind)") from None
+
+    def _run(self, task: RunTask) -> RunDone:
         from trials.outcomes import measure
         from trials.run_log import RunLog, jsonable
         from trials.scenario import build_scenario

@@ -1,6 +1,6 @@
 """From a plan row to the scene of one simulated trial: the robot's task and where people walk.
 
-The layout follows the paper's field trials (world frame `map`, metres, x along the robot's
+The layout is modelled on the paper's field trials (world frame `map`, metres, x along the robot's
 nominal path): the robot starts at the origin facing +x and must reach a goal 10 m ahead, just to
 the right of a cone. Pedestrians walk in one of three patterns:
 

@@ -30,13 +30,17 @@ class SimConfig:
     """Rates, ending rules and the models' constants of a simulated trial."""
 
     physics_dt: float = 0.1
-    plan_every: int = round(STEP_S / 0.1)
     timeout_s: float = 60.0
     goal_tolerance_m: float = 0.5
     pedestrian_radius_m: float = 0.25
     limits: RobotLimits = RobotLimits()
     social: SocialForceParams = SocialForceParams()
     follower: FollowerParams = FollowerParams()
+
+    @property
+    def plan_every(self) -> int:
+        """Physics steps per planning step."""
+        return max(round(STEP_S / self.physics_dt), 1)
 
 
 class RunSink(Protocol):
@@ -58,14 +62,12 @@ class Trace:
     time: list[float] = field(default_factory=list)
     pose: list[np.ndarray] = field(default_factory=list)
     velocity: list[tuple[float, float]] = field(default_factory=list)
-    command: list[tuple[float, float]] = field(default_factory=list)
     pedestrians: list[np.ndarray] = field(default_factory=list)
 
-    def add(self, time: float, robot: RobotState, command: tuple[float, float], crowd: Crowd) -> None:
+    def add(self, time: float, robot: RobotState, crowd: Crowd) -> None:
         self.time.append(time)
         self.pose.append(robot.pose)
         self.velocity.append((robot.v, robot.w))
-        self.command.append(command)
         self.pedestrians.append(crowd.position.copy())
 
 
@@ -75,9 +77,7 @@ class RunResult:
 
     status: str
     duration_s: float
-    detail: str
     trace: Trace
-    plans: int
 
 
 def _observation(time: float, robot: RobotState, history: deque[np.ndarray], goal: np.ndarray,
@@ -111,9 +111,9 @@ def simulate(scenario: Scenario, controller: Controller, perception: Perception,
     trace = Trace()
     command = (0.0, 0.0)
     dt = config.physics_dt
-    step, plans, time = 0, 0, 0.0
+    step, time = 0, 0.0
     perception.sense(time, robot, crowd)
-    trace.add(time, robot, command, crowd)
+    trace.add(time, robot, crowd)
     sink.state(time, robot, command, crowd)
     sink.event(time, START, f"goal ({goal[0]:g}, {goal[1]:g}), {len(crowd)} pedestrians")
     ending = _ending(time, robot, crowd, goal, config)
@@ -124,7 +124,6 @@ def simulate(scenario: Scenario, controller: Controller, perception: Perception,
             ids, pedestrians = perception.observe(time, robot, crowd)
             sink.perceived(time, ids, pedestrians)
             plan = controller.plan(_observation(time, robot, history, goal, ids, pedestrians))
-            plans += 1
             sink.planned(time, plan)
             follower.follow(time, robot.position, plan)
         command = follower.command(time, robot)
@@ -133,12 +132,12 @@ def simulate(scenario: Scenario, controller: Controller, perception: Perception,
         step += 1
         time = step * dt
         perception.sense(time, robot, crowd)
-        trace.add(time, robot, command, crowd)
+        trace.add(time, robot, crowd)
         sink.state(time, robot, command, crowd)
         ending = _ending(time, robot, crowd, goal, config)
     status, detail = ending
     sink.event(time, status, detail)
-    return RunResult(status, time, detail, trace, plans)
+    return RunResult(status, time, trace)
 
 
 class NoSink:

@@ -48,7 +48,6 @@ class Crowd:
         self.walking = np.zeros(len(walkers), dtype=bool)
         crossing = np.array([w.cross_x is not None for w in walkers], dtype=bool)
         self._robot_lookahead = np.where(crossing, 0.0, params.lookahead_s)
-        self.set_off_s = np.full(len(walkers), math.nan)
         self._walkers = walkers
         self._distance = scenario.settings.crossing_distance
         self._params = params
@@ -61,16 +60,14 @@ class Crowd:
         front = robot.x + limits.half_length * math.cos(robot.theta)
         judged_speed = max(robot.v * math.cos(robot.theta), MIN_JUDGED_SPEED)
         for i, walker in enumerate(self._walkers):
-            if self.walking[i] or not math.isnan(self.set_off_s[i]):
+            if self.walking[i]:
                 continue
             if walker.cross_x is None:
                 go = time >= walker.delay_s
             else:
                 reach_s = abs(walker.start[1] - robot.y) / walker.speed + self._params.relaxation_s - walker.timing_s
                 go = front >= walker.cross_x - self._distance - judged_speed * reach_s or time >= LATEST_START_S
-            if go:
-                self.walking[i] = True
-                self.set_off_s[i] = time
+            self.walking[i] = go
 
     def step(self, time: float, dt: float, robot: RobotState, limits: RobotLimits) -> None:
         """Advance everyone by `dt` seconds, reacting to each other and to the robot."""

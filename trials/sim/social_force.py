@@ -12,13 +12,15 @@ through a's position with foci at b's position and at b's next step (so people k
 front of someone walking than behind): 2b = sqrt((|r| + |r - s e_b|)^2 - s^2), r = r_a - r_b,
 s = |v_b| lookahead. Forces from behind (outside the view cone of half-angle phi about a's desired
 direction) count with weight c < 1. For the robot, r runs from the nearest point of its footprint,
-so its size counts, and its step can be shortened per pedestrian (see `social_acceleration`). Speeds are capped at 1.3 times each pedestrian's preferred speed.
+so its size counts, and its step can be shortened per pedestrian (see `social_acceleration`).
+Speeds are capped at 1.3 times each pedestrian's preferred speed.
 
 One addition: with these forces alone two bodies meeting exactly head-on stop face to face (the
 repulsion has no sideways part), where people step aside early. So the part of each repulsion
 that opposes a pedestrian's desired direction is also applied sideways (times `evasion`), toward
 the side of the source the pedestrian already is on (more than `TIE_M` off its line), else to
-the right, as later models do with a sideways avoidance term (e.g. Moussaid et al. 2010).
+the right, much as later models turn an encounter sideways (compare the angular interaction of
+Moussaid et al., Proc. R. Soc. B 276, 2009).
 """
 
 from __future__ import annotations
@@ -27,7 +29,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 
 #: Within this distance (m) of a source's line a pedestrian steps aside to the right.
 TIE_M = 0.1
