@@ -80,7 +80,7 @@ def test_every_row_runs_once_in_plan_order(finished):
         assert 0.0 <= float(row["time_within_0_5m_s"]) <= float(row["time_within_1_2m_s"]) <= float(row["duration_s"])
         assert row["collisions"] == str(int(row["status"] == "collision"))
         datetime.fromisoformat(row["finished_utc"])
-    assert f"6 runs finished" in printed and "6 of 6 plan rows are done" in printed
+    assert "6 runs finished" in printed and "6 of 6 plan rows are done" in printed
     assert not list(study.rglob("*.partial")) and not list(study.rglob(".*.tmp"))
     assert not (study / "sealed" / "runs").exists()
 
@@ -245,3 +245,13 @@ def test_a_second_trials_run_on_the_same_study_is_refused(study, capsys):
         assert main(["run", "--study", str(study)]) == 2
     assert "another `trials run` is running on" in one_error_line(capsys)
     assert_nothing_ran(study)
+
+
+def test_log_show_of_a_run_without_a_log_is_one_line(finished, capsys):
+    study, _ = finished
+    assert main(["log", "show", "ZZZZZ", "--study", str(study)]) == 2
+    assert "no log of run ZZZZZ in" in one_error_line(capsys)
+    (study / "runs" / "broken.mcap").write_bytes(b"\x89MCAP0\r\n truncated")
+    assert main(["log", "show", str(study / "runs" / "broken.mcap")]) == 2
+    assert "is damaged or unfinished" in one_error_line(capsys)
+    (study / "runs" / "broken.mcap").unlink()

@@ -128,7 +128,8 @@ def settings_from_row(row: dict[str, str], where: str) -> Settings:
         raise StudyError(f"{where}: {DIRECTION} {direction!r} is not one of {', '.join(DIRECTIONS)}")
     distance = _number(values[CROSSING_DISTANCE], CROSSING_DISTANCE, where)
     if not 0 < distance <= MAX_CROSSING_DISTANCE:
-        raise StudyError(f"{where}: {CROSSING_DISTANCE} {values[CROSSING_DISTANCE]!r} must be above 0 and at most {MAX_CROSSING_DISTANCE:g} m")
+        raise StudyError(f"{where}: {CROSSING_DISTANCE} {values[CROSSING_DISTANCE]!r} must be above 0 "
+                         f"and at most {MAX_CROSSING_DISTANCE:g} m")
     return Settings(int(count), direction, distance)
 
 

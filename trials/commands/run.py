@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGTERM, stop)
+    # `kill` stops the run as Ctrl-C does: workers stopped, partial files removed.
+    previous = signal.signal(signal.SIGTERM, stop)
     # A blinded study's console shows no run times: they differ by controller.
     bar_format = "{l_bar}{bar}| {n_fmt}/{total_fmt}" if study.blind else None
     bar = tqdm(total=0, unit="run", desc="running", disable=None, bar_format=bar_format)
@@ -79,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
     finally:
         bar.close()
+        signal.signal(signal.SIGTERM, previous)
     for code in summary.skipped:
         print(f"{code} has already finished (`trials run --rerun {code}` redoes it)")
     if summary.superseded is not None:

@@ -5,8 +5,9 @@ so the network sees its own track and the goal as the robot does; the generator 
 target-centric frame (origin at the robot's oldest observed position). The goal is passed as a
 sub-goal `reach_m` ahead in the direction of the real one, since the network was trained on goals
 one prediction horizon (4.8 s) away; near the end it lies beyond the goal, so the robot drives
-up to the goal (where the trial ends) instead of creeping toward a point it must stop at. The way-points, the intention path and the social
-forces come back in the world frame; the last two and the timing go to the plan's record.
+up to the goal (where the trial ends) instead of creeping toward a point it must stop at. The
+way-points, the intention path and the social forces come back in the world frame; the last two
+and the timing go to the plan's record.
 """
 
 from __future__ import annotations
