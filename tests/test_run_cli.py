@@ -255,3 +255,25 @@ def test_log_show_of_a_run_without_a_log_is_one_line(finished, capsys):
     assert main(["log", "show", str(study / "runs" / "broken.mcap")]) == 2
     assert "is damaged or unfinished" in one_error_line(capsys)
     (study / "runs" / "broken.mcap").unlink()
+
+
+def test_simulated_participants_judge_every_finished_run(finished):
+    study, _ = finished
+    with (study / "responses.csv").open(newline="") as handle:
+        responses = list(csv.DictReader(handle))
+    outcome = {r["run_code"]: r for r in rows(study)}
+    assert {r["run_code"] for r in responses} == set(outcome)
+    assert {r["source"] for r in responses} == {"simulated"}
+    assert {r["compliant"] for r in responses} <= {"yes", "no"}
+    for response in responses:  # seeded by the run's own seed, timed as the run's outcome
+        assert response["seed"] == outcome[response["run_code"]]["seed"]
+        assert response["recorded_utc"] == outcome[response["run_code"]]["finished_utc"]
+    per_run = {code: sum(r["run_code"] == code for r in responses) for code in outcome}
+    peds = {r["run_code"]: int(r["Pedestrians"]) for r in plan(study)}
+    assert per_run == peds  # one participant per pedestrian by default
+
+
+def test_no_responses_leaves_responses_csv_alone(study):
+    code = plan(study)[0]["run_code"]
+    assert main(["run", "--only", code, "--no-responses", "--study", str(study)]) == 0
+    assert not (study / "responses.csv").exists()

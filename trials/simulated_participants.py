@@ -17,12 +17,13 @@ from trials.study import RESPONSES, RUNS, StudyFolder, utc_now
 
 
 def simulate_runs(
-    folder: StudyFolder, codes: Iterable[str], seed: int, participants: int | None = None, model: ParticipantModel = ParticipantModel()
+    folder: StudyFolder, codes: Iterable[str], seed: int, participants: int | None = None,
+    model: ParticipantModel = ParticipantModel(), recorded_utc: str | None = None,
 ) -> tuple[list[Response], list[str]]:
     """Judge each run that has no judgments yet from its log; returns the judgments appended and the
-    runs skipped because their log cannot be read (with the reason)."""
+    runs skipped because their log cannot be read (with the reason). `recorded_utc` defaults to now."""
     judged = {r.run_code for r in read_responses(folder.path(RESPONSES))}
-    now = utc_now()
+    now = recorded_utc or utc_now()
     responses: list[Response] = []
     skipped: list[str] = []
     for code in codes:
@@ -40,13 +41,18 @@ def simulate_runs(
     return responses, skipped
 
 
-def simulate_run(folder: StudyFolder, run_code: str, seed: int, participants: int | None = None) -> list[Response]:
+def simulate_run(
+    folder: StudyFolder, run_code: str, seed: int, participants: int | None = None, recorded_utc: str | None = None
+) -> list[Response]:
     """Append the simulated judgments of one finished run (none if it has judgments already).
+
+    The runner passes the run's `finished_utc` as `recorded_utc`, so that a blinded study's
+    responses carry no finer timing than its outcomes do.
 
     Raises:
         LogError: the run's log runs/<code>.mcap is missing or unreadable.
     """
-    responses, skipped = simulate_runs(folder, [run_code], seed, participants)
+    responses, skipped = simulate_runs(folder, [run_code], seed, participants, recorded_utc=recorded_utc)
     if skipped:
         raise LogError(f"cannot simulate judgments of run {skipped[0]}")
     return responses

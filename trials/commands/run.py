@@ -29,6 +29,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--dropout", type=float, default=0.05, metavar="P", help="positions: chance a pedestrian is missed at a step (default 0.05)")
     parser.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
     parser.add_argument("--timeout", type=float, default=60.0, metavar="S", help="simulated seconds before a run times out (default 60)")
+    parser.add_argument("--participants", type=int, metavar="N",
+                        help="simulated participants judging each run (default: one per pedestrian)")
+    parser.add_argument("--no-responses", action="store_true",
+                        help="do not add simulated participant judgments to responses.csv after each run")
     parser.set_defaults(handler=run)
 
 
@@ -41,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.errors import StudyError
     from trials.runner import RunDone, RunOptions, StudyRun, run_study
     from trials.sim.perception import PositionNoise
+    from trials.simulated_participants import simulate_run
     from trials.study import StudyFolder
 
     if not args.noise >= 0:
@@ -49,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         raise StudyError(f"--dropout must be at least 0 and below 1, got {args.dropout}")
     if not args.timeout > 0:
         raise StudyError(f"--timeout must be positive, got {args.timeout}")
+    if args.participants is not None and args.participants < 1:
+        raise StudyError(f"--participants must be at least 1, got {args.participants}")
     study = StudyRun.open(StudyFolder(args.study), args.blind)
     options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout)
 
@@ -70,6 +77,9 @@ def run(args: argparse.Namespace) -> int:
         row = run.row
         gap = f", closest {row['min_distance_m']} m" if row["min_distance_m"] else ""
         bar.write(f"{run.code}: {row['status']} after {row['duration_s']} s{gap}")
+        if not args.no_responses:
+            # Simulated participants judge the run (analysis.participants), seeded by the run's seed.
+            simulate_run(study.folder, run.code, int(row["seed"]), args.participants, row["finished_utc"])
         bar.update(1)
 
     def failed(code: str, message: str) -> None:
