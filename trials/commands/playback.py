@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N", help="only the first N episodes of each split (a quick look)")
-    parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="CPU threads for torch (default 1: the batches are small, and more threads thrash on a busy machine)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run)
 
@@ -59,8 +60,7 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    torch.set_num_threads(args.threads)
     splits = list(SPLITS) if args.split == "all" else [args.split]
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     if not models:
