@@ -29,14 +29,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="where results go (default: ./playback)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
-    parser.add_argument("--gamma", type=float, default=0.9, help="discount factor of S, per second at the preferred speed (default 0.9)")
-    parser.add_argument("--v-pref", type=float, default=1.0, help="preferred speed in S's discount, m/s (default 1.0)")
+    parser.add_argument("--gamma", type=float, default=0.9,
+                        help="discount factor of S, per second at the preferred speed (default 0.9)")
+    parser.add_argument("--v-pref", type=float, default=1.0,
+                        help="preferred speed in S's discount, m/s (default 1.0)")
     parser.add_argument("--collision", type=float, default=0.1,
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
-    parser.add_argument("--episodes", type=int, metavar="N", help="only the first N episodes of each split (a quick look)")
+    parser.add_argument("--episodes", type=int, metavar="N",
+                        help="only the first N episodes of each split (a quick look)")
     parser.add_argument("--threads", type=int, default=1,
-                        help="CPU threads for torch (default 1: the batches are small, and more threads thrash on a busy machine)")
+                        help="CPU threads for torch (default 1: small batches; more threads thrash on a busy machine)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run)
 
