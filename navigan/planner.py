@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import STEP_S, T_OBS, T_PRED
+from navigan.data import STEP_S, T_OBS
 from navigan.errors import NaviganError
 
 

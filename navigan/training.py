@@ -63,6 +63,7 @@ class Networks:
         }
 
     def restore(self, state: dict[str, Any]) -> None:
+        """Continue from what `state` returned."""
         self.generator.load_state_dict(state["generator"])
         self.g_optimizer.load_state_dict(state["g_optimizer"])
         if self.discriminator is not None and self.d_optimizer is not None:
