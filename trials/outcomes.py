@@ -79,7 +79,8 @@ def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarra
     Args:
         status: how it ended ("goal", "collision", "timeout").
         time: (K,) sample times (s); pose: (K, 3); velocity: (K, 2) linear and angular.
-        pedestrians: (K, N, 2) true pedestrian positions.
+        pedestrians: (K, N, 2) true pedestrian positions; NaN where a pedestrian is absent (a
+            logged person not tracked then).
     """
     time, pose, velocity = np.asarray(time, float), np.asarray(pose, float), np.asarray(velocity, float)
     dt = np.diff(time)
@@ -91,12 +92,10 @@ def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarra
     acceleration = np.diff(v) / dt if len(dt) else np.zeros(0)
     jerk = np.diff(acceleration) / dt[1:] if len(dt) > 1 else np.zeros(0)
     n = pedestrians.shape[1] if pedestrians.ndim == 3 else 0
-    if n:
-        gaps = np.array([footprint_gaps(p, q, limits, pedestrian_radius).min() for p, q in zip(pose, pedestrians)])
-        nearest = gaps[later]
-        min_distance: float | None = max(float(gaps.min()), 0.0)
-    else:
-        nearest, min_distance = np.full(len(dt), np.inf), None
+    gaps = (np.array([_nearest(p, q, limits, pedestrian_radius) for p, q in zip(pose, pedestrians)]) if n
+            else np.full(len(time), np.inf))
+    nearest = gaps[later]
+    min_distance = max(float(gaps.min()), 0.0) if np.isfinite(gaps).any() else None
     still = np.abs(v[later]) < STILL_SPEED
     turning = np.abs(w[later]) > TURNING_RATE
     return Outcome(
@@ -107,13 +106,19 @@ def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarra
         time_within_0_5m_s=float(dt[nearest < INTIMATE_M].sum()),
         time_within_1_2m_s=float(dt[nearest < PERSONAL_M].sum()),
         collisions=int(status == "collision"),
-        max_deceleration_mps2=float(max(-acceleration.min(), 0.0)) if len(acceleration) else 0.0,
+        max_deceleration_mps2=float(max(0.0, -acceleration.min())) if len(acceleration) else 0.0,
         max_jerk_mps3=float(np.abs(jerk).max()) if len(jerk) else 0.0,
         path_irregularity_rad_per_m=turned / path if path > 1e-6 else None,
         turn_in_place_s=float(dt[still & turning].sum()),
         backing_up_s=float(dt[v[later] < -STILL_SPEED].sum()),
         stopped_s=float(dt[still & ~turning & (time[later] > time[0] + STARTUP_S)].sum()),
     )
+
+
+def _nearest(pose: np.ndarray, people: np.ndarray, limits: RobotLimits, radius: float) -> float:
+    """The smallest footprint gap to the pedestrians present (inf with nobody present)."""
+    present = people[np.isfinite(people).all(axis=1)]
+    return float(footprint_gaps(pose, present, limits, radius).min()) if len(present) else np.inf
 
 
 def read_outcomes(path: Path) -> tuple[tuple[str, ...], list[dict[str, str]]]:

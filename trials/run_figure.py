@@ -19,9 +19,9 @@ def _outline(pose: np.ndarray, limits: RobotLimits) -> np.ndarray:
     return corners @ np.array([[c, s], [-s, c]]) + pose[:2]
 
 
-def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[float, float],
+def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[float, float] | None,
             limits: RobotLimits = RobotLimits()) -> bytes:
-    """The run's trajectories as PNG bytes."""
+    """The run's trajectories as PNG bytes (a logged trial has no cone, and its people come and go)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -37,11 +37,13 @@ def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[f
     for j, pid in enumerate(run.ids):
         path = run.pedestrians[:, j, :]
         axes.plot(path[:, 0], path[:, 1], color=colours(j % 10), linewidth=1.2)
+        path = path[np.isfinite(path).all(axis=1)]
         axes.plot(*path[0], marker="o", color=colours(j % 10), markersize=4)
         axes.add_patch(plt.Circle(tuple(path[-1]), 0.25, color=colours(j % 10), alpha=0.5))
         axes.annotate(str(pid), tuple(path[0]), textcoords="offset points", xytext=(4, 4), fontsize=8)
     axes.add_patch(plt.Circle(goal, 0.5, color="green", alpha=0.25, label="goal (0.5 m)"))
-    axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
+    if cone is not None:
+        axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
     for t, name, detail in run.events:
         if name == "collision":
             k = int(np.searchsorted(run.time, t))

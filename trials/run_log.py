@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -64,21 +64,20 @@ class RunLog:
     Args:
         path: runs/<code>.mcap; the file appears there only when the log is closed normally.
         metadata: the `run` metadata record (strings).
-        goal, cone: where they stand (m).
+        goal, cone: where they stand (m); a logged trial has no cone (None).
         blind: keep controller records out of the log (they collect in `records`).
         limits: the robot's footprint, for the scene.
     """
 
-    def __init__(self, path: Path, metadata: Mapping[str, str], goal: tuple[float, float], cone: tuple[float, float],
+    def __init__(self, path: Path, metadata: Mapping[str, str], goal: tuple[float, float], cone: tuple[float, float] | None,
                  blind: bool, limits: RobotLimits = RobotLimits()) -> None:
         self.writer = FoxgloveWriter(path, metadata={"run": metadata})
         self.blind = blind
         self.records: list[dict[str, Any]] = []
         self._limits = limits
-        self._fixed = [
-            entity(0, FRAME, "goal", cylinders=[cylinder(*goal, 0.5, 0.02, GOAL_COLOUR)]),
-            entity(0, FRAME, "cone", cylinders=[{**cylinder(*cone, 0.15, 0.5, CONE_COLOUR), "top_scale": 0.0}]),
-        ]
+        self._fixed = [entity(0, FRAME, "goal", cylinders=[cylinder(*goal, 0.5, 0.02, GOAL_COLOUR)])]
+        if cone is not None:
+            self._fixed.append(entity(0, FRAME, "cone", cylinders=[{**cylinder(*cone, 0.15, 0.5, CONE_COLOUR), "top_scale": 0.0}]))
 
     def state(self, time: float, robot: RobotState, command: tuple[float, float], crowd: Crowd) -> None:
         stamp = _ns(time)
@@ -107,6 +106,18 @@ class RunLog:
             self.records.append(entry)
         else:
             self.writer.write("/controller/record", "navtrials.ControllerRecord", entry, stamp)
+
+    def compared(self, time: float, recorded: np.ndarray, figures: Mapping[str, float | None]) -> None:
+        """A logged trial's plan against the log: the robot's recorded positions at the way-points' times."""
+        stamp = _ns(time)
+        points = np.asarray(recorded, dtype=float).reshape(-1, 2)
+        self.writer.write("/replay/comparison", "navtrials.ReplayComparison",
+                          {"t": round(time, 4), "recorded": [_r(p) for p in points], **jsonable(figures)}, stamp)
+        self.writer.write("/replay/recorded_poses", "foxglove.PosesInFrame", poses_in_frame(stamp, FRAME, points), stamp)
+
+    def add_metadata(self, name: str, values: Mapping[str, str]) -> None:
+        """Another metadata record (e.g. a logged trial's `replay` summary, known only at the end)."""
+        self.writer.add_metadata(name, values)
 
     def event(self, time: float, name: str, detail: str) -> None:
         self.writer.write("/events", "navtrials.Event", {"t": round(time, 4), "event": name, "detail": detail}, _ns(time))
@@ -150,9 +161,11 @@ class LoggedRun:
     Attributes:
         metadata: the `run` metadata record.
         time: (K,) s; pose: (K, 3); velocity: (K, 2) linear, angular.
-        ids: pedestrian ids; pedestrians: (K, N, 2) their true positions.
+        ids: pedestrian ids; pedestrians: (K, N, 2) their true positions (NaN while a logged
+            trial's person is not tracked).
         events: (t, event, detail) in time order.
         plans: number of planning steps.
+        replay: a logged trial's `replay` metadata record (its plans against the log); empty otherwise.
     """
 
     metadata: dict[str, str]
@@ -163,6 +176,7 @@ class LoggedRun:
     pedestrians: np.ndarray
     events: list[tuple[float, str, str]]
     plans: int
+    replay: dict[str, str] = field(default_factory=dict)
 
     @property
     def status(self) -> str | None:
@@ -197,9 +211,13 @@ def read_run(path: Path) -> LoggedRun:
                 plans += 1
     except (KeyError, TypeError, ValueError) as exc:
         raise LogError(f"{path}: a message breaks the run log format ({exc!r})") from None
-    ids = tuple(people[0][0]) if people else ()
-    if len(people) != len(robot) or any(tuple(p[0]) != ids for p in people):
+    if len(people) != len(robot):
         raise LogError(f"{path}: pedestrian states do not match the robot states one to one")
+    ids = tuple(dict.fromkeys(i for present, _, _ in people for i in present))
+    column = {i: n for n, i in enumerate(ids)}
+    positions = np.full((len(robot), len(ids), 2), np.nan)
+    for k, (present, x, y) in enumerate(people):
+        positions[k, [column[i] for i in present]] = np.column_stack([x, y]).reshape(-1, 2)
     table = np.array(robot, dtype=float).reshape(-1, 6)
-    positions = np.array([np.column_stack([x, y]) for _, x, y in people], dtype=float).reshape(len(robot), len(ids), 2)
-    return LoggedRun(reader.metadata["run"], table[:, 0], table[:, 1:4], table[:, 4:6], ids, positions, events, plans)
+    return LoggedRun(reader.metadata["run"], table[:, 0], table[:, 1:4], table[:, 4:6], ids, positions, events, plans,
+                     reader.metadata.get("replay", {}))

@@ -1,9 +1,11 @@
-"""`trials run`'s engine: pending plan rows to simulated runs, in worker processes, resumable and blind.
+"""`trials run`'s engine: pending plan rows to simulated or logged runs, in worker processes, resumable and blind.
 
 The parent process checks the plan, decides which rows are pending (a row of outcomes.csv marks a
 finished run), starts the workers and appends each finished run's outcome row. The workers build
 their controllers once, and in a blinded study only they open the sealed key, to map a row's arm
-label to its controller; the parent never learns the mapping, and nothing public names it.
+label to its controller; the parent never learns the mapping, and nothing public names it. A row
+that plays a robot log (`--from-log`, or the plan's `Log` column) has its log read and tracked by
+the parent before any run starts (once per log), and is played open loop (`trials.log_trial`).
 
 Order of writes for one run, so an interruption anywhere loses and duplicates nothing: the MCAP
 is written under a hidden partial name; the sealed record (blinded studies) is written; the MCAP is
@@ -20,7 +22,7 @@ import json
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -31,9 +33,12 @@ from designs.errors import DesignError
 from navigan.errors import NaviganError
 from robot_logs.errors import LogError
 from trials.atomic import write_files, write_text
+from trials.controllers.base import Controller
 from trials.errors import StudyError
-from trials.outcomes import columns, outcomes_text, read_outcomes
+from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
+from trials.outcomes import Outcome, columns, measure, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
+from trials.run_log import RunLog, jsonable
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sim.perception import PositionNoise
 from trials.study import DESIGN, OUTCOMES, PLAN, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
@@ -50,29 +55,33 @@ LOCK = ".lock"
 
 @dataclass(frozen=True)
 class RunOptions:
-    """How runs are simulated: the perception model and its noise, and NaviGAN-R's weights."""
+    """How runs are simulated (the perception model and its noise) or played from logs, and NaviGAN-R's weights."""
 
     perception: str = "positions"
     noise: PositionNoise = PositionNoise()
     weights: str | None = None
     timeout_s: float = 60.0
+    replay: ReplayOptions = ReplayOptions()
 
 
 @dataclass(frozen=True)
 class RunTask:
-    """One plan row to run: its code, the plan's columns (arm label when blind) and its seed."""
+    """One plan row to run: its code, the plan's columns (arm label when blind), its seed, and the
+    prepared log when the row plays one."""
 
     code: str
     row: dict[str, str]
     seed: int
+    scene: LoggedScene | None = None
 
 
 @dataclass(frozen=True)
 class RunDone:
-    """A finished run as the parent sees it: its public outcome row."""
+    """A finished run as the parent sees it: its public outcome row (and a logged trial's `replay` summary)."""
 
     code: str
     row: dict[str, str]
+    replay: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -112,8 +121,9 @@ class StudyRun:
     levels: tuple[str, ...]
 
     @classmethod
-    def open(cls, folder: StudyFolder, blind_flag: bool) -> StudyRun:
-        """Check the plan row by row (factor values the simulator can run, known controllers or arms).
+    def open(cls, folder: StudyFolder, blind_flag: bool, from_log: bool = False) -> StudyRun:
+        """Check the plan row by row (factor values the simulator can run, known controllers or arms);
+        rows that play a log (all of them with `from_log`) may have factors the simulator does not know.
 
         Raises:
             StudyError: no plan, `--blind` on an open study, or a row it cannot run.
@@ -126,7 +136,8 @@ class StudyRun:
         arms = tuple(blinding["arms"]) if blinding else CONTROLLER_LEVELS
         for line, row in enumerate(plan, start=2):
             where = f"{folder.path(PLAN)} line {line} (run {row.get('run_code', '?')})"
-            settings_from_row(row, where)
+            if not (from_log or (row.get(LOG_COLUMN) or "").strip()):
+                settings_from_row({k: v for k, v in row.items() if k != LOG_COLUMN}, where)
             level = row.get(CONTROLLER)
             if level is not None and level not in arms:
                 kind = "arm" if blinding else "controller"
@@ -259,6 +270,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         summary.done = len(finished & set(study.codes))
         if not todo:
             return summary
+        tasks = with_scenes([study.task(code) for code in todo], folder.root, options.replay)
         try:
             setup = (str(folder.root), study.name, study.blind, study.levels, options)
             with WorkerPool(min(workers, len(todo)), setup_worker, setup, USER_ERRORS) as pool:
@@ -271,7 +283,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
                 on_start(len(todo))
-                for code, answer in _answers(pool, ((code, study.task(code)) for code in todo)):
+                for code, answer in _answers(pool, ((task.code, task) for task in tasks)):
                     if isinstance(answer, Failure):
                         message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
                         summary.failed.append((code, message))
@@ -284,6 +296,22 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
             clean_partials(folder)
             summary.done = len(outcomes.finished & set(study.codes))
     return summary
+
+
+def with_scenes(tasks: list[RunTask], root: Path, options: ReplayOptions) -> list[RunTask]:
+    """The tasks, those that play a log with it read and tracked (each log once).
+
+    Raises:
+        LogError: a log that cannot be played (missing, damaged, no scans, too short).
+    """
+    scenes: dict[Path, LoggedScene] = {}
+    ready = []
+    for task in tasks:
+        path = log_of(task.row, root, options)
+        if path is not None and path not in scenes:
+            scenes[path] = prepare(path, options)
+        ready.append(replace(task, scene=scenes[path]) if path is not None else task)
+    return ready
 
 
 def _answers(pool: WorkerPool, tasks: Iterator[tuple[str, RunTask]]) -> Iterator[tuple[str, Any]]:
@@ -350,51 +378,70 @@ class TrialWorker:
             raise RuntimeError(f"the run failed; what went wrong is in {details} (reading it may unblind)") from None
 
     def _run(self, task: RunTask) -> RunDone:
-        from trials.outcomes import measure
-        from trials.run_log import RunLog, jsonable
+        level, arm = self._level(task.row)
+        controller = self._controllers[level]
+        seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(task.seed).spawn(4)]
+        controller.reset(seeds[3])
+        path = self.folder.path(RUNS) / f"{task.code}.mcap"
+        replay: dict[str, str] = {}
+        if task.scene is None:
+            outcome, perception = self._simulate(task, level, arm, controller, seeds, path), self.options.perception
+        else:
+            perception = "log"
+            metadata = self._metadata(task, level, {"perception": perception, **self._factors(task), **task.scene.metadata()})
+            with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind) as log:
+                played = play(task.scene, controller, log)
+                self._seal(task, level, arm, log)
+            outcome, replay = played.outcome, played.summary()
+        row = {"run_code": task.code, "seed": str(task.seed), "perception": perception, **outcome.fields(),
+               "controller": level, "finished_utc": utc_stamp(self.blind)}
+        return RunDone(task.code, {name: row[name] for name in columns(self.blind)}, replay)
+
+    def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
+                  path: Path) -> Outcome:
+        """Simulate a row in closed loop, writing its log; returns its outcome."""
         from trials.scenario import build_scenario
         from trials.sim.closed_loop import SimConfig, simulate
         from trials.sim.perception import LidarPerception, PositionPerception
 
         options = self.options
-        level, arm = self._level(task.row)
-        controller = self._controllers[level]
-        scenario_seed, crowd_seed, perception_seed, controller_seed = (
-            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(task.seed).spawn(4))
-        scenario = build_scenario(settings_from_row(task.row, f"run {task.code}"), scenario_seed)
+        scenario_seed, crowd_seed, perception_seed, _ = seeds
+        scenario = build_scenario(settings_from_row(self._factors(task), f"run {task.code}"), scenario_seed)
         perception = (LidarPerception(perception_seed) if options.perception == "lidar"
                       else PositionPerception(options.noise, perception_seed))
         config = SimConfig(timeout_s=options.timeout_s)
-        metadata = self._metadata(task, scenario.variation(), level)
-        controller.reset(controller_seed)
-        with RunLog(self.folder.path(RUNS) / f"{task.code}.mcap", metadata, scenario.goal, scenario.cone, self.blind,
-                    config.limits) as log:
+        entries = {"perception": options.perception, "timeout_s": f"{options.timeout_s:g}", **self._factors(task),
+                   "variation": json.dumps(scenario.variation())}
+        if options.perception == "positions":
+            noise = options.noise
+            entries.update(noise_std_m=f"{noise.std_m:g}", dropout=f"{noise.dropout:g}", range_m=f"{noise.range_m:g}")
+        with RunLog(path, self._metadata(task, level, entries), scenario.goal, scenario.cone, self.blind, config.limits) as log:
             result = simulate(scenario, controller, perception, log, config, crowd_seed)
-            if self.blind:
-                record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
-                          **self._controller_details(level), "steps": log.records}
-                write_text(self.folder.path(SEALED_RUNS) / f"{task.code}.json", json.dumps(jsonable(record)) + "\n")
+            self._seal(task, level, arm, log)
         trace = result.trace
-        outcome = measure(result.status, np.array(trace.time), np.array(trace.pose), np.array(trace.velocity),
-                          np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
-                          config.limits, config.pedestrian_radius_m)
-        row = {"run_code": task.code, "seed": str(task.seed), "perception": options.perception, **outcome.fields(),
-               "controller": level, "finished_utc": utc_stamp(self.blind)}
-        return RunDone(task.code, {name: row[name] for name in columns(self.blind)})
+        return measure(result.status, np.array(trace.time), np.array(trace.pose), np.array(trace.velocity),
+                       np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
+                       config.limits, config.pedestrian_radius_m)
+
+    def _seal(self, task: RunTask, level: str, arm: str | None, log: RunLog) -> None:
+        """Blinded studies: the run's controller records go to sealed/runs/<code>.json (before its log is renamed)."""
+        if self.blind:
+            record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
+                      **self._controller_details(level), "steps": log.records}
+            write_text(self.folder.path(SEALED_RUNS) / f"{task.code}.json", json.dumps(jsonable(record)) + "\n")
 
     def _controller_details(self, level: str) -> dict[str, str]:
         controller = self._controllers[level]
         return {"weights": str(controller.weights)} if level == NAVIGAN_R else {}
 
-    def _metadata(self, task: RunTask, variation: list[dict[str, Any]], level: str) -> dict[str, str]:
-        options = self.options
-        factors = {k: v for k, v in task.row.items() if k not in ("order", "run_code")}
-        meta = {"run_code": task.code, "study": self.name, "seed": str(task.seed),
-                "perception": options.perception, "timeout_s": f"{options.timeout_s:g}", **factors,
-                "variation": json.dumps(variation)}
-        if options.perception == "positions":
-            noise = options.noise
-            meta.update(noise_std_m=f"{noise.std_m:g}", dropout=f"{noise.dropout:g}", range_m=f"{noise.range_m:g}")
+    @staticmethod
+    def _factors(task: RunTask) -> dict[str, str]:
+        """The row's factor settings (its plan columns but order, run code and log)."""
+        return {k: v for k, v in task.row.items() if k not in ("order", "run_code", LOG_COLUMN)}
+
+    def _metadata(self, task: RunTask, level: str, entries: dict[str, str]) -> dict[str, str]:
+        """The `run` metadata record: code, study and seed, the run's own entries, and (when open) the controller."""
+        meta = {"run_code": task.code, "study": self.name, "seed": str(task.seed), **entries}
         if not self.blind:
             meta.update(controller=level, **self._controller_details(level))
         return meta

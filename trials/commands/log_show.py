@@ -37,18 +37,30 @@ def show(args: argparse.Namespace) -> int:
     code = meta.pop("run_code", path.stem)
     status = run.status or "unfinished"
     outcome = measure(status, run.time, run.pose, run.velocity, run.pedestrians)
-    plain = {"study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m", "controller", "weights"}
+    logged = "log" in meta  # a logged trial: its goal is in its metadata, and it has no cone
+    goal = (float(meta["goal_x"]), float(meta["goal_y"])) if logged else GOAL
+    plain = {"study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m", "controller", "weights",
+             "log", "log_format", "log_frame", "scan_topic", "odometry", "log_start_stamp", "log_offset_s", "goal_x", "goal_y",
+             "log_damage"}
     settings = ", ".join(f"{k} {v}" for k, v in meta.items() if k not in plain)
     lines = [f"{path}: run {code} of study {meta.get('study', '?')}", f"settings: {settings}",
              f"seed {meta.get('seed', '?')}, perception {meta.get('perception', '?')}"
              + (f" (noise {meta['noise_std_m']} m, dropout {meta['dropout']}, range {meta['range_m']} m)" if "noise_std_m" in meta else "")]
     if "controller" in meta:
         lines.append(f"controller: {meta['controller']}" + (f" ({meta['weights']})" if "weights" in meta else ""))
+    if logged:
+        lines.append(f"played from {meta['log']} ({meta['log_format']}) from {meta['log_offset_s']} s, frame {meta['log_frame']}, "
+                     f"goal ({meta['goal_x']}, {meta['goal_y']}); odometry: {meta['odometry']}")
     lines.append("events: " + "; ".join(f"{t:.1f} s {name} ({detail})" for t, name, detail in run.events))
-    lines.append(f"{status} after {outcome.duration_s:.1f} s simulated; {len(run.ids)} pedestrians, {run.plans} plans")
+    lines.append(f"{status} after {outcome.duration_s:.1f} s {'of the log' if logged else 'simulated'}; "
+                 f"{len(run.ids)} {'tracked people' if logged else 'pedestrians'}, {run.plans} plans")
+    if run.replay:
+        figures = {k: v or "-" for k, v in run.replay.items()}
+        lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
+                     f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
     lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome.fields().items() if name not in ("status", "duration_s"))
     picture = path.with_suffix(".png")
-    write_files({picture: run_png(run, f"run {code}: {settings}; {status}", GOAL, CONE)})
+    write_files({picture: run_png(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE)})
     lines.append(f"trajectories: {picture}")
     print("\n".join(lines))
     return 0

@@ -1,4 +1,5 @@
-"""`trials run`: run the study's pending plan rows in the closed-loop simulator, logging each to MCAP."""
+"""`trials run`: run the study's pending plan rows in the closed-loop simulator, or play them from robot
+logs open loop (`--from-log`, or a plan `Log` column), logging each to MCAP."""
 
 from __future__ import annotations
 
@@ -9,12 +10,15 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "run",
-        help="run the pending rows of the plan in simulation (blinded when the study is)",
+        help="run the pending rows of the plan in simulation or from robot logs (blinded when the study is)",
         description=(
             "Run every pending row of plan.csv in plan order: build its scenario, drive the robot with "
             "the row's controller in closed loop among social-force pedestrians, write runs/<code>.mcap "
-            "and append the run's row to outcomes.csv. Interrupted, it keeps every finished run; run it "
-            "again to continue. A blinded study always runs blind."
+            "and append the run's row to outcomes.csv. A row whose Log column names a robot log, or every "
+            "row with --from-log, plays that log instead: its tracked people and recorded robot motion go "
+            "through the row's controller open loop, and its plans are logged next to what the robot did. "
+            "Interrupted, it keeps every finished run; run it again to continue. A blinded study always "
+            "runs blind."
         ),
     )
     parser.add_argument("--blind", action="store_true", help="run blind (implied by a blinded study; an error on an open one)")
@@ -33,6 +37,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
                         help="do not add simulated participant judgments to responses.csv after each run")
+    logs = parser.add_argument_group("logged trials", "play robot logs (ROS1/ROS2 bags, MCAP) open loop instead of simulating")
+    logs.add_argument("--from-log", type=Path, metavar="FILE",
+                      help="play this log for every row run (pending rows, or --only / --rerun ones), "
+                      "instead of simulating or the plan's Log column")
+    logs.add_argument("--goal", type=float, nargs=2, metavar=("X", "Y"),
+                      help="goal in the log's odometry frame (the scan's frame without odometry); "
+                      "default: 10 m ahead of the robot's first pose")
+    logs.add_argument("--start", type=float, default=0.0, metavar="S", help="skip the log's first S seconds (default 0)")
+    logs.add_argument("--duration", type=float, metavar="S", help="play at most S seconds from --start (default: to the end)")
+    logs.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
+    logs.add_argument("--odom-topic", metavar="TOPIC",
+                      help="Odometry topic (default: the log's only one; a log without one has a robot standing still)")
+    logs.add_argument("--salvage", action="store_true", help="read what can be read of a damaged log instead of refusing it")
     parser.set_defaults(handler=run)
 
 
@@ -42,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
+    from robot_logs.topics import TopicNames
     from trials.errors import StudyError
+    from trials.log_trial import ReplayOptions
     from trials.runner import RunDone, RunOptions, StudyRun, run_study
     from trials.sim.perception import PositionNoise
     from trials.simulated_participants import simulate_run
@@ -56,8 +75,14 @@ def run(args: argparse.Namespace) -> int:
         raise StudyError(f"--timeout must be positive, got {args.timeout}")
     if args.participants is not None and args.participants < 1:
         raise StudyError(f"--participants must be at least 1, got {args.participants}")
-    study = StudyRun.open(StudyFolder(args.study), args.blind)
-    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout)
+    if not args.start >= 0:
+        raise StudyError(f"--start must be 0 or more seconds, got {args.start}")
+    if args.duration is not None and not args.duration > 0:
+        raise StudyError(f"--duration must be positive, got {args.duration}")
+    study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
+    replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
+                           TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage)
+    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout, replay)
 
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
@@ -76,9 +101,10 @@ def run(args: argparse.Namespace) -> int:
     def done(run: RunDone) -> None:
         row = run.row
         gap = f", closest {row['min_distance_m']} m" if row["min_distance_m"] else ""
-        bar.write(f"{run.code}: {row['status']} after {row['duration_s']} s{gap}")
-        if not args.no_responses:
-            # Simulated participants judge the run (analysis.participants), seeded by the run's seed.
+        bar.write(f"{run.code}: {row['status']} after {row['duration_s']} s{gap}{_replayed(run.replay)}")
+        if not args.no_responses and not run.replay:
+            # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
+            # logged trial's robot drove as recorded, not as its controller planned, so it is not judged.
             simulate_run(study.folder, run.code, int(row["seed"]), args.participants, row["finished_utc"])
         bar.update(1)
 
@@ -104,3 +130,11 @@ def run(args: argparse.Namespace) -> int:
         return 1
     return 0
 
+
+def _replayed(replay: dict[str, str]) -> str:
+    """A logged trial's plans against the log, for its console line."""
+    if not replay:
+        return ""
+    deviation, clearance = replay["plan_deviation_mean_m"], replay["plan_min_clearance_m"]
+    return (f" (played from its log; {replay['plans']} plans, {deviation or '-'} m from the recorded path on average, "
+            f"closest predicted {clearance or '-'} m)")
