@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -70,8 +70,8 @@ def log_of(row: dict[str, str], root: Path, options: ReplayOptions) -> Path | No
 
 @dataclass(frozen=True)
 class RobotPath:
-    """The robot's recorded base pose and velocity, seconds after the log's first scan; held
-    constant beyond its ends."""
+    """The robot's recorded base pose and velocity over run time (s since t = 0); held constant
+    beyond its ends."""
 
     time: np.ndarray
     pose: np.ndarray
@@ -83,12 +83,12 @@ class RobotPath:
         return cls(np.zeros(1), np.zeros((1, 3)), np.zeros((1, 2)))
 
     @classmethod
-    def from_odometry(cls, log: LogReader, topic: str, first_ns: int) -> RobotPath:
-        """Poses and twists of every odometry message, in stamp order."""
+    def from_odometry(cls, log: LogReader, topic: str, origin_ns: int) -> RobotPath:
+        """Poses and twists of every odometry message, in stamp order, timed from the header stamp `origin_ns`."""
         samples = sorted((o.stamp_ns, o.pose.x, o.pose.y, o.pose.yaw, o.linear, o.angular)
                          for o in (to_odometry(m.data, m.record_ns) for m in log.messages({topic})))
         table = np.array(samples, dtype=float).reshape(-1, 6)
-        time = (table[:, 0] - first_ns) * 1e-9
+        time = (table[:, 0] - origin_ns) * 1e-9
         pose = np.column_stack([table[:, 1:3], np.unwrap(table[:, 3])])
         return cls(time, pose, table[:, 4:6])
 
@@ -119,9 +119,9 @@ class LoggedScene:
         frame: the log frame the run is played in (the MCAP's `map`): the odometry frame, or the
             scan's frame when the log has no odometry.
         scan_topic, odometry_topic: the topics read (odometry_topic None: the robot stands still).
-        first_ns: header stamp of the log's first scan; offset_s: t = 0 (the run's first scan) in
-            seconds after it.
-        time: (K,) the run's scans, seconds since t = 0; people: the tracks at each of them.
+        offset_s: t = 0 (the run's first scan) in seconds after the log's first scan.
+        scan_ns: (K,) header stamps of the run's scans (t = 0 at the first); time: the same in
+            seconds since t = 0; people: the tracks at each of them.
         rows: track rows from the log's first scan to the run's last, in stamp order.
         robot: the recorded robot; goal: (2,) in `frame`.
         plan_times: seconds since t = 0 at which the controller plans.
@@ -134,26 +134,22 @@ class LoggedScene:
     frame: str
     scan_topic: str
     odometry_topic: str | None
-    first_ns: int
     offset_s: float
+    scan_ns: list[int]
     time: np.ndarray
     people: list[People]
     rows: list[TrackRow]
     robot: RobotPath
     goal: np.ndarray
     plan_times: np.ndarray
-    row_stamps: list[int] = field(default_factory=list, repr=False)
-
-    def absolute(self, t: float) -> float:
-        """Header-stamp seconds (robot_logs' clock) of run time t."""
-        return seconds(self.first_ns) + self.offset_s + t
+    row_stamps: list[int]
 
     def metadata(self) -> dict[str, str]:
         """The run log's metadata entries that describe the replay (strings)."""
         return {
             "log": str(self.path), "log_format": self.format, "log_frame": self.frame, "scan_topic": self.scan_topic,
             "odometry": self.odometry_topic or "none: the robot stands at the sensor's origin",
-            "log_start_stamp": stamp_text(self.first_ns + int(round(self.offset_s * 1e9))),
+            "log_start_stamp": stamp_text(self.scan_ns[0]),
             "log_offset_s": f"{self.offset_s:.3f}", "goal_x": f"{self.goal[0]:g}", "goal_y": f"{self.goal[1]:g}",
             **({"log_damage": self.damage} if self.damage else {}),
         }
@@ -202,7 +198,7 @@ def prepare(path: Path, options: ReplayOptions) -> LoggedScene:
         if not run_ns:
             raise LogError(f"{path}: no scan from {options.start_s:g} s to {options.start_s + (options.duration_s or 0.0):g} s "
                            "after the log's first; choose another --start or --duration")
-        robot = RobotPath.from_odometry(log, odometry.name, first_ns) if odometry else RobotPath.standing()
+        robot = RobotPath.from_odometry(log, odometry.name, run_ns[0]) if odometry else RobotPath.standing()
         damage = log.damage
     offset = seconds(run_ns[0] - first_ns)
     time = np.array([seconds(ns - run_ns[0]) for ns in run_ns])
@@ -216,11 +212,11 @@ def prepare(path: Path, options: ReplayOptions) -> LoggedScene:
     if options.goal is not None:
         goal = np.array(options.goal, dtype=float)
     else:
-        x, y, heading = robot.at(np.array([offset]))[0][0]
+        x, y, heading = robot.at(np.zeros(1))[0][0]
         goal = np.array([x + GOAL_AHEAD_M * math.cos(heading), y + GOAL_AHEAD_M * math.sin(heading)])
     rows.sort(key=lambda r: r.stamp_ns)
     return LoggedScene(path, log.format, damage, frame, tracking.scan_topic.name, odometry.name if odometry else None,
-                       first_ns, offset, time, people, rows, robot, goal, ticks, [r.stamp_ns for r in rows])
+                       offset, run_ns, time, people, rows, robot, goal, ticks, [r.stamp_ns for r in rows])
 
 
 @dataclass(frozen=True)
@@ -263,34 +259,31 @@ class TrackIndex:
     """Where each tracked person was at any time of the log (NaN outside their track's span)."""
 
     def __init__(self, scene: LoggedScene) -> None:
-        self.scene = scene
         table = TrackTable(scene.rows)
-        self.tracks = [table.track(i) for i in table.ids]
+        origin = seconds(scene.scan_ns[0])
+        self.tracks = [(stamps - origin, xy) for stamps, xy in map(table.track, table.ids)]
         self.first = np.array([s[0] for s, _ in self.tracks])
         self.last = np.array([s[-1] for s, _ in self.tracks])
 
     def positions(self, times: np.ndarray) -> np.ndarray:
-        """(N, n, 2) positions of the people tracked at some of the run times `times`."""
-        absolute = np.array([self.scene.absolute(t) for t in times])
-        alive = np.flatnonzero((self.first <= absolute.max() + 1e-9) & (self.last >= absolute.min() - 1e-9))
+        """(N, n, 2) positions at the run times `times` of the people tracked at some of them."""
+        alive = np.flatnonzero((self.first <= times.max() + 1e-9) & (self.last >= times.min() - 1e-9))
         out = np.full((len(alive), len(times), 2), np.nan)
         for n, j in enumerate(alive):
             stamps, xy = self.tracks[j]
-            inside = (absolute >= stamps[0] - 1e-9) & (absolute <= stamps[-1] + 1e-9)
-            out[n, inside] = np.column_stack([np.interp(absolute[inside], stamps, xy[:, k]) for k in (0, 1)])
+            inside = (times >= stamps[0] - 1e-9) & (times <= stamps[-1] + 1e-9)
+            out[n, inside] = np.column_stack([np.interp(times[inside], stamps, xy[:, k]) for k in (0, 1)])
         return out
 
 
 def observe(scene: LoggedScene, t: float) -> Observation:
     """What the controller is shown at run time t: the tracks as of the newest scan, the recorded robot."""
-    newest = scene.time[np.searchsorted(scene.time, t + 1e-9) - 1]
-    now_ns = scene.first_ns + int(round((scene.offset_s + newest) * 1e9))
+    now_ns = scene.scan_ns[int(np.searchsorted(scene.time, t + 1e-9)) - 1]
     since = bisect.bisect_left(scene.row_stamps, now_ns - int(STEP_S * T_OBS * 1e9))
     until = bisect.bisect_right(scene.row_stamps, now_ns)
     ids, history = history_at(TrackTable(scene.rows[since:until]), seconds(now_ns))
-    past = scene.offset_s + t - STEP_S * np.arange(T_OBS - 1, -1, -1)
-    poses, _ = scene.robot.at(past)
-    now, speed = scene.robot.at(np.array([scene.offset_s + t]))
+    poses, _ = scene.robot.at(t - STEP_S * np.arange(T_OBS - 1, -1, -1))
+    now, speed = scene.robot.at(np.array([t]))
     return Observation(time=t, robot_pose=now[0], robot_velocity=speed[0], goal=scene.goal.copy(),
                        robot_history=poses[:, :2], pedestrian_ids=ids, pedestrian_history=history)
 
@@ -302,8 +295,8 @@ def compare(scene: LoggedScene, people: TrackIndex, t: float, end: float, plan: 
     covered = times <= end + 1e-9
     if not covered.any():
         return Comparison(np.zeros((0, 2)), None, None, None)
-    start, _ = scene.robot.at(np.array([scene.offset_s + t]))
-    recorded, _ = scene.robot.at(scene.offset_s + times[covered])
+    start, _ = scene.robot.at(np.array([t]))
+    recorded, _ = scene.robot.at(times[covered])
     gaps = np.hypot(*(waypoints[covered] - recorded[:, :2]).T)
     path = np.vstack([start[:, :2], waypoints[covered]])
     step = np.diff(path, axis=0)
@@ -323,7 +316,7 @@ def compare(scene: LoggedScene, people: TrackIndex, t: float, end: float, plan: 
 
 def _ending(scene: LoggedScene, limits: RobotLimits) -> tuple[int, str, str]:
     """The scan at which the run ends, its status and the event's detail."""
-    poses, _ = scene.robot.at(scene.offset_s + scene.time)
+    poses, _ = scene.robot.at(scene.time)
     for k, (pose, people) in enumerate(zip(poses, scene.people)):
         if len(people.ids):
             gaps = footprint_gaps(pose, people.position, limits, PEDESTRIAN_RADIUS_M)
@@ -341,7 +334,7 @@ def play(scene: LoggedScene, controller: Controller, log: RunLog, limits: RobotL
     """Play the scene through a reset controller, writing the run log; returns how it went."""
     last, status, detail = _ending(scene, limits)
     time = scene.time[: last + 1]
-    poses, velocities = scene.robot.at(scene.offset_s + time)
+    poses, velocities = scene.robot.at(time)
     ticks = list(scene.plan_times[scene.plan_times <= time[-1] + 1e-9])
     people = TrackIndex(scene)
     follower = WaypointFollower(limits)
