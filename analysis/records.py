@@ -17,16 +17,12 @@ SIMULATED = "simulated"
 
 
 @dataclass(frozen=True)
-class Outcome:
-    """One row of outcomes.csv: the metrics of a finished run (None where the cell is empty: no time to
-    goal without reaching it, no minimum gap without pedestrians, no irregularity without moving)."""
+class RunMetrics:
+    """A run's metrics, as `trials run` measures them (units in the names; None where a metric has
+    no value: no minimum gap without pedestrians, no irregularity without moving)."""
 
-    run_code: str
     status: str
-    seed: int
-    perception: str
     duration_s: float
-    time_to_goal_s: float | None
     path_length_m: float
     min_distance_m: float | None
     time_within_0_5m_s: float
@@ -38,6 +34,19 @@ class Outcome:
     turn_in_place_s: float
     backing_up_s: float
     stopped_s: float
+
+    @property
+    def time_to_goal_s(self) -> float | None:
+        return self.duration_s if self.status == "goal" else None
+
+
+@dataclass(frozen=True)
+class Outcome(RunMetrics):
+    """One row of outcomes.csv: a finished run's metrics with what identifies the run."""
+
+    run_code: str
+    seed: int
+    perception: str
     finished_utc: str
     controller: str | None = None
 

@@ -31,7 +31,8 @@ from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import STEP_S, T_OBS, Controller, Observation, Plan
-from trials.outcomes import Outcome, measure
+from analysis.records import RunMetrics
+from trials.outcomes import measure
 from trials.run_log import RunLog
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
 from trials.sim.follower import WaypointFollower
@@ -236,7 +237,7 @@ class Replay:
     """A played log: how it ended, the outcome of the recorded motion, and the plans' figures."""
 
     status: str
-    outcome: Outcome
+    outcome: RunMetrics
     comparisons: list[Comparison]
 
     def summary(self) -> dict[str, str]:

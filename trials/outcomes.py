@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
+from analysis.records import RunMetrics
 from trials.sim.robot import RobotLimits, footprint_gaps
 
 INTIMATE_M, PERSONAL_M = 0.5, 1.2
@@ -35,33 +36,11 @@ def columns(blind: bool) -> tuple[str, ...]:
     return tuple(c for c in COLUMNS if not (blind and c == "controller"))
 
 
-@dataclass(frozen=True)
-class Outcome:
-    """A run's metrics (units in the names; None where a metric has no value, e.g. with nobody around)."""
-
-    status: str
-    duration_s: float
-    path_length_m: float
-    min_distance_m: float | None
-    time_within_0_5m_s: float
-    time_within_1_2m_s: float
-    collisions: int
-    max_deceleration_mps2: float
-    max_jerk_mps3: float
-    path_irregularity_rad_per_m: float | None
-    turn_in_place_s: float
-    backing_up_s: float
-    stopped_s: float
-
-    @property
-    def time_to_goal_s(self) -> float | None:
-        return self.duration_s if self.status == "goal" else None
-
-    def fields(self) -> dict[str, str]:
-        """The metric columns as CSV text (3 decimals; empty for no value)."""
-        values = {f.name: getattr(self, f.name) for f in fields(self)}
-        values["time_to_goal_s"] = self.time_to_goal_s
-        return {name: _text(value) for name, value in values.items()}
+def metric_cells(metrics: RunMetrics) -> dict[str, str]:
+    """The metric columns of an outcomes.csv row as text (3 decimals; empty for no value)."""
+    values = {f.name: getattr(metrics, f.name) for f in fields(RunMetrics)}
+    values["time_to_goal_s"] = metrics.time_to_goal_s
+    return {name: _text(value) for name, value in values.items()}
 
 
 def _text(value: object) -> str:
@@ -73,7 +52,7 @@ def _text(value: object) -> str:
 
 
 def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
-            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = 0.25) -> Outcome:
+            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = 0.25) -> RunMetrics:
     """Score a run.
 
     Args:
@@ -98,7 +77,7 @@ def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarra
     min_distance = max(float(gaps.min()), 0.0) if np.isfinite(gaps).any() else None
     still = np.abs(v[later]) < STILL_SPEED
     turning = np.abs(w[later]) > TURNING_RATE
-    return Outcome(
+    return RunMetrics(
         status=status,
         duration_s=float(time[-1] - time[0]),
         path_length_m=path,

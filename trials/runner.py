@@ -36,7 +36,8 @@ from trials.atomic import write_files, write_text
 from trials.controllers.base import Controller
 from trials.errors import StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
-from trials.outcomes import Outcome, columns, measure, outcomes_text, read_outcomes
+from analysis.records import RunMetrics
+from trials.outcomes import columns, measure, metric_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
 from trials.scenario import CONTROLLER, settings_from_row
@@ -393,12 +394,12 @@ class TrialWorker:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
             outcome, replay = played.outcome, played.summary()
-        row = {"run_code": task.code, "seed": str(task.seed), "perception": perception, **outcome.fields(),
+        row = {"run_code": task.code, "seed": str(task.seed), "perception": perception, **metric_cells(outcome),
                "controller": level, "finished_utc": utc_stamp(self.blind)}
         return RunDone(task.code, {name: row[name] for name in columns(self.blind)}, replay)
 
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
-                  path: Path) -> Outcome:
+                  path: Path) -> RunMetrics:
         """Simulate a row in closed loop, writing its log; returns its outcome."""
         from trials.scenario import build_scenario
         from trials.sim.closed_loop import SimConfig, simulate

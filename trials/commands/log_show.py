@@ -21,7 +21,7 @@ def register(group: argparse._SubParsersAction) -> None:
 def show(args: argparse.Namespace) -> int:
     from trials.atomic import write_files
     from trials.errors import StudyError
-    from trials.outcomes import measure
+    from trials.outcomes import measure, metric_cells
     from trials.run_figure import run_png
     from trials.run_log import read_run
     from trials.scenario import CONE, GOAL
@@ -58,7 +58,7 @@ def show(args: argparse.Namespace) -> int:
         figures = {k: v or "-" for k, v in run.replay.items()}
         lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
                      f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
-    lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome.fields().items() if name not in ("status", "duration_s"))
+    lines.extend(f"  {name:<30} {value or '-'}" for name, value in metric_cells(outcome).items() if name not in ("status", "duration_s"))
     picture = path.with_suffix(".png")
     write_files({picture: run_png(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE)})
     lines.append(f"trajectories: {picture}")
