@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
+from navigan.data import T_PRED, Sampling
 from navigan.errors import NaviganError
 
 
@@ -88,6 +89,15 @@ class TrainConfig:
         d_safe: the resistance loss's safe distance (m).
         w_l2, w_fde, w_adversarial, w_resistance: loss weights.
         clip: gradient norm clip.
+        goal_first, goal_last: a target's goal is its recorded position a uniformly drawn number
+            of steps in this range after the last observed one (T_PRED, T_PRED: the paper's last
+            future position).
+        augment: turn each training window by a random angle and mirror half of them.
+        resist_intention: the resistance loss's gradient also reaches the intention generator
+            (the paper's L_resist on y_hat); else only the social-force generator.
+        resist_beyond_truth: the resistance loss asks for no more room than the recorded person
+            kept from each agent (see `losses.resistance_loss`).
+        encounters: synthetic collision-course rows per target of a batch (`navigan.encounters`).
     """
 
     split: str
@@ -102,6 +112,20 @@ class TrainConfig:
     w_adversarial: float = 1.0
     w_resistance: float = 1.0
     clip: float = 1.0
+    goal_first: int = T_PRED
+    goal_last: int = T_PRED
+    augment: bool = False
+    resist_intention: bool = True
+    resist_beyond_truth: bool = False
+    encounters: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.sampling  # checks the goal range
+
+    @property
+    def sampling(self) -> Sampling:
+        """How training batches draw goals and turn scenes."""
+        return Sampling((self.goal_first, self.goal_last), self.augment)
 
 
 def to_dict(record: Any) -> dict[str, Any]:

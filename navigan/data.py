@@ -1,9 +1,12 @@
 """ETH/UCY trajectories: read the text files, cut them into windows, batch whole scenes.
 
-A window is T_OBS + T_PRED consecutive frames (0.4 s apart) of one recording; its agents are
-the pedestrians present in every frame of it (the Social LSTM / Social GAN practice), and each
-of them is a target whose goal is its last future position. A batch is a set of whole windows,
-padded to the same number of agents, with a mask saying which rows are real.
+A window is T_OBS + T_PRED consecutive frames (0.4 s apart) of one recording; its targets are
+the pedestrians present in every frame of it (the Social LSTM / Social GAN practice), and its
+context agents are the others present at the last observed frame, as a planner sees them at run
+time. A target's goal is its recorded position some steps after the last observed one: the last
+future position (the paper's), or drawn from a range of horizons (see `Sampling`). A batch is a
+set of whole windows, padded to the same number of agents, with masks saying which rows are real
+and which are targets.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import json
 import math
 import os
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +28,8 @@ T_OBS = 8
 T_PRED = 12
 SEQ_LEN = T_OBS + T_PRED
 STEP_S = 0.4
+#: How far past the last observed step a window keeps its agents' tracks: as far as playback's goals.
+FAR_STEPS = 3 * T_PRED
 
 #: The leave-one-scene-out splits of splits.json, and the extra split over all scenes.
 SPLITS = ("eth", "hotel", "univ", "zara1", "zara2")
@@ -109,14 +114,31 @@ def read_recording(path: str | Path) -> Recording:
     )
 
 
-def recording_windows(recording: Recording, seq_len: int = SEQ_LEN) -> list[np.ndarray]:
-    """Every window of `seq_len` consecutive frames, as (agents, seq_len, 2) arrays.
+@dataclass(frozen=True)
+class Window:
+    """T_OBS + FAR_STEPS consecutive frames of one recording, from one window's first frame.
+
+    Attributes:
+        positions: (agents, T_OBS + FAR_STEPS, 2) positions, NaN where an agent is absent: first
+            the targets (present in all of the first SEQ_LEN frames), then the context agents
+            (present at the last observed frame but not throughout).
+        targets: how many of the rows are targets.
+    """
+
+    positions: np.ndarray
+    targets: int
+
+
+def recording_windows(recording: Recording) -> list[Window]:
+    """Every window of SEQ_LEN consecutive frames with at least one target, in frame order.
 
     Frames are consecutive when they differ by the recording's frame step (the smallest gap);
     a window spanning a gap in the frame numbers has no agent present throughout, so none is cut.
+    Each window also keeps every agent's track up to FAR_STEPS steps after the last observed
+    frame (the goals of far horizons), NaN beyond the recording's end.
     """
     frames = np.unique(recording.frames)
-    if len(frames) < seq_len:
+    if len(frames) < SEQ_LEN:
         return []
     step = int(np.diff(frames).min())
     grid_index = (recording.frames - frames[0]) // step
@@ -126,67 +148,133 @@ def recording_windows(recording: Recording, seq_len: int = SEQ_LEN) -> list[np.n
             f"{recording.path.name}: frame {recording.frames[bad]} is off the frame step {step}"
         )
     ids, ped_index = np.unique(recording.pedestrians, return_inverse=True)
-    grid = np.full((int(grid_index.max()) + 1, len(ids), 2), np.nan, dtype=np.float32)
+    length = int(grid_index.max()) + 1
+    grid = np.full((length + FAR_STEPS - T_PRED, len(ids), 2), np.nan, dtype=np.float32)
     grid[grid_index, ped_index] = recording.xy
     present = ~np.isnan(grid[..., 0])
-    if present.shape[0] < seq_len:
+    if length < SEQ_LEN:
         return []
-    throughout = np.lib.stride_tricks.sliding_window_view(present, seq_len, axis=0).all(axis=-1)
-    return [
-        np.ascontiguousarray(grid[start : start + seq_len, agents].transpose(1, 0, 2))
-        for start, agents in enumerate(throughout)
-        if agents.any()
-    ]
+    throughout = np.lib.stride_tricks.sliding_window_view(present[:length], SEQ_LEN, axis=0).all(axis=-1)
+    windows = []
+    for start, targets in enumerate(throughout):
+        if not targets.any():
+            continue
+        context = present[start + T_OBS - 1] & ~targets
+        agents = np.concatenate([np.flatnonzero(targets), np.flatnonzero(context)])
+        track = grid[start : start + T_OBS + FAR_STEPS, agents].transpose(1, 0, 2)
+        windows.append(Window(np.ascontiguousarray(track), int(targets.sum())))
+    return windows
+
+
+def fill_tracks(tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(..., N, T, 2) histories with NaN -> filled histories and (..., N) which agents are present.
+
+    An agent is present when its newest position is known; its unknown earlier positions take
+    the nearest known one after them (it is taken to have stood there until first seen);
+    absent agents are zero.
+    """
+    known = ~np.isnan(tracks).any(axis=-1)
+    present = known[..., -1]
+    filled = tracks.copy()
+    for t in range(tracks.shape[-2] - 2, -1, -1):
+        missing = ~known[..., t]
+        filled[..., t, :][missing] = filled[..., t + 1, :][missing]
+    filled[~present] = 0.0
+    return filled, present
 
 
 @dataclass(frozen=True)
 class SceneBatch:
-    """Whole windows padded to one agent count; every real agent is a target.
+    """Whole windows padded to one agent count: targets to plan for among the agents present.
 
     Attributes:
-        obs: (B, A, T_OBS, 2) observed positions in each scene's world frame.
-        future: (B, A, T_PRED, 2) future positions.
-        mask: (B, A) which rows are real agents.
+        obs: (B, A, T_OBS, 2) observed positions in each scene's world frame (an agent seen late
+            stands at its first seen position before; zero for padding).
+        future: (B, A, T_PRED, 2) future positions, zero where unknown.
+        seen: (B, A, T_PRED) which future positions are known.
+        mask: (B, A) the agents present at the last observed step (targets and context).
+        targets: (B, A) the targets, present in every step of the window.
+        goals: (K, 2) each target's goal, in `targets.nonzero()` order.
     """
 
     obs: torch.Tensor
     future: torch.Tensor
+    seen: torch.Tensor
     mask: torch.Tensor
-
-    @property
-    def goals(self) -> torch.Tensor:
-        """(K, 2) the goal of each target: its last future position (targets in mask order)."""
-        return self.future[self.mask][:, -1]
+    targets: torch.Tensor
+    goals: torch.Tensor
 
     @property
     def truth(self) -> torch.Tensor:
-        """(K, T_PRED, 2) the future of each target, in mask order."""
-        return self.future[self.mask]
+        """(K, T_PRED, 2) the future of each target, in target order."""
+        return self.future[self.targets]
 
     def neighbours(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """(K, A, T_PRED, 2) the future positions of each target's scene and (K, A) which of them
-        are real agents other than the target."""
-        b, a = self.mask.nonzero(as_tuple=True)
+        """(K, A, T_PRED, 2) the future positions of each target's scene and (K, A, T_PRED) where
+        they are known positions of agents other than the target."""
+        b, a = self.targets.nonzero(as_tuple=True)
         others = self.mask[b] & (torch.arange(self.mask.shape[1], device=self.mask.device) != a.unsqueeze(1))
-        return self.future[b], others
+        return self.future[b], self.seen[b] & others.unsqueeze(-1)
 
     def to(self, device: str | torch.device) -> SceneBatch:
-        return SceneBatch(self.obs.to(device), self.future.to(device), self.mask.to(device))
+        return SceneBatch(*(getattr(self, f.name).to(device) for f in fields(self)))
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """How a batch's goals and orientation are drawn.
+
+    Attributes:
+        goal_steps: (first, last) steps after the last observed one where a target's goal may lie;
+            each target's goal is its recorded position a uniformly drawn number of steps ahead,
+            no farther than it stays in view ((T_PRED, T_PRED): the paper's last future position).
+        augment: turn each window by a uniform random angle, and mirror half of them.
+    """
+
+    goal_steps: tuple[int, int] = (T_PRED, T_PRED)
+    augment: bool = False
+
+    def __post_init__(self) -> None:
+        first, last = self.goal_steps
+        if not 1 <= first <= last <= FAR_STEPS:
+            raise NaviganError(f"goal steps {first}-{last}: expected 1 <= first <= last <= {FAR_STEPS}")
+
+
+def _turn(positions: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """(W, A, T, 2) windows, each turned by a random angle about the origin and mirrored at random."""
+    angle = rng.uniform(0.0, 2 * np.pi, len(positions))
+    mirror = np.where(rng.random(len(positions)) < 0.5, -1.0, 1.0)
+    c, s = np.cos(angle), np.sin(angle)
+    rotation = np.stack([np.stack([c, -s * mirror], -1), np.stack([s, c * mirror], -1)], -2)
+    return np.einsum("wij,watj->wati", rotation.astype(np.float32), positions)
+
+
+def _goals(far: np.ndarray, sampling: Sampling, rng: np.random.Generator | None) -> np.ndarray:
+    """(K, 2) goals from (K, FAR_STEPS, 2) tracks after the last observed step (see Sampling)."""
+    first, last = sampling.goal_steps
+    in_view = np.cumprod(~np.isnan(far[..., 0]), axis=1).sum(axis=1)
+    top = np.maximum(np.minimum(last, in_view), first)
+    steps = top if rng is None else rng.integers(np.minimum(first, top), top + 1)
+    steps = np.minimum(steps, in_view)
+    return far[np.arange(len(far)), steps - 1]
 
 
 @dataclass(frozen=True)
 class Scenes:
-    """The windows of some recordings as one zero-padded array.
+    """The windows of some recordings as one NaN-padded array.
 
     Attributes:
-        positions: (W, A_max, SEQ_LEN, 2) agents' positions, zero beyond each window's count.
-        counts: (W,) agents (= targets) in each window.
+        positions: (W, A_max, T_OBS + FAR_STEPS, 2) each window's agents (targets first), NaN
+            where absent and beyond each window's agents.
+        counts: (W,) targets in each window.
+        agents: (W,) agents (targets and context) in each window.
         files: the recordings read.
         skipped: NaN/missing rows skipped, per file name.
     """
 
     positions: np.ndarray
     counts: np.ndarray
+    agents: np.ndarray
     files: tuple[Path, ...]
     skipped: dict[str, int]
 
@@ -197,13 +285,14 @@ class Scenes:
         windows = [w for r in recordings for w in recording_windows(r)]
         if not windows:
             raise NaviganError(f"no {SEQ_LEN}-frame windows in {', '.join(map(str, files))}")
-        counts = np.array([len(w) for w in windows], dtype=np.int64)
-        positions = np.zeros((len(windows), counts.max(), SEQ_LEN, 2), dtype=np.float32)
+        agents = np.array([len(w.positions) for w in windows], dtype=np.int64)
+        positions = np.full((len(windows), agents.max(), T_OBS + FAR_STEPS, 2), np.nan, dtype=np.float32)
         for i, w in enumerate(windows):
-            positions[i, : len(w)] = w
+            positions[i, : len(w.positions)] = w.positions
         return cls(
             positions=positions,
-            counts=counts,
+            counts=np.array([w.targets for w in windows], dtype=np.int64),
+            agents=agents,
             files=tuple(r.path for r in recordings),
             skipped={r.path.name: r.skipped for r in recordings},
         )
@@ -215,16 +304,34 @@ class Scenes:
     def subset(self, windows: Iterable[int]) -> Scenes:
         """The same data restricted to some windows (tests and quick runs)."""
         index = np.asarray(list(windows), dtype=np.int64)
-        width = int(self.counts[index].max())
-        return Scenes(self.positions[index, :width], self.counts[index], self.files, self.skipped)
+        width = int(self.agents[index].max())
+        return Scenes(self.positions[index, :width], self.counts[index], self.agents[index], self.files, self.skipped)
 
-    def batch(self, windows: np.ndarray) -> SceneBatch:
-        """Padded tensors of the given windows."""
-        counts = self.counts[windows]
-        width = int(counts.max())
-        positions = torch.from_numpy(self.positions[windows, :width])
-        mask = torch.arange(width)[None, :] < torch.from_numpy(counts)[:, None]
-        return SceneBatch(positions[:, :, :T_OBS], positions[:, :, T_OBS:], mask)
+    def batch(
+        self, windows: np.ndarray, sampling: Sampling = Sampling(), rng: np.random.Generator | None = None
+    ) -> SceneBatch:
+        """Padded tensors of the given windows.
+
+        Without `rng` nothing is random: no turning, and each goal lies `sampling.goal_steps[1]`
+        steps ahead (or as far as the target stays in view).
+        """
+        width = int(self.agents[windows].max())
+        positions = self.positions[windows, :width]
+        if sampling.augment and rng is not None:
+            positions = _turn(positions, rng)
+        obs, present = fill_tracks(positions[:, :, :T_OBS])
+        future = positions[:, :, T_OBS:SEQ_LEN]
+        seen = ~np.isnan(future[..., 0])
+        targets = np.arange(width)[None, :] < self.counts[windows][:, None]
+        goals = _goals(positions[:, :, T_OBS:][targets], sampling, rng)
+        return SceneBatch(
+            obs=torch.from_numpy(obs),
+            future=torch.from_numpy(np.where(seen[..., None], future, 0.0).astype(np.float32)),
+            seen=torch.from_numpy(seen),
+            mask=torch.from_numpy(present),
+            targets=torch.from_numpy(targets),
+            goals=torch.from_numpy(np.ascontiguousarray(goals)),
+        )
 
     def batches(self, targets: int, seed: int | Sequence[int] | None = None) -> list[np.ndarray]:
         """Group whole windows into batches of at most `targets` agents (a bigger window alone).

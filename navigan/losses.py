@@ -30,9 +30,10 @@ def l2_loss(pred: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
     return (pred - truth).pow(2).sum(dim=-1).mean()
 
 
-def fde_loss(intention: torch.Tensor, goals: torch.Tensor) -> torch.Tensor:
-    """L_fde: mean distance from the intention's last state to the goal."""
-    return (intention[:, -1] - goals).norm(dim=-1).mean()
+def fde_loss(intention: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
+    """L_fde: mean distance from the intention's last state to the target's last future position
+    (the goal, when the goal is T_PRED steps ahead as in the paper)."""
+    return (intention[:, -1] - truth[:, -1]).norm(dim=-1).mean()
 
 
 def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
@@ -43,18 +44,28 @@ def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
 
 
 def resistance_loss(
-    waypoints: torch.Tensor, others: torch.Tensor, present: torch.Tensor, d_safe: float = 0.5
+    waypoints: torch.Tensor,
+    others: torch.Tensor,
+    present: torch.Tensor,
+    d_safe: float = 0.5,
+    truth: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """L_resist = || max(d_safe - d_o, 0) ||, averaged over targets.
 
     Args:
         waypoints: (K, T, 2) the planned positions.
         others: (K, A, T, 2) the other agents' positions at the same steps.
-        present: (K, A) which of those agents are real and not the target itself.
+        present: (K, A, T) where those are known positions of agents other than the target.
         d_safe: the distance below which an agent pushes back (m).
+        truth: (K, T, 2) the recorded future; if given, an agent pushes back only from closer than
+            the recorded person came to it (and than d_safe), so the loss never asks for more room
+            than people kept, e.g. from the friend they walk beside.
     """
     distance = _safe_norm(others - waypoints.unsqueeze(1), dim=-1)
-    intrusion = (d_safe - distance).clamp_min(0) * present.unsqueeze(-1)
+    limit = torch.full_like(distance, d_safe)
+    if truth is not None:
+        limit = torch.minimum(limit, (others - truth.unsqueeze(1)).norm(dim=-1))
+    intrusion = torch.where(present, (limit - distance).clamp_min(0), 0.0)
     return _safe_norm(intrusion.flatten(1), dim=-1).mean()
 
 
@@ -70,22 +81,45 @@ def discriminator_loss(real_logits: torch.Tensor, fake_logits: torch.Tensor) -> 
     ) + F.binary_cross_entropy_with_logits(fake_logits, torch.zeros_like(fake_logits))
 
 
+def near_rate(waypoints: torch.Tensor, others: torch.Tensor, present: torch.Tensor, distance: float) -> torch.Tensor:
+    """(K,) the fraction of each target's way-points closer than `distance` to another agent
+    (arguments as for `resistance_loss`)."""
+    gap = (others - waypoints.unsqueeze(1)).norm(dim=-1)
+    return (present & (gap < distance)).any(dim=1).float().mean(dim=-1)
+
+
 def supervised_losses(
-    prediction: Prediction, batch: SceneBatch, recipe: Recipe, d_safe: float
+    prediction: Prediction, batch: SceneBatch, recipe: Recipe, config: TrainConfig
 ) -> dict[str, torch.Tensor]:
-    """The non-adversarial terms a model trains on: l2, and fde / resistance where its recipe has them."""
+    """The non-adversarial terms a model trains on: l2, and fde / resistance where its recipe has them.
+
+    The resistance loss scores the way-points y_hat; unless `config.resist_intention`, its
+    gradient reaches only the social force (the way-points with the intention held fixed), the
+    part of the model that sees the other agents.
+    """
     terms = {"l2": l2_loss(prediction.waypoints, batch.truth)}
     if recipe.fde:
-        terms["fde"] = fde_loss(prediction.intention, batch.goals)
+        terms["fde"] = fde_loss(prediction.intention, batch.truth)
     if recipe.resistance:
-        terms["resistance"] = resistance_loss(prediction.waypoints, *batch.neighbours(), d_safe=d_safe)
+        waypoints = prediction.waypoints
+        if not config.resist_intention:
+            waypoints = prediction.intention.detach() + prediction.forces
+        truth = batch.truth if config.resist_beyond_truth else None
+        terms["resistance"] = resistance_loss(waypoints, *batch.neighbours(), d_safe=config.d_safe, truth=truth)
     return terms
 
 
+def encounter_losses(prediction: Prediction, batch: SceneBatch, config: TrainConfig) -> dict[str, torch.Tensor]:
+    """The terms of encounter rows (see `navigan.encounters`), which train the social force only:
+    L2 of the way-points against the intention (the size of the force) and the resistance loss."""
+    waypoints = prediction.intention.detach() + prediction.forces
+    return {
+        "encounter_l2": prediction.forces.pow(2).sum(dim=-1).mean(),
+        "encounter_resistance": resistance_loss(waypoints, *batch.neighbours(), d_safe=config.d_safe),
+    }
+
+
 def weighted_sum(terms: dict[str, torch.Tensor], config: TrainConfig) -> torch.Tensor:
-    """Sum of loss terms (l2 among them), each times its weight `w_<name>` in the training config."""
-    total = terms["l2"] * config.w_l2
-    for name, value in terms.items():
-        if name != "l2":
-            total = total + getattr(config, f"w_{name}") * value
-    return total
+    """Sum of loss terms, each times its weight `w_<name>` in the training config (an
+    `encounter_<name>` term weighs as `<name>`)."""
+    return sum(getattr(config, f"w_{name.removeprefix('encounter_')}") * value for name, value in terms.items())

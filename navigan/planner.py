@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import STEP_S, T_OBS
+from navigan.data import STEP_S, T_OBS, fill_tracks
 from navigan.errors import NaviganError
 
 
@@ -37,22 +37,6 @@ class PlanOutput:
     intention: np.ndarray
     forces: np.ndarray
     step: float = STEP_S
-
-
-def fill_tracks(tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(B, N, T, 2) histories with NaN -> filled histories and (B, N) which agents are present.
-
-    An agent is present when its newest position is known; its unknown earlier positions take
-    the nearest known one after them (it is taken to have stood there until first seen).
-    """
-    known = ~np.isnan(tracks).any(axis=-1)
-    present = known[..., -1]
-    filled = tracks.copy()
-    for t in range(tracks.shape[-2] - 2, -1, -1):
-        missing = ~known[..., t]
-        filled[..., t, :][missing] = filled[..., t + 1, :][missing]
-    filled[~present] = 0.0
-    return filled, present
 
 
 class Planner:
@@ -86,9 +70,9 @@ class Planner:
             history: (T_OBS=8, 2) the target's own last positions, oldest first, 0.4 s apart.
             others: (N, 8, 2) the other agents' last positions (N may be 0); NaN where an
                 agent was not yet seen; a row whose newest position is NaN is ignored.
-            goal: (2,) where the target should be at the end of the plan (T_PRED * 0.4 = 4.8 s
-                ahead); the networks were trained with goals that far, so pass a sub-goal on
-                the way to a farther one.
+            goal: (2,) where the target is heading. The shipped weights were trained with goals
+                8 to 36 steps (3.2 to 14.4 s) ahead at the target's own pace, so they walk at
+                the pace of `history` toward it; pass a sub-goal on the way to a farther one.
             seed: seed of this call's fluctuation noise (default: the planner's running RNG).
 
         Returns:

@@ -1,9 +1,11 @@
 """Training a model of the family: seeded, whole-scene batches, early stopping, resumable.
 
-Each batch: the generator plans every target; for GAN models the discriminator is updated on
-real against generated paths, then the generator on its weighted losses (L2, FDE, resistance,
-adversarial as the recipe says). After each epoch the validation loss (the non-adversarial
-objective with a fixed noise seed) decides which weights are kept, and the checkpoint is saved.
+Each batch (goals drawn and scenes turned as the config's sampling says): the generator plans
+every target; for GAN models the discriminator is updated on real against generated paths, then
+the generator on its weighted losses (L2, FDE, resistance, adversarial as the recipe says, and the
+encounter rows' terms where the config asks for them). After each epoch the validation loss (the
+non-adversarial objective with fixed goals and noise from the seed) decides which weights are
+kept, and the checkpoint is saved.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from tqdm.auto import tqdm
 
@@ -21,10 +24,13 @@ from navigan import checkpoint as ckpt
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import SceneBatch, Scenes
 from navigan.discriminator import Discriminator
+from navigan.encounters import encounter_batch
 from navigan.errors import NaviganError
 from navigan.evaluation import evaluate
-from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator
-from navigan.losses import discriminator_loss, generator_adversarial_loss, supervised_losses, weighted_sum
+from navigan.generators import GoalSocialGenerator, NaviganGenerator, Prediction, build_generator
+from navigan.losses import (
+    discriminator_loss, encounter_losses, generator_adversarial_loss, supervised_losses, weighted_sum,
+)
 
 
 @dataclass
@@ -52,6 +58,13 @@ class Networks:
             noise=torch.Generator(device=device).manual_seed(train.seed),
         )
 
+    def plan(self, batch: SceneBatch, model: ModelConfig) -> Prediction:
+        """The generator's plan for a batch's targets, with fluctuation noise where the model samples it."""
+        noise = None
+        if model.recipe.fluctuation:
+            noise = torch.randn(len(batch.goals), model.noise, generator=self.noise, device=batch.goals.device)
+        return self.generator(batch.obs, batch.mask, batch.goals, targets=batch.targets, noise=noise)
+
     def state(self) -> dict[str, Any]:
         """Everything resuming needs."""
         return {
@@ -72,24 +85,25 @@ class Networks:
         self.noise.set_state(state["noise"])
 
 
-def train_batch(nets: Networks, batch: SceneBatch, model: ModelConfig, config: TrainConfig) -> dict[str, float]:
-    """One optimisation step of the discriminator (GAN models) and the generator; the losses."""
+def train_batch(
+    nets: Networks, batch: SceneBatch, model: ModelConfig, config: TrainConfig, encounters: SceneBatch | None = None
+) -> dict[str, float]:
+    """One optimisation step of the discriminator (GAN models) and the generator; the losses.
+
+    The discriminator sees the targets only: their whole paths are known, the context agents'
+    futures may not be. Encounter rows (if any) add their terms to the generator's loss.
+    """
     recipe = model.recipe
-    goals = batch.goals
-    noise = (
-        torch.randn(len(goals), model.noise, generator=nets.noise, device=goals.device)
-        if recipe.fluctuation
-        else None
-    )
-    prediction = nets.generator(batch.obs, batch.mask, goals, noise=noise)
-    terms = supervised_losses(prediction, batch, recipe, config.d_safe)
+    prediction = nets.plan(batch, model)
+    terms = supervised_losses(prediction, batch, recipe, config)
     logged: dict[str, float] = {}
     if nets.discriminator is not None and nets.d_optimizer is not None:
         scene = torch.cat([batch.obs, batch.future], dim=2)
         fake = torch.zeros_like(scene)
-        fake[batch.mask] = torch.cat([batch.obs[batch.mask], prediction.waypoints], dim=1)
+        targets = batch.targets
+        fake[targets] = torch.cat([batch.obs[targets], prediction.waypoints], dim=1)
         logits = nets.discriminator(
-            torch.cat([scene, fake.detach()]), torch.cat([scene, scene]), torch.cat([batch.mask, batch.mask])
+            torch.cat([scene, fake.detach()]), torch.cat([scene, scene]), torch.cat([targets, targets])
         )
         d_loss = discriminator_loss(*logits.chunk(2))
         nets.d_optimizer.zero_grad(set_to_none=True)
@@ -98,8 +112,10 @@ def train_batch(nets: Networks, batch: SceneBatch, model: ModelConfig, config: T
         nets.d_optimizer.step()
         logged["d"] = d_loss.item()
         nets.discriminator.requires_grad_(False)
-        terms["adversarial"] = generator_adversarial_loss(nets.discriminator(fake, scene, batch.mask))
+        terms["adversarial"] = generator_adversarial_loss(nets.discriminator(fake, scene, targets))
         nets.discriminator.requires_grad_(True)
+    if encounters is not None:
+        terms |= encounter_losses(nets.plan(encounters, model), encounters, config)
     total = weighted_sum(terms, config)
     nets.g_optimizer.zero_grad(set_to_none=True)
     total.backward()
@@ -117,13 +133,18 @@ def run_epoch(
     device: torch.device,
     progress: bool = True,
 ) -> dict[str, float]:
-    """One pass over the training scenes in the epoch's seeded order; mean losses."""
+    """One pass over the training scenes in the epoch's seeded order, goals and turns; mean losses."""
     nets.generator.train()
     batches = scenes.batches(config.batch, seed=(config.seed, epoch))
+    sampling, rng = config.sampling, np.random.default_rng([config.seed, epoch, 1])
     totals: dict[str, float] = {}
     bar = tqdm(batches, desc=f"epoch {epoch + 1}", leave=False, disable=not progress, unit="batch")
     for i, windows in enumerate(bar, start=1):
-        losses = train_batch(nets, scenes.batch(windows).to(device), model, config)
+        batch = scenes.batch(windows, sampling, rng)
+        extra = None
+        if config.encounters and model.recipe.resistance:
+            extra = encounter_batch(batch, config.encounters, sampling.goal_steps, rng)
+        losses = train_batch(nets, batch.to(device), model, config, extra and extra.to(device))
         for k, v in losses.items():
             totals[k] = totals.get(k, 0.0) + v
         bar.set_postfix({k: f"{v / i:.3f}" for k, v in totals.items()}, refresh=False)

@@ -68,6 +68,35 @@ def test_recorded_command_reproduces_the_settings(data, tmp_path):
     assert record.model.hidden == 16 and record.train.batch == 48 and record.train.patience == 3
 
 
+def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
+    out = tmp_path / "r.pt"
+    assert main(["train", "--model", "navigan-r", "--split", "zara2", "--epochs", "1", "--batch", "64",
+                 "--goal-steps", "8-36", "--augment", "--w-resistance", "5", "--resist-forces-only",
+                 "--resist-beyond-truth", "--encounters", "0.5", "--data", str(data), "--out", str(out),
+                 "--quiet"]) == 0
+    record = load(out)
+    assert record.command == (
+        "trials train --model navigan-r --split zara2 --epochs 1 --batch 64 --lr 0.001 --seed 0 --goal-steps 8-36 "
+        "--augment --w-resistance 5 --resist-forces-only --resist-beyond-truth --encounters 0.5 --out r.pt"
+    )
+    train = record.train
+    assert (train.goal_first, train.goal_last, train.augment, train.w_resistance) == (8, 36, True, 5.0)
+    assert not train.resist_intention and train.resist_beyond_truth and train.encounters == 0.5
+    assert {"encounter_l2", "encounter_resistance"} <= set(record.history[0]["train"])
+
+
+@pytest.mark.parametrize(("option", "value", "message"), [
+    ("--goal-steps", "far", "--goal-steps: expected FIRST or FIRST-LAST whole numbers of steps, got 'far'"),
+    ("--goal-steps", "20-10", "goal steps 20-10: expected 1 <= first <= last <= 36"),
+    ("--encounters", "-1", "--encounters: expected a number >= 0, got -1.0"),
+])
+def test_bad_social_training_options(data, tmp_path, capsys, option, value, message):
+    assert main(["train", "--model", "navigan-r", "--split", "zara2", option, value, "--data", str(data),
+                 "--out", str(tmp_path / "r.pt"), "--quiet"]) == 2
+    assert capsys.readouterr().err == f"error: {message}\n"
+    assert not (tmp_path / "r.pt").exists()
+
+
 def test_constant_velocity_baseline(data, tmp_path, capsys):
     out = tmp_path / "cv.json"
     assert main(["evaluate", "--baseline", "constant-velocity", "--split", "zara2", "--data", str(data),

@@ -122,22 +122,38 @@ def test_resistance_is_zero_beyond_d_safe_and_positive_inside():
     waypoints = torch.zeros(1, T_PRED, 2)
     others = torch.zeros(1, 2, T_PRED, 2)
     others[0, :, :, 0] = 0.6  # both agents 0.6 m away at every step
-    present = torch.tensor([[True, True]])
+    present = torch.ones(1, 2, T_PRED, dtype=torch.bool)
     assert resistance_loss(waypoints, others, present, d_safe=0.5).item() == 0.0
     others[0, 0, 3, 0] = 0.3  # one agent comes 0.3 m close at one step: intrusion 0.2 m
     assert resistance_loss(waypoints, others, present, d_safe=0.5).item() == pytest.approx(0.2)
     others[0, 1, 5, 0] = 0.4  # a second intrusion of 0.1 m: norm of (0.2, 0.1)
     assert resistance_loss(waypoints, others, present, d_safe=0.5).item() == pytest.approx(0.05**0.5)
-    assert resistance_loss(waypoints, others, torch.tensor([[False, False]]), d_safe=0.5).item() == 0.0
+    present[0, 1, 5] = False  # an agent not seen at that step pushes nothing then
+    assert resistance_loss(waypoints, others, present, d_safe=0.5).item() == pytest.approx(0.2)
+    assert resistance_loss(waypoints, others, torch.zeros_like(present), d_safe=0.5).item() == 0.0
+
+
+def test_resistance_beyond_truth_asks_no_more_room_than_the_person_kept():
+    waypoints = torch.zeros(1, T_PRED, 2)
+    others = torch.full((1, 1, T_PRED, 2), 0.3)
+    others[..., 1] = 0.0  # a friend walking 0.3 m beside the target all the way
+    present = torch.ones(1, 1, T_PRED, dtype=torch.bool)
+    truth = torch.zeros(1, T_PRED, 2)
+    assert resistance_loss(waypoints, others, present, truth=truth).item() == 0.0
+    closer = torch.full((1, T_PRED, 2), 0.0)
+    closer[0, 4, 0] = 0.1  # the plan comes 0.2 m close where the person kept 0.3 m: 0.1 m intrusion
+    assert resistance_loss(closer, others, present, truth=truth).item() == pytest.approx(0.1)
+    assert resistance_loss(waypoints, others, present).item() == pytest.approx(0.2 * T_PRED**0.5)
 
 
 def test_resistance_gradient_is_finite_when_touching_or_clear():
     waypoints = torch.zeros(1, T_PRED, 2, requires_grad=True)
     others = torch.zeros(1, 1, T_PRED, 2)  # on top of the target: distance 0
-    resistance_loss(waypoints, others, torch.tensor([[True]])).backward()
+    present = torch.ones(1, 1, T_PRED, dtype=torch.bool)
+    resistance_loss(waypoints, others, present).backward()
     assert torch.isfinite(waypoints.grad).all()
     clear = torch.zeros(1, T_PRED, 2, requires_grad=True)
-    resistance_loss(clear, others + 5.0, torch.tensor([[True]])).backward()
+    resistance_loss(clear, others + 5.0, present).backward()
     assert torch.count_nonzero(clear.grad) == 0
 
 

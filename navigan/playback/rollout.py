@@ -18,9 +18,8 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import T_OBS, T_PRED
+from navigan.data import T_OBS, T_PRED, fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
-from navigan.planner import fill_tracks
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
 
 

@@ -30,6 +30,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
     parser.add_argument("--hidden", type=int, default=32, help="LSTM hidden size (default 32, as the paper)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
+    parser.add_argument("--goal-steps", default="12", metavar="FIRST[-LAST]",
+                        help="a target's goal lies a uniform number of steps in FIRST-LAST after its last observed "
+                             "one (default 12, the paper's: its last future position)")
+    parser.add_argument("--augment", action="store_true", help="turn each training scene by a random angle, "
+                        "mirror half of them")
+    parser.add_argument("--w-resistance", type=float, default=1.0, help="weight of the resistance loss (default 1)")
+    parser.add_argument("--resist-forces-only", action="store_true",
+                        help="the resistance loss trains only the social-force generator")
+    parser.add_argument("--resist-beyond-truth", action="store_true",
+                        help="the resistance loss asks for no more room than the recorded person kept")
+    parser.add_argument("--encounters", type=float, default=0.0, metavar="RATE",
+                        help="synthetic collision-course rows per target for the resistance loss (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
@@ -45,9 +57,31 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         f"trials train --model {args.model} --split {args.split} --epochs {args.epochs}",
         f"--patience {args.patience}" if args.patience is not None else "",
         f"--hidden {args.hidden}" if args.hidden != 32 else "",
-        f"--batch {args.batch} --lr {args.lr:g} --seed {args.seed} --out {out.name}",
+        f"--batch {args.batch} --lr {args.lr:g} --seed {args.seed}",
+        f"--goal-steps {args.goal_steps}" if args.goal_steps != "12" else "",
+        "--augment" if args.augment else "",
+        f"--w-resistance {args.w_resistance:g}" if args.w_resistance != 1.0 else "",
+        "--resist-forces-only" if args.resist_forces_only else "",
+        "--resist-beyond-truth" if args.resist_beyond_truth else "",
+        f"--encounters {args.encounters:g}" if args.encounters else "",
+        f"--out {out.name}",
     ]
     return " ".join(p for p in parts if p)
+
+
+def goal_steps(text: str) -> tuple[int, int]:
+    """`FIRST` or `FIRST-LAST` as two whole numbers.
+
+    Raises:
+        NaviganError: anything else.
+    """
+    from navigan.errors import NaviganError
+
+    first, _, last = text.partition("-")
+    try:
+        return int(first), int(last or first)
+    except ValueError:
+        raise NaviganError(f"--goal-steps: expected FIRST or FIRST-LAST whole numbers of steps, got {text!r}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,6 +98,10 @@ def run(args: argparse.Namespace) -> int:
             raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
     if not args.lr > 0:
         raise NaviganError(f"--lr: expected a positive number, got {args.lr}")
+    for name in ("w_resistance", "encounters"):
+        if not getattr(args, name) >= 0:
+            raise NaviganError(f"--{name.replace('_', '-')}: expected a number >= 0, got {getattr(args, name)}")
+    first, last = goal_steps(args.goal_steps)
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
     if args.threads:
@@ -76,7 +114,10 @@ def run(args: argparse.Namespace) -> int:
             if count:
                 sys.stderr.write(f"{name}: skipped {count} rows with NaN or missing values\n")
     config = TrainConfig(
-        split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed
+        split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed,
+        w_resistance=args.w_resistance, goal_first=first, goal_last=last, augment=args.augment,
+        resist_intention=not args.resist_forces_only, resist_beyond_truth=args.resist_beyond_truth,
+        encounters=args.encounters,
     )
     record = train(
         ModelConfig(args.model, hidden=args.hidden), config, train_scenes, val_scenes, split.describe(), out,
