@@ -7,9 +7,11 @@ into people who, being recordings or a robot's test, do not give way. An encount
 window, one agent j whose future is known and a step k, and puts beside j alone a walker who,
 keeping the replaced target's pace on a straight line, passes where j stands at step k at a random
 sideways offset (so some encounters need no room at all); its goal lies farther along that line. A
-walker in place of a standing target stands where j will pass. Some walkers are left alone, without j. A walker has no recorded future: its way-points are scored against its
-own intention (L2, the size of the force) and against j's recorded future (the resistance loss),
-so the social force learns the smallest push that keeps d_safe, and none when nobody is in the way.
+walker in place of a standing target stands where j will pass. Half the walkers are left alone,
+without j, the way a robot crosses an empty stretch. A walker has no recorded future: its
+way-points are scored by how smoothly its force departs from the intention (see
+`losses.encounter_losses`) and against j's recorded future (the resistance loss), so the social
+force learns an early, held side-step that keeps d_safe, and none when nobody is in the way.
 
 Only j is kept because PoolNet max-pools over the others: in a crowd one agent on a collision
 course seldom sets any pooled feature, so the crowd would teach a blanket push, not a response to
@@ -28,7 +30,7 @@ MEET_STEPS = (1, T_PRED)
 #: Largest sideways offset (m) of the walker's line from the agent's position at the meeting.
 PASS_OFFSET = 0.75
 #: Fraction of walkers left alone (their agent removed): they should need no force.
-ALONE = 0.1
+ALONE = 0.5
 #: A target slower than this (m/s) stands: its walker stands where the agent passes, its goal lies
 #: as far as a walk at a pace drawn from STANDING_PACE would take it. MAX_PACE caps the walkers' pace.
 STANDING = 0.3

@@ -109,12 +109,25 @@ def supervised_losses(
     return terms
 
 
+#: Weight of the social force's size beside its step-to-step changes in encounter rows.
+FORCE_SIZE = 0.1
+
+
 def encounter_losses(prediction: Prediction, batch: SceneBatch, config: TrainConfig) -> dict[str, torch.Tensor]:
     """The terms of encounter rows (see `navigan.encounters`), which train the social force only:
-    L2 of the way-points against the intention (the size of the force) and the resistance loss."""
-    waypoints = prediction.intention.detach() + prediction.forces
+    the force's squared step-to-step changes (from zero before the plan) plus FORCE_SIZE times its
+    squared size, and the resistance loss.
+
+    Scoring mostly the changes asks for a side-step that begins at once and is held until the agent
+    is passed, a path a robot's follower can drive; scoring only the size would ask for the least
+    displacement, a jump aside at the meeting step. The small size term brings the force back to
+    zero once the agent is passed, and keeps it there for a walker left alone.
+    """
+    forces = prediction.forces
+    waypoints = prediction.intention.detach() + forces
+    changes = torch.diff(forces, dim=1, prepend=torch.zeros_like(forces[:, :1]))
     return {
-        "encounter_l2": prediction.forces.pow(2).sum(dim=-1).mean(),
+        "encounter_l2": (changes.pow(2) + FORCE_SIZE * forces.pow(2)).sum(dim=-1).mean(),
         "encounter_resistance": resistance_loss(waypoints, *batch.neighbours(), d_safe=config.d_safe),
     }
 

@@ -70,9 +70,9 @@ class Planner:
             history: (T_OBS=8, 2) the target's own last positions, oldest first, 0.4 s apart.
             others: (N, 8, 2) the other agents' last positions (N may be 0); NaN where an
                 agent was not yet seen; a row whose newest position is NaN is ignored.
-            goal: (2,) where the target is heading. The shipped weights were trained with goals
-                8 to 36 steps (3.2 to 14.4 s) ahead at the target's own pace, so they walk at
-                the pace of `history` toward it; pass a sub-goal on the way to a farther one.
+            goal: (2,) where the target should be at the end of the plan (T_PRED * 0.4 = 4.8 s
+                ahead); the shipped weights were trained with goals that far (`trials train
+                --goal-steps` can train others), so pass a sub-goal on the way to a farther one.
             seed: seed of this call's fluctuation noise (default: the planner's running RNG).
 
         Returns:

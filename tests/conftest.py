@@ -34,3 +34,14 @@ def robot_logs_dir() -> Path:
 def sbpl_dir() -> Path:
     """SBPL problems, primitives and answers: ../shared/samples/sbpl."""
     return _existing(SHARED / "samples" / "sbpl", "SBPL samples")
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """Tiny tensors run fastest on one torch thread, and a shared 2-core machine thrashes with more."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)

@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 import pytest
-import torch
 
 from navigan import config
 from navigan.checkpoint import load
@@ -14,13 +13,7 @@ from trials.cli import main
 from trials.commands import train as train_command
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    """Tiny tensors run fastest on one thread, and a shared 2-core machine thrashes with more."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture
@@ -71,16 +64,16 @@ def test_recorded_command_reproduces_the_settings(data, tmp_path):
 def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
     out = tmp_path / "r.pt"
     assert main(["train", "--model", "navigan-r", "--split", "zara2", "--epochs", "1", "--batch", "64",
-                 "--goal-steps", "8-36", "--augment", "--w-resistance", "5", "--resist-forces-only",
+                 "--goal-steps", "8-36", "--augment", "--w-resistance", "5", "--d-safe", "0.9", "--resist-forces-only",
                  "--resist-beyond-truth", "--encounters", "0.5", "--data", str(data), "--out", str(out),
                  "--quiet"]) == 0
     record = load(out)
     assert record.command == (
         "trials train --model navigan-r --split zara2 --epochs 1 --batch 64 --lr 0.001 --seed 0 --goal-steps 8-36 "
-        "--augment --w-resistance 5 --resist-forces-only --resist-beyond-truth --encounters 0.5 --out r.pt"
+        "--augment --w-resistance 5 --d-safe 0.9 --resist-forces-only --resist-beyond-truth --encounters 0.5 --out r.pt"
     )
     train = record.train
-    assert (train.goal_first, train.goal_last, train.augment, train.w_resistance) == (8, 36, True, 5.0)
+    assert (train.goal_first, train.goal_last, train.augment, train.w_resistance, train.d_safe) == (8, 36, True, 5.0, 0.9)
     assert not train.resist_intention and train.resist_beyond_truth and train.encounters == 0.5
     assert {"encounter_l2", "encounter_resistance"} <= set(record.history[0]["train"])
 
@@ -89,6 +82,7 @@ def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
     ("--goal-steps", "far", "--goal-steps: expected FIRST or FIRST-LAST whole numbers of steps, got 'far'"),
     ("--goal-steps", "20-10", "goal steps 20-10: expected 1 <= first <= last <= 36"),
     ("--encounters", "-1", "--encounters: expected a number >= 0, got -1.0"),
+    ("--d-safe", "0", "--d-safe: expected a positive distance in metres, got 0.0"),
 ])
 def test_bad_social_training_options(data, tmp_path, capsys, option, value, message):
     assert main(["train", "--model", "navigan-r", "--split", "zara2", option, value, "--data", str(data),

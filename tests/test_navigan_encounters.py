@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from navigan import encounters
+from navigan import encounters, losses
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import STEP_S, T_OBS, T_PRED, Sampling, Scenes
 from navigan.encounters import encounter_batch
-from navigan.generators import build_generator
+from navigan.generators import Prediction, build_generator
 from navigan.losses import encounter_losses
 
 
@@ -76,6 +76,21 @@ def test_encounter_terms_train_only_the_social_force(rows):
     for name, parameter in generator.named_parameters():
         touched = parameter.grad is not None and parameter.grad.abs().sum().item() > 0
         assert touched == (not name.startswith("intention")), name
+
+
+def test_the_force_term_scores_mostly_changes_so_a_held_side_step_costs_little_more_than_its_start(rows):
+    """A side-step of 0.6 m taken at once and held for all 12 steps against the same jump out and back."""
+    k = len(rows.goals)
+    intention = torch.zeros(k, T_PRED, 2)
+    held = torch.zeros(k, T_PRED, 2)
+    held[:, :, 1] = 0.6
+    bump = torch.zeros(k, T_PRED, 2)
+    bump[:, 5, 1] = 0.6
+    config = TrainConfig("zara2")
+    size = losses.FORCE_SIZE
+    for force, cost in ((held, 0.36 * (1 + size * T_PRED)), (bump, 0.36 * (2 + size))):
+        prediction = Prediction(intention + force, intention, force)
+        assert encounter_losses(prediction, rows, config)["encounter_l2"].item() == pytest.approx(cost / T_PRED)
 
 
 def test_no_rows_when_nobody_is_asked_for(batch):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-import torch
 
 from navigan import checkpoint as ckpt
 from navigan.data import SPLITS, Scenes, load_split
@@ -12,13 +11,7 @@ from navigan.evaluation import evaluate, evaluate_constant_velocity
 MODELS = ("goal-social-lstm", "navil2", "navigan", "navigan-r")
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    """Tiny tensors run fastest on one thread, and a shared 2-core machine thrashes with more."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_every_model_and_split_is_shipped_with_its_record():

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from navigan import checkpoint as ckpt
 from navigan.data import load_split
@@ -16,13 +15,7 @@ from navigan.playback.rollout import Policy, neighbours, recorded_rollout, roll_
 WEIGHTS = ckpt.WEIGHTS_DIR / "navigan-r-zara1.pt"
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    """Tiny tensors run fastest on one thread, and a shared 2-core machine thrashes with more."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")

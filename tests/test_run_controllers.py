@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-import torch
 
 from navigan.errors import NaviganError
 from trials.controllers.base import Observation
@@ -17,16 +16,11 @@ from trials.sim.closed_loop import NoSink, SimConfig, simulate
 from trials.sim.perception import PositionNoise, PositionPerception
 from trials.sim.social_force import SocialForceParams
 
-WEAK_WEIGHTS = ("the shipped all-scenes NaviGAN-R weights barely react to a head-on walker (way-points move "
-                "2-3 cm); they are still being trained (issue 3)")
+STOPS_SHORT = ("in closed loop the shipped all-scenes NaviGAN-R slows and stops before a walker who does not give "
+               "way, its plans swinging from one side to the other, instead of stepping aside (issue 3)")
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")
@@ -66,10 +60,9 @@ def test_a_head_on_pedestrian_deflects_the_lattice_plan(lattice, ahead):
     assert lateral_change(lattice, ahead) > 0.5
 
 
-@pytest.mark.xfail(reason=WEAK_WEIGHTS, strict=False)
 @pytest.mark.parametrize("ahead", [2.0, 3.0, 4.0])
 def test_a_head_on_pedestrian_deflects_the_navigan_r_plan(navigan, ahead):
-    assert lateral_change(navigan, ahead) > 0.3
+    assert lateral_change(navigan, ahead) > 0.5
 
 
 def swerve(controller) -> float:
@@ -92,7 +85,7 @@ def test_the_lattice_swerves_in_closed_loop(lattice):
     assert swerve(lattice) > 0.25
 
 
-@pytest.mark.xfail(reason=WEAK_WEIGHTS, strict=False)
+@pytest.mark.xfail(reason=STOPS_SHORT, strict=False)
 def test_navigan_r_swerves_in_closed_loop(navigan):
     assert swerve(navigan) > 0.25
 

@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--augment", action="store_true", help="turn each training scene by a random angle, "
                         "mirror half of them")
     parser.add_argument("--w-resistance", type=float, default=1.0, help="weight of the resistance loss (default 1)")
+    parser.add_argument("--d-safe", type=float, default=0.5, metavar="M",
+                        help="the resistance loss's safe distance from other agents (default 0.5 m, as the paper)")
     parser.add_argument("--resist-forces-only", action="store_true",
                         help="the resistance loss trains only the social-force generator")
     parser.add_argument("--resist-beyond-truth", action="store_true",
@@ -61,6 +63,7 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         f"--goal-steps {args.goal_steps}" if args.goal_steps != "12" else "",
         "--augment" if args.augment else "",
         f"--w-resistance {args.w_resistance:g}" if args.w_resistance != 1.0 else "",
+        f"--d-safe {args.d_safe:g}" if args.d_safe != 0.5 else "",
         "--resist-forces-only" if args.resist_forces_only else "",
         "--resist-beyond-truth" if args.resist_beyond_truth else "",
         f"--encounters {args.encounters:g}" if args.encounters else "",
@@ -98,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
             raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
     if not args.lr > 0:
         raise NaviganError(f"--lr: expected a positive number, got {args.lr}")
+    if not args.d_safe > 0:
+        raise NaviganError(f"--d-safe: expected a positive distance in metres, got {args.d_safe}")
     for name in ("w_resistance", "encounters"):
         if not getattr(args, name) >= 0:
             raise NaviganError(f"--{name.replace('_', '-')}: expected a number >= 0, got {getattr(args, name)}")
@@ -115,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
                 sys.stderr.write(f"{name}: skipped {count} rows with NaN or missing values\n")
     config = TrainConfig(
         split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed,
-        w_resistance=args.w_resistance, goal_first=first, goal_last=last, augment=args.augment,
+        w_resistance=args.w_resistance, d_safe=args.d_safe, goal_first=first, goal_last=last, augment=args.augment,
         resist_intention=not args.resist_forces_only, resist_beyond_truth=args.resist_beyond_truth,
         encounters=args.encounters,
     )
