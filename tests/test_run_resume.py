@@ -40,9 +40,15 @@ def finished_rows(study: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
+def _default_interrupt() -> None:
+    """Ctrl-C as at a terminal: a test run started in the background inherits SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(study: Path) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "trials.cli", "run", "--workers", "2", "--study", str(study)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                            preexec_fn=_default_interrupt)
 
 
 def wait_for_rows(study: Path, process: subprocess.Popen, count: int) -> None:
@@ -90,7 +96,7 @@ def test_ctrl_c_stops_at_once_and_the_next_run_continues(study):
     wait_for_rows(study, process, 2)
     os.killpg(process.pid, signal.SIGINT)  # what the terminal sends to the whole foreground group
     _, err = process.communicate(timeout=30)
-    assert process.returncode == 130
+    assert process.returncode == 130, f"{len(finished_rows(study))} of {RUNS} runs finished: the interrupt did not stop the run"
     assert b"interrupted: finished work is kept; run the command again to continue" in err
     assert b"Traceback" not in err
     before = finished_rows(study)
