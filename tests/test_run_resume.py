@@ -14,6 +14,8 @@ import pytest
 
 from robot_logs.foxglove_log import FoxgloveReader
 from trials.cli import main
+from trials.runner import clean_partials
+from trials.study import StudyFolder
 
 RUNS = 12
 
@@ -103,3 +105,15 @@ def test_ctrl_c_stops_at_once_and_the_next_run_continues(study):
     assert not [p for p in study.rglob(".*") if p.name.endswith((".partial", ".tmp"))]  # cleaned on the way out
     assert main(["run", "--study", str(study)]) == 0
     check_complete(study, before)
+
+
+def test_only_what_interrupted_runs_half_wrote_is_cleaned(tmp_path):
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "sealed" / "runs").mkdir(parents=True)
+    stale = [tmp_path / "runs" / ".6PKG7.mcap.partial", tmp_path / "sealed" / "runs" / ".6PKG7.json.a1b2c3d4.tmp",
+             tmp_path / ".outcomes.csv.0f1e2d3c.tmp", tmp_path / ".responses.csv.fb6f1b67.tmp"]
+    kept = [tmp_path / "runs" / "6PKG7.mcap", tmp_path / ".notes.tmp", tmp_path / "responses.csv"]
+    for path in stale + kept:
+        path.write_text("x")
+    assert sorted(clean_partials(StudyFolder(tmp_path))) == sorted(stale)
+    assert sorted(p for p in tmp_path.rglob("*") if p.is_file()) == sorted(kept)

@@ -42,7 +42,7 @@ from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sim.perception import PositionNoise
-from trials.study import DESIGN, OUTCOMES, PLAN, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
+from trials.study import DESIGN, OUTCOMES, PLAN, RESPONSES, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
 
 NAVIGAN_R, LATTICE = "NaviGAN-R", "Lattice"
 #: The controller levels a plan may name, and the controller of a study without a Controller factor.
@@ -178,8 +178,8 @@ def study_lock(folder: StudyFolder) -> Iterator[None]:
 
 def clean_partials(folder: StudyFolder) -> list[Path]:
     """Delete what interrupted runs left half-written (hidden `.…partial` and `.…tmp` files in runs/
-    and sealed/runs/, and staged copies of outcomes.csv); returns them."""
-    stale = [p for p in folder.root.glob(f".{OUTCOMES}.*.tmp") if p.is_file()]
+    and sealed/runs/, and staged copies of outcomes.csv and responses.csv); returns them."""
+    stale = [p for name in (OUTCOMES, RESPONSES) for p in folder.root.glob(f".{name}.*.tmp") if p.is_file()]
     for where in (folder.path(RUNS), folder.path(SEALED_RUNS)):
         if where.is_dir():
             stale += [p for p in where.glob(".*") if p.is_file() and p.name.endswith((".partial", ".tmp"))]
