@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navigan.errors import NaviganError
 from navigan.data import fill_tracks
+from navigan.errors import NaviganError
 from navigan.planner import Planner
 
 
