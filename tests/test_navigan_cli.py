@@ -73,7 +73,8 @@ def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
         "--augment --w-resistance 5 --d-safe 0.9 --resist-forces-only --resist-beyond-truth --encounters 0.5 --out r.pt"
     )
     train = record.train
-    assert (train.goal_first, train.goal_last, train.augment, train.w_resistance, train.d_safe) == (8, 36, True, 5.0, 0.9)
+    settings = (train.goal_first, train.goal_last, train.augment, train.w_resistance, train.d_safe)
+    assert settings == (8, 36, True, 5.0, 0.9)
     assert not train.resist_intention and train.resist_beyond_truth and train.encounters == 0.5
     assert {"encounter_l2", "encounter_resistance"} <= set(record.history[0]["train"])
 

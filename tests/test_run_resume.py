@@ -98,7 +98,8 @@ def test_ctrl_c_stops_at_once_and_the_next_run_continues(study):
     wait_for_rows(study, process, 2)
     os.killpg(process.pid, signal.SIGINT)  # what the terminal sends to the whole foreground group
     _, err = process.communicate(timeout=30)
-    assert process.returncode == 130, f"{len(finished_rows(study))} of {RUNS} runs finished: the interrupt did not stop the run"
+    finished = len(finished_rows(study))
+    assert process.returncode == 130, f"{finished} of {RUNS} runs finished: the interrupt did not stop the run"
     assert b"interrupted: finished work is kept; run the command again to continue" in err
     assert b"Traceback" not in err
     before = finished_rows(study)
