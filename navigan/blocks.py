@@ -80,6 +80,46 @@ class PoolNet(nn.Module):
         return self.nn_embed[1](others_max - F.linear(centre, position_map))
 
 
+class PairPoolNet(nn.Module):
+    """V_i = max over the other agents j of NN_pair([NN_pos(r_ij(k), |r_ij(k)| for k = 0..LOOKAHEAD); h_j]).
+
+    r_ij(k) = (x_j - x_i) + k (v_j - v_i) is where j will be relative to i after k more steps if
+    both keep their last move. This is Social GAN's pooling (a hidden layer per pair before the
+    max) fed with the relative positions a constant-velocity look-ahead predicts: the nonlinearity
+    lets a channel respond to an agent on a collision course, which PoolNet's linear max cannot (it
+    reports the farthest agent in some direction, in a crowd always someone far away). It costs
+    O(A) per target, O(A^2) per scene, so it pools once, at the last observed step. Its outputs
+    are >= 0, so a target alone pools to 0.
+    """
+
+    #: Steps of the constant-velocity look-ahead.
+    LOOKAHEAD = 4
+
+    def __init__(self, features: int, embed: int, hidden: int, out: int) -> None:
+        super().__init__()
+        self.nn_pos = nn.Linear(3 * (self.LOOKAHEAD + 1), embed)
+        self.nn_pair = nn.Sequential(nn.Linear(embed + features, hidden), nn.ReLU(), nn.Linear(hidden, out), nn.ReLU())
+
+    def forward(
+        self, positions: torch.Tensor, moves: torch.Tensor, features: torch.Tensor, mask: torch.Tensor,
+        rows: tuple[torch.Tensor, torch.Tensor],
+    ) -> torch.Tensor:
+        """(B, A, 2) positions, last moves, (B, A, F) features, (B, A) real agents -> (K, out) V_i of the
+        K targets `rows` (scene, agent)."""
+        scene, agent = rows
+        absent = ~mask.unsqueeze(-1)
+        positions, moves = positions.masked_fill(absent, 0.0), moves.masked_fill(absent, 0.0)
+        offset = positions[scene] - positions[scene, agent].unsqueeze(1)
+        closing = moves[scene] - moves[scene, agent].unsqueeze(1)
+        ahead = torch.arange(self.LOOKAHEAD + 1, dtype=offset.dtype, device=offset.device).view(1, 1, -1, 1)
+        future = offset.unsqueeze(2) + ahead * closing.unsqueeze(2)
+        pair = torch.cat([future, future.norm(dim=-1, keepdim=True)], dim=-1).flatten(2)
+        pooled = self.nn_pair(torch.cat([self.nn_pos(pair), features[scene]], dim=-1))
+        others = mask[scene].clone()
+        others[torch.arange(len(agent), device=agent.device), agent] = False
+        return pooled.masked_fill(~others.unsqueeze(-1), 0.0).amax(dim=1)
+
+
 class IntentionDecoder(nn.Module):
     """I-LSTM: initial state [context; embedded goal], first input x^{T_obs}; NN_spatial steps the state.
 

@@ -60,6 +60,8 @@ class ModelConfig:
         pool: size of PoolNet's output V_i.
         noise: size of the fluctuation noise z.
         mlp: hidden width of the small MLPs (NN_spatial, NN_social, NN_embed, the score).
+        pair_pool: pool in the generator with PairPoolNet (a hidden layer per pair of agents, as
+            Social GAN) instead of the paper's PoolNet; the discriminator keeps PoolNet.
     """
 
     model: str
@@ -69,6 +71,7 @@ class ModelConfig:
     pool: int = 32
     noise: int = 8
     mlp: int = 32
+    pair_pool: bool = False
 
     @property
     def recipe(self) -> Recipe:
@@ -97,7 +100,12 @@ class TrainConfig:
             (the paper's L_resist on y_hat); else only the social-force generator.
         resist_beyond_truth: the resistance loss asks for no more room than the recorded person
             kept from each agent (see `losses.resistance_loss`).
+        resist_steps: the resistance loss scores the plan's first this many way-points (None: all).
         encounters: synthetic collision-course rows per target of a batch (`navigan.encounters`).
+        force_size: weight of the social force's squared size beside its squared changes in
+            encounter rows (`losses.encounter_losses`).
+        encounter_crowd: fraction of encounter walkers who keep their window's whole crowd (the
+            others keep only the agent they meet, or nobody).
     """
 
     split: str
@@ -117,7 +125,10 @@ class TrainConfig:
     augment: bool = False
     resist_intention: bool = True
     resist_beyond_truth: bool = False
+    resist_steps: int | None = None
     encounters: float = 0.0
+    encounter_crowd: float = 0.0
+    force_size: float = 0.1
 
     def __post_init__(self) -> None:
         self.sampling  # checks the goal range

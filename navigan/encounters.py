@@ -13,9 +13,12 @@ way-points are scored by how smoothly its force departs from the intention (see
 `losses.encounter_losses`) and against j's recorded future (the resistance loss), so the social
 force learns an early, held side-step that keeps d_safe, and none when nobody is in the way.
 
-Only j is kept because PoolNet max-pools over the others: in a crowd one agent on a collision
-course seldom sets any pooled feature, so the crowd would teach a blanket push, not a response to
-that agent.
+By default only j is kept, because the paper's PoolNet max-pools over the others: in a crowd one
+agent on a collision course seldom sets any pooled feature, so the crowd would teach a blanket
+push, not a response to that agent. A generator with PairPoolNet (`ModelConfig.pair_pool`) can
+single that agent out, and then a fraction `crowd` of the walkers keeps the window's whole crowd
+(every agent's recorded future counts in the resistance loss): a crowd that never gives way is
+where such a planner has to find its way.
 """
 
 from __future__ import annotations
@@ -39,15 +42,15 @@ MAX_PACE = 1.8
 
 
 def encounter_batch(
-    batch: SceneBatch, rate: float, goal_steps: tuple[int, int], rng: np.random.Generator
+    batch: SceneBatch, rate: float, goal_steps: tuple[int, int], rng: np.random.Generator, crowd: float = 0.0
 ) -> SceneBatch | None:
     """About `rate` encounters per target of `batch`, each in a copy of its window; None if none.
 
     Each copy's agents are the walker, in the row of the target it replaces, and its agent j
-    (unless alone); `future` and `seen` are the window's, the walker's own row unseen. A walker
-    keeps the pace of the target it replaces; its goal lies a uniform number of steps in
-    `goal_steps` ahead (at least two beyond the meeting) at that pace, or at a drawn walking pace
-    for a standing walker.
+    (unless alone), or with probability `crowd` every agent of the window; `future` and `seen` are
+    the window's, the walker's own row unseen. A walker keeps the pace of the target it replaces;
+    its goal lies a uniform number of steps in `goal_steps` ahead (at least two beyond the meeting)
+    at that pace, or at a drawn walking pace for a standing walker.
     """
     targets, obs, future, seen, mask = (t.numpy() for t in (batch.targets, batch.obs, batch.future, batch.seen, batch.mask))
     rows = np.argwhere(targets)
@@ -82,6 +85,9 @@ def encounter_batch(
     new_targets[n, walker] = True
     new_mask = new_targets.copy()
     new_mask[n, partner] = rng.random(len(windows)) >= ALONE
+    if crowd:  # (drawn only when asked for, so that runs without crowds keep their random stream)
+        in_crowd = rng.random(len(windows)) < crowd
+        new_mask[in_crowd] = mask[windows[in_crowd]]
     return SceneBatch(
         obs=torch.from_numpy(new_obs),
         future=torch.from_numpy(future[windows]),

@@ -50,7 +50,7 @@ def evaluate(
     for windows in scenes.batches(EVAL_BATCH):
         batch = scenes.batch(windows, sampling, goal_rng)
         if encounter_rng is not None:
-            rows = encounter_batch(batch, train.encounters, sampling.goal_steps, encounter_rng)
+            rows = encounter_batch(batch, train.encounters, sampling.goal_steps, encounter_rng, train.encounter_crowd)
             if rows is not None:
                 rows = rows.to(device)
                 walked = generator(rows.obs, rows.mask, rows.goals, targets=rows.targets)

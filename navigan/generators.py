@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from navigan.blocks import Encoder, IntentionDecoder, PoolNet, SocialForceDecoder
+from navigan.blocks import Encoder, IntentionDecoder, PairPoolNet, PoolNet, SocialForceDecoder
 from navigan.config import ModelConfig
 from navigan.data import T_PRED
 
@@ -40,7 +40,10 @@ class _SceneGenerator(nn.Module):
         super().__init__()
         self.config = config
         self.social_encoder = Encoder(config.hidden)
-        self.pool = PoolNet(config.hidden, config.embed, config.pool)
+        self.pool: PoolNet | PairPoolNet = (
+            PairPoolNet(config.hidden, config.embed, config.mlp, config.pool) if config.pair_pool
+            else PoolNet(config.hidden, config.embed, config.pool)
+        )
 
     def social_context(
         self, obs: torch.Tensor, mask: torch.Tensor, rows: tuple[torch.Tensor, torch.Tensor]
@@ -48,6 +51,8 @@ class _SceneGenerator(nn.Module):
         """(K, H) each target's own E_s state h_i and (K, P) its pooled neighbourhood V_i."""
         hidden = obs.new_zeros(*mask.shape, self.config.hidden)
         hidden[mask] = self.social_encoder(obs[mask])
+        if isinstance(self.pool, PairPoolNet):
+            return hidden[rows], self.pool(obs[:, :, -1], obs[:, :, -1] - obs[:, :, -2], hidden, mask, rows)
         pooled = self.pool(obs[:, :, -1:], hidden.unsqueeze(2), mask)[:, :, 0]
         return hidden[rows], pooled[rows]
 

@@ -49,6 +49,7 @@ def resistance_loss(
     present: torch.Tensor,
     d_safe: float = 0.5,
     truth: torch.Tensor | None = None,
+    steps: int | None = None,
 ) -> torch.Tensor:
     """L_resist = || max(d_safe - d_o, 0) ||, averaged over targets.
 
@@ -60,7 +61,11 @@ def resistance_loss(
         truth: (K, T, 2) the recorded future; if given, an agent pushes back only from closer than
             the recorded person came to it (and than d_safe), so the loss never asks for more room
             than people kept, e.g. from the friend they walk beside.
+        steps: count only the plan's first `steps` way-points (default: all).
     """
+    if steps is not None:
+        waypoints, others, present = waypoints[:, :steps], others[:, :, :steps], present[:, :, :steps]
+        truth = None if truth is None else truth[:, :steps]
     distance = _safe_norm(others - waypoints.unsqueeze(1), dim=-1)
     limit = torch.full_like(distance, d_safe)
     if truth is not None:
@@ -105,30 +110,32 @@ def supervised_losses(
         if not config.resist_intention:
             waypoints = prediction.intention.detach() + prediction.forces
         truth = batch.truth if config.resist_beyond_truth else None
-        terms["resistance"] = resistance_loss(waypoints, *batch.neighbours(), d_safe=config.d_safe, truth=truth)
+        terms["resistance"] = resistance_loss(
+            waypoints, *batch.neighbours(), d_safe=config.d_safe, truth=truth, steps=config.resist_steps
+        )
     return terms
-
-
-#: Weight of the social force's size beside its step-to-step changes in encounter rows.
-FORCE_SIZE = 0.1
 
 
 def encounter_losses(prediction: Prediction, batch: SceneBatch, config: TrainConfig) -> dict[str, torch.Tensor]:
     """The terms of encounter rows (see `navigan.encounters`), which train the social force only:
-    the force's squared step-to-step changes (from zero before the plan) plus FORCE_SIZE times its
-    squared size, and the resistance loss.
+    the force's squared step-to-step changes (from zero before the plan) plus `config.force_size`
+    times its squared size, and the resistance loss.
 
     Scoring mostly the changes asks for a side-step that begins at once and is held until the agent
     is passed, a path a robot's follower can drive; scoring only the size would ask for the least
-    displacement, a jump aside at the meeting step. The small size term brings the force back to
-    zero once the agent is passed, and keeps it there for a walker left alone.
+    displacement, a jump aside at the meeting step. The size term brings the force back to zero
+    once the agent is passed, and keeps it there for a walker left alone; a larger one asks for
+    the least room that keeps d_safe, which matters in a crowd, where a planner that re-plans every
+    step from where its force took it otherwise drifts away from its goal.
     """
     forces = prediction.forces
     waypoints = prediction.intention.detach() + forces
     changes = torch.diff(forces, dim=1, prepend=torch.zeros_like(forces[:, :1]))
     return {
-        "encounter_l2": (changes.pow(2) + FORCE_SIZE * forces.pow(2)).sum(dim=-1).mean(),
-        "encounter_resistance": resistance_loss(waypoints, *batch.neighbours(), d_safe=config.d_safe),
+        "encounter_l2": (changes.pow(2) + config.force_size * forces.pow(2)).sum(dim=-1).mean(),
+        "encounter_resistance": resistance_loss(
+            waypoints, *batch.neighbours(), d_safe=config.d_safe, steps=config.resist_steps
+        ),
     }
 
 

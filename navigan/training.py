@@ -143,7 +143,7 @@ def run_epoch(
         batch = scenes.batch(windows, sampling, rng)
         extra = None
         if config.encounters and model.recipe.resistance:
-            extra = encounter_batch(batch, config.encounters, sampling.goal_steps, rng)
+            extra = encounter_batch(batch, config.encounters, sampling.goal_steps, rng, config.encounter_crowd)
         losses = train_batch(nets, batch.to(device), model, config, extra and extra.to(device))
         for k, v in losses.items():
             totals[k] = totals.get(k, 0.0) + v

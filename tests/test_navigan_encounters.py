@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from navigan import encounters, losses
+from navigan import encounters
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import STEP_S, T_OBS, T_PRED, Sampling, Scenes
 from navigan.encounters import encounter_batch
@@ -86,13 +86,25 @@ def test_the_force_term_scores_mostly_changes_so_a_held_side_step_costs_little_m
     held[:, :, 1] = 0.6
     bump = torch.zeros(k, T_PRED, 2)
     bump[:, 5, 1] = 0.6
-    config = TrainConfig("zara2")
-    size = losses.FORCE_SIZE
-    for force, cost in ((held, 0.36 * (1 + size * T_PRED)), (bump, 0.36 * (2 + size))):
-        prediction = Prediction(intention + force, intention, force)
-        assert encounter_losses(prediction, rows, config)["encounter_l2"].item() == pytest.approx(cost / T_PRED)
+    for size in (0.1, 1.0):
+        config = TrainConfig("zara2", force_size=size)
+        for force, cost in ((held, 0.36 * (1 + size * T_PRED)), (bump, 0.36 * (2 + size))):
+            prediction = Prediction(intention + force, intention, force)
+            assert encounter_losses(prediction, rows, config)["encounter_l2"].item() == pytest.approx(cost / T_PRED)
 
 
 def test_no_rows_when_nobody_is_asked_for(batch):
     assert encounter_batch(batch, 0.0, (8, 36), np.random.default_rng(0)) is None
     assert T_OBS == 8
+
+
+def test_crowd_rows_keep_the_whole_window_beside_the_walker(batch):
+    crowd = encounter_batch(batch, 1.0, (8, 36), np.random.default_rng(1), crowd=1.0)
+    pair = encounter_batch(batch, 1.0, (8, 36), np.random.default_rng(1), crowd=0.0)
+    torch.testing.assert_close(crowd.obs, pair.obs, equal_nan=True)  # the same walkers, only the company differs
+    futures = torch.nan_to_num(batch.future, nan=1e6).flatten(1)
+    for k, future in enumerate(torch.nan_to_num(crowd.future, nan=1e6).flatten(1)):
+        window = int(torch.nonzero((futures == future).all(dim=1))[0])
+        assert torch.equal(crowd.mask[k], batch.mask[window])
+        assert (crowd.mask[k] | ~pair.mask[k]).all()
+    assert crowd.mask.sum() > 2 * pair.mask.sum()

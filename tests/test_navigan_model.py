@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from navigan.blocks import PoolNet
+from navigan.blocks import PairPoolNet, PoolNet
 from navigan.config import ModelConfig
 from navigan.data import T_OBS, T_PRED
 from navigan.discriminator import Discriminator
@@ -25,9 +25,9 @@ def scene(batch: int = 2, agents: int = 4, seed: int = 0) -> tuple[torch.Tensor,
     return obs, mask
 
 
-def generator(model: str, seed: int = 0) -> NaviganGenerator | GoalSocialGenerator:
+def generator(model: str, seed: int = 0, pair_pool: bool = False) -> NaviganGenerator | GoalSocialGenerator:
     torch.manual_seed(seed)
-    return build_generator(ModelConfig(model)).eval()
+    return build_generator(ModelConfig(model, pair_pool=pair_pool)).eval()
 
 
 @pytest.mark.parametrize("model", ["goal-social-lstm", "navigan-r"])
@@ -56,9 +56,10 @@ def test_goal_reaches_the_decoder(model):
     torch.testing.assert_close(a.intention[1:], b.intention[1:])  # the other targets' goals did not move
 
 
-def test_targets_are_planned_in_their_own_frame():
+@pytest.mark.parametrize("pair_pool", [False, True])
+def test_targets_are_planned_in_their_own_frame(pair_pool):
     obs, mask = scene()
-    net = generator("navigan-r")
+    net = generator("navigan-r", pair_pool=pair_pool)
     goals = obs[mask][:, -1] + 2.0
     shift = torch.tensor([100.0, -40.0])
     a, b = net(obs, mask, goals), net(obs + shift, mask, goals + shift)
@@ -99,9 +100,47 @@ def test_pooling_matches_its_definition_and_ignores_agent_order():
         torch.testing.assert_close(shuffled, fast[:, order])
 
 
-def test_plan_ignores_the_order_of_the_other_agents():
+def test_pair_pooling_matches_its_definition_and_pools_nothing_when_alone():
+    torch.manual_seed(2)
+    pool = PairPoolNet(features=5, embed=16, hidden=24, out=32)
+    positions, moves, features = torch.randn(3, 6, 2) * 4, torch.randn(3, 6, 2), torch.randn(3, 6, 5)
+    mask = torch.rand(3, 6) > 0.3
+    mask[0] = False
+    mask[0, 2] = True  # one agent alone
+    mask[1, :2] = True
+    positions[~mask] = torch.nan  # absent agents carry no position
+    rows = mask.nonzero(as_tuple=True)
+    with torch.no_grad():
+        fast = pool(positions, moves, features, mask, rows)
+    for k, (b, i) in enumerate(zip(*rows)):
+        pairs = []
+        for j in range(6):
+            if j == i or not mask[b, j]:
+                continue
+            ahead = [positions[b, j] - positions[b, i] + k * (moves[b, j] - moves[b, i])
+                     for k in range(PairPoolNet.LOOKAHEAD + 1)]
+            geometry = torch.cat([torch.cat([r, r.norm().view(1)]) for r in ahead])
+            pairs.append(pool.nn_pair(torch.cat([pool.nn_pos(geometry), features[b, j]])))
+        expected = torch.stack(pairs).max(dim=0).values if pairs else torch.zeros(32)
+        torch.testing.assert_close(fast[k], expected.detach())
+    assert torch.count_nonzero(fast[0]) == 0
+
+
+def test_pair_pooling_gradient_is_finite_beside_absent_agents():
+    obs, mask = scene(batch=2, agents=5)
+    obs[~mask] = torch.nan
+    net = generator("navigan-r", pair_pool=True).train()
+    out = net(obs, mask, obs[mask][:, -1] + 2.0)
+    out.waypoints.sum().backward()
+    grads = [p.grad for p in net.parameters() if p.grad is not None]
+    assert grads and all(torch.isfinite(g).all() for g in grads)
+    assert net.pool.nn_pos.weight.grad.abs().sum() > 0
+
+
+@pytest.mark.parametrize("pair_pool", [False, True])
+def test_plan_ignores_the_order_of_the_other_agents(pair_pool):
     obs, mask = scene(batch=1, agents=6)
-    net = generator("navigan-r")
+    net = generator("navigan-r", pair_pool=pair_pool)
     targets = torch.zeros_like(mask)
     targets[0, 0] = True
     goal = obs[0, :1, -1] + 2.0
@@ -131,6 +170,10 @@ def test_resistance_is_zero_beyond_d_safe_and_positive_inside():
     present[0, 1, 5] = False  # an agent not seen at that step pushes nothing then
     assert resistance_loss(waypoints, others, present, d_safe=0.5).item() == pytest.approx(0.2)
     assert resistance_loss(waypoints, others, torch.zeros_like(present), d_safe=0.5).item() == 0.0
+    others[0, 1, 5, 0] = 0.4
+    present[0, 1, 5] = True
+    assert resistance_loss(waypoints, others, present, d_safe=0.5, steps=5).item() == pytest.approx(0.2)  # step 6 left out
+    assert resistance_loss(waypoints, others, present, d_safe=0.5, steps=3).item() == 0.0  # so is step 4
 
 
 def test_resistance_beyond_truth_asks_no_more_room_than_the_person_kept():

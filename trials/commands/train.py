@@ -29,6 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="target agents per batch, whole scenes (default 32, as the paper)")
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
     parser.add_argument("--hidden", type=int, default=32, help="LSTM hidden size (default 32, as the paper)")
+    parser.add_argument("--pair-pool", action="store_true",
+                        help="pool neighbours with a hidden layer per pair (Social GAN's pooling, with the "
+                             "relative move and distance) instead of the paper's PoolNet")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
     parser.add_argument("--goal-steps", default="12", metavar="FIRST[-LAST]",
                         help="a target's goal lies a uniform number of steps in FIRST-LAST after its last observed "
@@ -44,6 +47,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="the resistance loss asks for no more room than the recorded person kept")
     parser.add_argument("--encounters", type=float, default=0.0, metavar="RATE",
                         help="synthetic collision-course rows per target for the resistance loss (default 0)")
+    parser.add_argument("--resist-steps", type=int, metavar="N",
+                        help="the resistance loss scores only the plan's first N way-points (default: all 12)")
+    parser.add_argument("--encounter-crowd", type=float, default=0.0, metavar="FRACTION",
+                        help="fraction of encounter rows that keep their window's whole crowd (default 0)")
+    parser.add_argument("--force-size", type=float, default=0.1, metavar="W",
+                        help="weight of the social force's size beside its changes in encounter rows (default 0.1)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
@@ -59,6 +68,7 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         f"trials train --model {args.model} --split {args.split} --epochs {args.epochs}",
         f"--patience {args.patience}" if args.patience is not None else "",
         f"--hidden {args.hidden}" if args.hidden != 32 else "",
+        "--pair-pool" if args.pair_pool else "",
         f"--batch {args.batch} --lr {args.lr:g} --seed {args.seed}",
         f"--goal-steps {args.goal_steps}" if args.goal_steps != "12" else "",
         "--augment" if args.augment else "",
@@ -66,7 +76,10 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         f"--d-safe {args.d_safe:g}" if args.d_safe != 0.5 else "",
         "--resist-forces-only" if args.resist_forces_only else "",
         "--resist-beyond-truth" if args.resist_beyond_truth else "",
+        f"--resist-steps {args.resist_steps}" if args.resist_steps is not None else "",
         f"--encounters {args.encounters:g}" if args.encounters else "",
+        f"--encounter-crowd {args.encounter_crowd:g}" if args.encounter_crowd else "",
+        f"--force-size {args.force_size:g}" if args.force_size != 0.1 else "",
         f"--out {out.name}",
     ]
     return " ".join(p for p in parts if p)
@@ -95,15 +108,17 @@ def run(args: argparse.Namespace) -> int:
     from navigan.errors import NaviganError
     from navigan.training import train
 
-    for name in ("epochs", "batch", "patience", "threads", "hidden"):
+    for name in ("epochs", "batch", "patience", "threads", "hidden", "resist_steps"):
         value = getattr(args, name)
         if value is not None and value < 1:
-            raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
+            raise NaviganError(f"--{name.replace('_', '-')}: expected a positive whole number, got {value}")
     if not args.lr > 0:
         raise NaviganError(f"--lr: expected a positive number, got {args.lr}")
     if not args.d_safe > 0:
         raise NaviganError(f"--d-safe: expected a positive distance in metres, got {args.d_safe}")
-    for name in ("w_resistance", "encounters"):
+    if not 0 <= args.encounter_crowd <= 1:
+        raise NaviganError(f"--encounter-crowd: expected a fraction in [0, 1], got {args.encounter_crowd}")
+    for name in ("w_resistance", "encounters", "force_size"):
         if not getattr(args, name) >= 0:
             raise NaviganError(f"--{name.replace('_', '-')}: expected a number >= 0, got {getattr(args, name)}")
     first, last = goal_steps(args.goal_steps)
@@ -122,10 +137,11 @@ def run(args: argparse.Namespace) -> int:
         split=args.split, epochs=args.epochs, patience=args.patience, batch=args.batch, lr=args.lr, seed=args.seed,
         w_resistance=args.w_resistance, d_safe=args.d_safe, goal_first=first, goal_last=last, augment=args.augment,
         resist_intention=not args.resist_forces_only, resist_beyond_truth=args.resist_beyond_truth,
-        encounters=args.encounters,
+        resist_steps=args.resist_steps, encounters=args.encounters, encounter_crowd=args.encounter_crowd,
+        force_size=args.force_size,
     )
     record = train(
-        ModelConfig(args.model, hidden=args.hidden), config, train_scenes, val_scenes, split.describe(), out,
+        ModelConfig(args.model, hidden=args.hidden, pair_pool=args.pair_pool), config, train_scenes, val_scenes, split.describe(), out,
         command=command_line(args, out), device=args.device, progress=not args.quiet,
     )
     best = record.best or {"epoch": 0, "val": {}}

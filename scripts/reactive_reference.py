@@ -1,0 +1,84 @@
+"""How comfortable and punctual a plain reactive walker is in the playback episodes (a yardstick for Table I).
+
+Each step the walker predicts every other agent at constant velocity (its last recorded move) and
+picks, among headings within 90 degrees of its goal's direction (10 degree steps) and speeds 0 to
+1.5 m/s, the move that ends closest to the goal plus PENALTY times how far the predicted closest
+approach over the next --horizon steps falls short of --margin. It is scored with the playback
+metrics, so its C and A sit beside Table I's: what a non-learned avoider reaches among the same
+recordings that never give way.
+
+    python scripts/reactive_reference.py --data ../shared/datasets/eth_ucy [--split univ] [--margin 0.5]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from navigan.data import SPLITS, STEP_S, load_split
+from navigan.playback.episodes import GOAL_RADIUS, Episodes, load_episodes
+from navigan.playback.metrics import Scoring, score_episode
+
+HEADINGS = np.deg2rad(np.arange(-90, 91, 10))
+SPEEDS = np.array([0.0, 0.4, 0.8, 1.2, 1.5])
+PENALTY = 10.0
+
+
+def walk(episodes: Episodes, e: int, margin: float, horizon: int) -> np.ndarray:
+    """(n + 1, 2) the reactive walker's path in episode `e`, to its goal or the cut-off."""
+    start, goal = episodes.start[e], episodes.goal[e].astype(float)
+    others = np.delete(episodes.scenes[episodes.scene[e]].positions, episodes.agent[e], axis=1).astype(float)
+    position = episodes.history()[e][-1].astype(float)
+    ahead = STEP_S * np.arange(1, horizon + 1)[:, None, None, None]
+    path = [position]
+    for k in range(episodes.steps[e]):
+        now, before = others[start + k], others[start + k - 1]
+        seen = ~np.isnan(now[:, 0])
+        velocity = np.nan_to_num((now - before) / STEP_S)[seen]
+        towards = np.arctan2(*(goal - position)[::-1]) + HEADINGS
+        moves = SPEEDS[:, None, None] * np.stack([np.cos(towards), np.sin(towards)], axis=-1)[None]
+        candidates = moves.reshape(-1, 2)
+        if seen.any():
+            gap = np.linalg.norm(now[seen] + velocity * ahead - (position + candidates[:, None] * ahead), axis=-1)
+            closest = gap.min(axis=(0, 2))
+        else:
+            closest = np.full(len(candidates), np.inf)
+        after = position + candidates * STEP_S
+        cost = np.linalg.norm(goal - after, axis=-1) + PENALTY * np.clip(margin - closest, 0, None)
+        position = after[np.argmin(cost)]
+        path.append(position)
+        if np.linalg.norm(position - goal) <= GOAL_RADIUS:
+            break
+    return np.array(path)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, required=True, help="the ETH/UCY folder with splits.json")
+    parser.add_argument("--split", default="all", help="a split or all five (default)")
+    parser.add_argument("--margin", type=float, default=0.5, help="predicted distance kept from others (m)")
+    parser.add_argument("--horizon", type=int, default=3, help="steps of 0.4 s the prediction looks ahead")
+    args = parser.parse_args()
+    splits = [s for s in SPLITS if s != "all"] if args.split == "all" else [args.split]
+    pooled: list[tuple[bool, bool, float]] = []
+    for split in splits:
+        episodes = load_episodes(load_split(args.data, split).test)
+        scores = []
+        for e in range(len(episodes)):
+            path = walk(episodes, e, args.margin, args.horizon)
+            score = score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
+                                  episodes.history()[e][-1] - episodes.history()[e][-2], Scoring())
+            scores.append((score.comfortable, score.arrived, score.social_score))
+        table = np.array(scores, dtype=float)
+        print(f"{split}: {len(table)} episodes  S {table[:, 2].mean():.3f}  C {table[:, 0].mean():.3f}  "
+              f"A {table[:, 1].mean():.3f}")
+        pooled += scores
+    table = np.array(pooled, dtype=float)
+    print(f"pooled: {len(table)} episodes  S {table[:, 2].mean():.3f}  C {table[:, 0].mean():.3f}  "
+          f"A {table[:, 1].mean():.3f}  (margin {args.margin} m, {args.horizon} steps ahead)")
+
+
+if __name__ == "__main__":
+    main()
