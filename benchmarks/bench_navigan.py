@@ -1,9 +1,11 @@
 """NaviGAN speed: planning latency of the shipped NaviGAN-R and the time of one training epoch.
 
 Planning: one target among 6 other agents, a 12-step plan, one CPU thread; median and p99 over
---calls calls (goal: median under 5 ms). Training: one NaviGAN-R epoch (discriminator and
+--calls calls (goal: median under 5 ms), with the controller's all-scenes weights (PoolNet) and
+the eth split's (PairPoolNet). Training: one NaviGAN-R epoch (discriminator and
 generator steps) over the eth split's training scenes, for each --batch (target agents per
-batch; 32 is the paper's, 256 the shipped weights'), on --threads CPU threads (goal: under 10 s).
+batch; 32 is the paper's, 256 the shipped weights'), on --threads CPU threads (goal: under 10 s),
+with the paper's recipe and with the shipped weights' (PairPoolNet and encounter rows).
 
     python benchmarks/bench_navigan.py [--data DIR] [--calls 1000] [--batch 32 256] [--threads 1]
 """
@@ -11,6 +13,7 @@ batch; 32 is the paper's, 256 the shipped weights'), on --threads CPU threads (g
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 from pathlib import Path
@@ -18,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from navigan import checkpoint as ckpt
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import Scenes, load_split
 from navigan.planner import Planner
@@ -26,10 +30,10 @@ from navigan.training import Networks, run_epoch
 DATA = Path(os.environ.get("TRIALS_DATA", Path(__file__).resolve().parents[2] / "shared" / "datasets" / "eth_ucy"))
 
 
-def planning_latency(calls: int) -> tuple[float, float]:
-    """Median and p99 (ms) of `Planner.plan` with 6 other agents on one thread."""
+def planning_latency(weights: str, calls: int) -> tuple[float, float]:
+    """Median and p99 (ms) of `Planner.plan` with shipped `weights`, 6 other agents, one thread."""
     torch.set_num_threads(1)
-    planner = Planner()
+    planner = Planner(weights)
     rng = np.random.default_rng(0)
     t = np.arange(8)[:, None]
     history = np.array([0.0, 0.0]) + t * np.array([0.45, 0.0])
@@ -45,10 +49,9 @@ def planning_latency(calls: int) -> tuple[float, float]:
     return float(np.median(times) * 1e3), float(np.percentile(times, 99) * 1e3)
 
 
-def epoch_seconds(scenes: Scenes, batch: int, threads: int) -> float:
-    """Wall time of one NaviGAN-R training epoch over `scenes`."""
+def epoch_seconds(scenes: Scenes, model: ModelConfig, config: TrainConfig, threads: int) -> float:
+    """Wall time of one training epoch over `scenes`."""
     torch.set_num_threads(threads)
-    model, config = ModelConfig("navigan-r"), TrainConfig("eth", batch=batch)
     nets = Networks.build(model, config, torch.device("cpu"))
     start = time.perf_counter()
     run_epoch(nets, scenes, model, config, epoch=0, device=torch.device("cpu"), progress=False)
@@ -63,14 +66,18 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="CPU threads for the epoch (default 1)")
     args = parser.parse_args()
 
-    median, p99 = planning_latency(args.calls)
-    print(f"planning (NaviGAN-R, 1 target, 6 others, 12 steps, 1 thread): "
-          f"median {median:.2f} ms, p99 {p99:.2f} ms  [goal: < 5 ms]")
+    for weights in ("navigan-r-all", "navigan-r-eth"):
+        median, p99 = planning_latency(weights, args.calls)
+        print(f"planning ({weights}, 1 target, 6 others, 12 steps, 1 thread): "
+              f"median {median:.2f} ms, p99 {p99:.2f} ms  [goal: < 5 ms]")
     scenes = Scenes.from_files(load_split(args.data, "eth").train)
+    shipped = ckpt.load(ckpt.shipped("navigan-r", "eth"))
+    recipes = {"paper's recipe": (ModelConfig("navigan-r"), TrainConfig("eth")), "shipped recipe": (shipped.model, shipped.train)}
     for batch in args.batch:
-        seconds = epoch_seconds(scenes, batch, args.threads)
-        print(f"training epoch (NaviGAN-R, eth split, {scenes.n_targets} targets, batch {batch}, "
-              f"{args.threads} thread{'s' if args.threads > 1 else ''}): {seconds:.1f} s  [goal: < 10 s]")
+        for name, (model, config) in recipes.items():
+            seconds = epoch_seconds(scenes, model, dataclasses.replace(config, batch=batch), args.threads)
+            print(f"training epoch (NaviGAN-R, {name}, eth split, {scenes.n_targets} targets, batch {batch}, "
+                  f"{args.threads} thread{'s' if args.threads > 1 else ''}): {seconds:.1f} s  [goal: < 10 s]")
 
 
 if __name__ == "__main__":

@@ -60,8 +60,9 @@ class ModelConfig:
         pool: size of PoolNet's output V_i.
         noise: size of the fluctuation noise z.
         mlp: hidden width of the small MLPs (NN_spatial, NN_social, NN_embed, the score).
-        pair_pool: pool in the generator with PairPoolNet (a hidden layer per pair of agents, as
-            Social GAN) instead of the paper's PoolNet; the discriminator keeps PoolNet.
+        pair_pool: pool in the generator with PairPoolNet (a hidden layer of width `mlp` per pair
+            of agents, fed a constant-velocity look-ahead) instead of the paper's PoolNet; the
+            discriminator keeps PoolNet.
     """
 
     model: str

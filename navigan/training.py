@@ -170,6 +170,7 @@ def start(
             f"{found.train}); choose another --out or delete it"
         )
     found.train = config
+    found.command = command  # the limits may differ; the command that finishes the training is the one to record
     return found
 
 

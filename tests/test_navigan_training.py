@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 import torch
 
@@ -54,12 +56,14 @@ def test_interrupted_training_resumes_to_the_same_weights(small, tmp_path):
     model, config = ModelConfig("navigan"), TrainConfig("zara2", epochs=2, batch=64, seed=3)
     straight = train(model, config, train_scenes, val_scenes, split, tmp_path / "a.pt", progress=False)
     with pytest.raises(Interrupt):
-        train(model, config, train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False,
-              on_epoch=interrupt_after(1))
+        train(model, replace(config, epochs=5), train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False,
+              on_epoch=interrupt_after(1), command="five epochs")
     partial = ckpt.load(tmp_path / "b.pt")
     assert partial.epoch == 1 and partial.finished is None and partial.state is not None
-    resumed = train(model, config, train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False)
+    resumed = train(model, config, train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False,
+                    command="two epochs")  # a new epoch limit: the command that finished it is recorded
     assert resumed.epoch == 2 and [h["epoch"] for h in resumed.history] == [1, 2]
+    assert resumed.command == "two epochs" and ckpt.load(tmp_path / "b.pt").command == "two epochs"
     assert resumed.finished == "epoch limit" and resumed.state is None
     for name, value in straight.generator.items():
         torch.testing.assert_close(resumed.generator[name], value)

@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
     parser.add_argument("--hidden", type=int, default=32, help="LSTM hidden size (default 32, as the paper)")
     parser.add_argument("--pair-pool", action="store_true",
-                        help="pool neighbours with a hidden layer per pair (Social GAN's pooling, with the "
-                             "relative move and distance) instead of the paper's PoolNet")
+                        help="pool neighbours with PairPoolNet (a hidden layer per pair, as Social GAN, fed a "
+                             "constant-velocity look-ahead) instead of the paper's PoolNet")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, batch order and noise (default 0)")
     parser.add_argument("--goal-steps", default="12", metavar="FIRST[-LAST]",
                         help="a target's goal lies a uniform number of steps in FIRST-LAST after its last observed "
