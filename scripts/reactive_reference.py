@@ -26,11 +26,11 @@ SPEEDS = np.array([0.0, 0.4, 0.8, 1.2, 1.5])
 PENALTY = 10.0
 
 
-def walk(episodes: Episodes, e: int, margin: float, horizon: int) -> np.ndarray:
-    """(n + 1, 2) the reactive walker's path in episode `e`, to its goal or the cut-off."""
+def walk(episodes: Episodes, e: int, position: np.ndarray, margin: float, horizon: int) -> np.ndarray:
+    """(n + 1, 2) the reactive walker's path in episode `e` from `position`, to its goal or the cut-off."""
     start, goal = episodes.start[e], episodes.goal[e].astype(float)
     others = np.delete(episodes.scenes[episodes.scene[e]].positions, episodes.agent[e], axis=1).astype(float)
-    position = episodes.history()[e][-1].astype(float)
+    position = position.astype(float)
     ahead = STEP_S * np.arange(1, horizon + 1)[:, None, None, None]
     path = [position]
     for k in range(episodes.steps[e]):
@@ -65,11 +65,12 @@ def main() -> None:
     pooled: list[tuple[bool, bool, float]] = []
     for split in splits:
         episodes = load_episodes(load_split(args.data, split).test)
+        history = episodes.history()
         scores = []
         for e in range(len(episodes)):
-            path = walk(episodes, e, args.margin, args.horizon)
+            path = walk(episodes, e, history[e, -1], args.margin, args.horizon)
             score = score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
-                                  episodes.history()[e][-1] - episodes.history()[e][-2], Scoring())
+                                  history[e, -1] - history[e, -2], Scoring())
             scores.append((score.comfortable, score.arrived, score.social_score))
         table = np.array(scores, dtype=float)
         print(f"{split}: {len(table)} episodes  S {table[:, 2].mean():.3f}  C {table[:, 0].mean():.3f}  "

@@ -1,0 +1,42 @@
+"""scripts/reactive_reference.py, the yardstick README's Table I quotes: it avoids people, and only by avoiding."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navigan.data import load_split
+from navigan.playback.episodes import load_episodes
+from navigan.playback.metrics import Scoring, score_episode
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "reactive_reference.py"
+
+
+@pytest.fixture(scope="module")
+def reference():
+    spec = importlib.util.spec_from_file_location("reactive_reference", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def rates(reference, episodes, margin: float) -> tuple[float, float]:
+    """(C, A) of the reactive walker over `episodes` keeping `margin` metres."""
+    history = episodes.history()
+    scores = []
+    for e in range(len(episodes)):
+        path = reference.walk(episodes, e, history[e, -1], margin, 3)
+        scores.append(score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
+                                    history[e, -1] - history[e, -2], Scoring()))
+    return float(np.mean([s.comfortable for s in scores])), float(np.mean([s.arrived for s in scores]))
+
+
+def test_the_reactive_walker_arrives_and_keeps_clear_only_when_asked_to(reference, eth_ucy_dir):
+    episodes = load_episodes(load_split(eth_ucy_dir, "zara2").test)
+    comfort, arrival = rates(reference, episodes, 0.5)
+    assert len(episodes) == 33 and arrival == 1.0 and comfort == pytest.approx(31 / 33)  # README: zara2 C 0.939
+    blind_comfort, blind_arrival = rates(reference, episodes, 0.0)  # no margin: straight at the goal
+    assert blind_arrival == 1.0 and blind_comfort < comfort - 0.2
