@@ -18,8 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from navigan.data import SPLITS, STEP_S, load_split
-from navigan.playback.episodes import GOAL_RADIUS, Episodes, load_episodes
-from navigan.playback.metrics import Scoring, score_episode
+from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_episodes
+from navigan.playback.evaluate import score_rollout
+from navigan.playback.metrics import Scoring
+from navigan.playback.rollout import Rollout
 
 HEADINGS = np.deg2rad(np.arange(-90, 91, 10))
 SPEEDS = np.array([0.0, 0.4, 0.8, 1.2, 1.5])
@@ -54,6 +56,17 @@ def walk(episodes: Episodes, e: int, position: np.ndarray, margin: float, horizo
     return np.array(path)
 
 
+def walk_all(episodes: Episodes, margin: float, horizon: int) -> Rollout:
+    """Every episode walked by the reactive walker, as a playback roll-out."""
+    history = episodes.history()
+    paths = np.full((len(episodes), CUTOFF_STEPS + 1, 2), np.nan)
+    steps = np.zeros(len(episodes), dtype=np.int64)
+    for e in range(len(episodes)):
+        path = walk(episodes, e, history[e, -1], margin, horizon)
+        paths[e, : len(path)], steps[e] = path, len(path) - 1
+    return Rollout(paths, steps)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True, help="the ETH/UCY folder with splits.json")
@@ -65,13 +78,8 @@ def main() -> None:
     pooled: list[tuple[bool, bool, float]] = []
     for split in splits:
         episodes = load_episodes(load_split(args.data, split).test)
-        history = episodes.history()
-        scores = []
-        for e in range(len(episodes)):
-            path = walk(episodes, e, history[e, -1], args.margin, args.horizon)
-            score = score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
-                                  history[e, -1] - history[e, -2], Scoring())
-            scores.append((score.comfortable, score.arrived, score.social_score))
+        records = score_rollout(episodes, walk_all(episodes, args.margin, args.horizon), Scoring())
+        scores = [(r["comfortable"], r["arrived"], r["social_score"]) for r in records]
         table = np.array(scores, dtype=float)
         print(f"{split}: {len(table)} episodes  S {table[:, 2].mean():.3f}  C {table[:, 0].mean():.3f}  "
               f"A {table[:, 1].mean():.3f}")

@@ -10,7 +10,8 @@ import pytest
 
 from navigan.data import load_split
 from navigan.playback.episodes import load_episodes
-from navigan.playback.metrics import Scoring, score_episode
+from navigan.playback.evaluate import score_rollout
+from navigan.playback.metrics import Scoring
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "reactive_reference.py"
 
@@ -25,13 +26,8 @@ def reference():
 
 def rates(reference, episodes, margin: float) -> tuple[float, float]:
     """(C, A) of the reactive walker over `episodes` keeping `margin` metres."""
-    history = episodes.history()
-    scores = []
-    for e in range(len(episodes)):
-        path = reference.walk(episodes, e, history[e, -1], margin, 3)
-        scores.append(score_episode(path, episodes.others(e)[: len(path)], episodes.goal[e], episodes.recorded(e),
-                                    history[e, -1] - history[e, -2], Scoring()))
-    return float(np.mean([s.comfortable for s in scores])), float(np.mean([s.arrived for s in scores]))
+    records = score_rollout(episodes, reference.walk_all(episodes, margin, 3), Scoring())
+    return float(np.mean([r["comfortable"] for r in records])), float(np.mean([r["arrived"] for r in records]))
 
 
 def test_the_reactive_walker_arrives_and_keeps_clear_only_when_asked_to(reference, eth_ucy_dir):
