@@ -49,12 +49,14 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
     assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
     markdown = (out / "table1.md").read_text()
     assert "0.9^((k-1) * 0.4 s * 1 m/s)" in markdown and "| zara1 | crowds_zara01.txt | 3 | 0 |" in markdown
+    assert "toward a sub-goal 12 steps ahead at 1 m/s in the goal's direction" in markdown
     for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     stored = {p: p.stat().st_mtime_ns for p in (out / "episodes" / "zara1").glob("*.json")}
     assert len(stored) == 3
     record = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["seed"] == 0
+    assert record["identity"]["settings"]["subgoal_speed"] == 1.0
     assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
 
     (out / "episodes" / "zara1" / "navigan-r-dagger.json").unlink()  # as if interrupted before it
@@ -69,6 +71,15 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
     assert "other settings" in error_line(capsys)
     assert (out / "episodes" / "zara1" / "human.json").read_bytes() == before
 
+    # handed the goal itself, 36 steps ahead, the same weights walk otherwise
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r", "--subgoal-speed", "0") == 2
+    assert "other settings" in error_line(capsys)
+    assert playback(eth_ucy_dir, tmp_path / "goal", "--models", "navigan-r", "--subgoal-speed", "0") == 0
+    assert "toward the goal itself" in (tmp_path / "goal" / "table1.md").read_text()
+    direct = json.loads((tmp_path / "goal" / "episodes" / "zara1" / "navigan-r.json").read_text())
+    assert direct["identity"]["settings"]["subgoal_speed"] is None
+    assert [r["path"] for r in direct["results"]] != [r["path"] for r in record["results"]]
+
 
 @pytest.mark.parametrize(
     ("args", "message"),
@@ -78,6 +89,7 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
         (["--models", "human", "--gamma", "0"], "--gamma"),
         (["--models", "human", "--v-pref", "-1"], "--v-pref"),
         (["--models", "human", "--episodes", "0"], "--episodes"),
+        (["--models", "human", "--subgoal-speed", "-1"], "--subgoal-speed: expected a speed >= 0, got -1"),
     ],
 )
 def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):

@@ -7,6 +7,7 @@ import pytest
 
 from navigan import checkpoint as ckpt
 from navigan.data import load_split
+from navigan.goals import toward
 from navigan.playback.episodes import GOAL_STEPS, SceneGrid, episodes_of, load_episodes
 from navigan.playback.evaluate import Playback, Settings, score_rollout
 from navigan.playback.metrics import Scoring
@@ -87,15 +88,26 @@ def test_noise_comes_from_the_seed_and_episode(few):
 def test_full_walks_the_way_points_and_dagger_the_intention(few):
     first = few.subset([0])
     history = first.history()
-    for dagger in (False, True):
-        policy = Policy.load(WEIGHTS, dagger=dagger)
-        waypoints, intention, forces = policy.plan(history, neighbours(first, np.array([0]), 0), first.goal,
-                                                   policy.noise(first.ids)[:, 0])
-        np.testing.assert_allclose(waypoints, intention + forces, atol=1e-5)
-        walked = roll_out(policy, first, record=True)
-        expected = intention if dagger else waypoints
-        np.testing.assert_allclose(walked.paths[0, 1], expected[0, 0], atol=1e-6)
-        np.testing.assert_allclose(walked.plans[0, 0, 1], intention[0], atol=1e-6)
+    subgoal = toward(history[:, -1], first.goal, 4.8)  # 12 steps at the default 1 m/s
+    assert np.linalg.norm(subgoal - history[:, -1]) == pytest.approx(4.8)
+    assert np.linalg.norm(first.goal - history[:, -1]) == pytest.approx(3.39, abs=0.01)  # the sub-goal lies beyond it
+    for speed, goal in ((1.0, subgoal), (None, first.goal)):
+        for dagger in (False, True):
+            policy = Policy.load(WEIGHTS, dagger=dagger)
+            waypoints, intention, forces = policy.plan(history, neighbours(first, np.array([0]), 0), goal,
+                                                       policy.noise(first.ids)[:, 0])
+            np.testing.assert_allclose(waypoints, intention + forces, atol=1e-5)
+            walked = roll_out(policy, first, record=True, subgoal_speed=speed)
+            expected = intention if dagger else waypoints
+            np.testing.assert_allclose(walked.paths[0, 1], expected[0, 0], atol=1e-6)
+            np.testing.assert_allclose(walked.plans[0, 0, 1], intention[0], atol=1e-6)
+
+
+def test_a_subgoal_lies_one_reach_toward_the_goal_even_past_it():
+    position = np.array([[1.0, 1.0], [0.0, 0.0]])
+    goals = np.array([[11.0, 1.0], [0.0, -2.0]])
+    np.testing.assert_allclose(toward(position, goals, 4.8), [[5.8, 1.0], [0.0, -4.8]])
+    np.testing.assert_allclose(toward(position[0], goals[0], 2.0), [3.0, 1.0])
 
 
 def test_human_row_is_the_recording_itself(eth_ucy_dir, zara1, tmp_path):

@@ -31,7 +31,7 @@ from navigan.errors import NaviganError
 from navigan.playback import figures
 from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
-from navigan.playback.rollout import Policy, Rollout, recorded_rollout, roll_out
+from navigan.playback.rollout import SUBGOAL_SPEED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
     COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, paper_values, summarize,
 )
@@ -50,14 +50,17 @@ class Settings:
         scoring: the reward's settings.
         seed: seeds the fluctuation noise (with each episode's name).
         limit: evaluate only the first `limit` episodes of each split (a quick look).
+        subgoal_speed: the pace (m/s) of the sub-goals the networks are handed, T_PRED steps
+            ahead toward the goal (`navigan.goals.toward`); None hands them the goal itself.
     """
 
     scoring: Scoring = field(default_factory=Scoring)
     seed: int = 0
     limit: int | None = None
+    subgoal_speed: float | None = SUBGOAL_SPEED
 
     def record(self) -> dict[str, Any]:
-        return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit}
+        return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed}
 
 
 def base_model(model: str) -> str:
@@ -180,7 +183,7 @@ class Playback:
         policy = Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.settings.seed)
         about = {"file": path.name, "trained_on": record.split.get("name"), "epochs": record.epoch,
                  "kept_epoch": (record.best or {}).get("epoch"), "finished": record.finished}
-        return roll_out(policy, episodes, progress=progress), about
+        return roll_out(policy, episodes, progress=progress, subgoal_speed=self.settings.subgoal_speed), about
 
     def evaluate(self, splits: Sequence[str], models: Sequence[str], progress: bool = True) -> list[Table]:
         """Evaluate what is not stored yet, then write the tables, the episode CSV and the figures.
@@ -254,8 +257,9 @@ class Playback:
             e = choose_episode(full, dagger)
             one = episodes.subset([e])
             path = checkpoint_file(model, split, self.checkpoints)
-            walked = roll_out(Policy.load(path, seed=self.settings.seed), one, record=True)
-            intention = roll_out(Policy.load(path, dagger=True, seed=self.settings.seed), one)
+            speed = self.settings.subgoal_speed
+            walked = roll_out(Policy.load(path, seed=self.settings.seed), one, record=True, subgoal_speed=speed)
+            intention = roll_out(Policy.load(path, dagger=True, seed=self.settings.seed), one, subgoal_speed=speed)
             n = int(walked.steps[0])
             label = f"{COLUMNS[model]} ({path.name}) on {split}, episode {one.ids[0]}"
             write_atomic(folder / f"fig4_{split}.png",

@@ -1,8 +1,11 @@
 """Batched playback roll-outs: every episode of a scene steps at once, one network call per step.
 
 At each 0.4 s step the policy sees each target's own last T_OBS positions (the walked ones once
-the observation is used up), the other pedestrians' recorded last T_OBS positions and the goal,
-plans T_PRED way-points and walks to the first. An episode stops when it reaches its goal or its
+the observation is used up), the other pedestrians' recorded last T_OBS positions and a goal,
+plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
+(4.8 s) ahead, so by default they are handed a sub-goal that far ahead at a walking pace toward
+the episode's goal, as the trial controller hands them; given the goal itself, 36 steps ahead,
+they hurry to reach it in 12. An episode stops when it reaches its goal or its
 cut-off, and leaves the batch. The fluctuation noise of each episode and step is drawn from the
 seed and the episode's name alone, so a batch walks exactly as its episodes one at a time.
 """
@@ -18,9 +21,14 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import T_OBS, T_PRED, fill_tracks
+from navigan.data import STEP_S, T_OBS, T_PRED, fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
+from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
+
+
+#: The walking pace (m/s) of the default sub-goals: CrowdNav's preferred speed, the Husky's speed.
+SUBGOAL_SPEED = 1.0
 
 
 @dataclass(frozen=True)
@@ -101,24 +109,28 @@ class Rollout:
         return self.paths[e, : self.steps[e] + 1]
 
 
-def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
-    """(B, N, T_OBS, 2) the recorded last T_OBS positions of the agents present around each active
-    episode's target at `step`, in column order, padded with NaN rows."""
+def neighbours(episodes: Episodes, active: np.ndarray, step: int, ahead: int = 0) -> np.ndarray:
+    """(B, N, T_OBS + ahead, 2) the recorded last T_OBS positions of the agents present around each
+    active episode's target at `step`, and their next `ahead` ones, in column order, padded with NaN
+    rows (NaN too where the recording ends)."""
     scene = episodes.scene[active]
     parts: list[tuple[np.ndarray, np.ndarray]] = []
     for s in np.unique(scene):
         rows = np.flatnonzero(scene == s)
         chosen = active[rows]
         positions = episodes.scenes[s].positions
-        frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1)
-        present = ~np.isnan(positions[frames[:, -1], :, 0])
+        frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1 + ahead)
+        beyond = frames >= len(positions)
+        frames = np.minimum(frames, len(positions) - 1)
+        present = ~np.isnan(positions[frames[:, T_OBS - 1], :, 0])
         present[np.arange(len(chosen)), episodes.agent[chosen]] = False
         order = np.argsort(~present, axis=1, kind="stable")[:, : present.sum(axis=1).max()]
         window = positions[frames[:, :, None], order[:, None, :]].transpose(0, 2, 1, 3)
         window[~np.take_along_axis(present, order, axis=1)] = np.nan
+        window[np.broadcast_to(beyond[:, None], window.shape[:3])] = np.nan
         parts.append((rows, window))
     width = max(p.shape[1] for _, p in parts)
-    out = np.full((len(active), width, T_OBS, 2), np.nan, dtype=np.float32)
+    out = np.full((len(active), width, T_OBS + ahead, 2), np.nan, dtype=np.float32)
     for rows, part in parts:
         out[rows, : part.shape[1]] = part
     return out
@@ -129,12 +141,15 @@ def roll_out(
     episodes: Episodes,
     record: bool = False,
     progress: Callable[[int], object] | None = None,
+    subgoal_speed: float | None = SUBGOAL_SPEED,
 ) -> Rollout:
     """Walk every episode with `policy`, all active episodes in one batch per step.
 
     Args:
         record: keep each step's plan (for figures; memory grows with the episodes).
         progress: called with 1 after each step.
+        subgoal_speed: the pace (m/s) of the sub-goals handed to the policy (`navigan.goals.toward`);
+            None hands it the episode's goal itself, as the paper describes.
     """
     count = len(episodes)
     track = np.full((count, T_OBS + CUTOFF_STEPS, 2), np.nan, dtype=np.float32)
@@ -146,8 +161,11 @@ def roll_out(
     for step in range(CUTOFF_STEPS):
         if not len(active):
             break
+        goals = episodes.goal[active]
+        if subgoal_speed is not None:
+            goals = toward(track[active, step + T_OBS - 1], goals, subgoal_speed * T_PRED * STEP_S)
         waypoints, intention, forces = policy.plan(
-            track[active, step : step + T_OBS], neighbours(episodes, active, step), episodes.goal[active],
+            track[active, step : step + T_OBS], neighbours(episodes, active, step), goals,
             None if noise is None else noise[active, step],
         )
         track[active, step + T_OBS] = (intention if policy.dagger else waypoints)[:, 0]

@@ -161,15 +161,18 @@ def document(
     Args:
         tables: the pooled table first, then one per split.
         weights: (split, model) -> the checkpoint's description (None for the recordings).
-        settings: gamma, v_pref, collision, seed and limit.
+        settings: gamma, v_pref, collision, seed, limit and subgoal_speed.
     """
     columns = tables[0].columns
-    limit = settings["limit"]
+    limit, speed = settings["limit"], settings["subgoal_speed"]
+    handed = ("the goal itself" if speed is None else
+              f"a sub-goal 12 steps ahead at {speed:g} m/s in the goal's direction (beyond the goal once "
+              "nearer), as the networks were trained with goals 12 steps ahead")
     lines = [
         "# Table I: long-term playback navigation", "",
         "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
         "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
-        "as recorded; it plans 12 steps every 0.4 s and walks the first. The episode ends on arrival "
+        f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The episode ends on arrival "
         "(within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The human column is the "
         "recorded path itself.", "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "

@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="preferred speed in S's discount, m/s (default 1.0)")
     parser.add_argument("--collision", type=float, default=0.1,
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
+    parser.add_argument("--subgoal-speed", type=float, default=1.0, metavar="M/S",
+                        help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead at this "
+                             "pace on the line to the goal (default 1.0); 0: the goal itself, as the paper describes")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N",
                         help="only the first N episodes of each split (a quick look)")
@@ -57,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError(f"--gamma: expected a number in (0, 1], got {args.gamma:g}")
     if not args.v_pref > 0:
         raise NaviganError(f"--v-pref: expected a positive speed, got {args.v_pref:g}")
+    if not args.subgoal_speed >= 0:
+        raise NaviganError(f"--subgoal-speed: expected a speed >= 0, got {args.subgoal_speed:g}")
     if not 0 <= args.collision < 0.2:
         raise NaviganError(f"--collision: expected a distance in [0, 0.2) m, got {args.collision:g}")
     for name in ("episodes", "threads"):
@@ -73,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError(f"--checkpoints: {checkpoints} is not a folder")
     playback = Playback(
         data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
-        settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes),
+        settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
+                          args.subgoal_speed or None),
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
     print(tables[0].markdown({}).rstrip())

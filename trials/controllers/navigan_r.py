@@ -3,9 +3,9 @@
 Each step the scene is moved into the robot's frame (origin at the robot, x along its heading),
 so the network sees its own track and the goal as the robot does; the generator then plans in its
 target-centric frame (origin at the robot's oldest observed position). The goal is passed as a
-sub-goal `reach_m` ahead in the direction of the real one, since the network was trained on goals
-one prediction horizon (4.8 s) away; near the end it lies beyond the goal, so the robot drives
-up to the goal (where the trial ends) instead of creeping toward a point it must stop at. The
+sub-goal `reach_m` ahead in the direction of the real one (`navigan.goals.toward`), since the
+network was trained on goals one prediction horizon (4.8 s) away; near the end it lies beyond the
+goal, so the robot drives up to the goal (where the trial ends) instead of creeping toward it. The
 way-points, the intention path and the social forces come back in the world frame; the last two
 and the timing go to the plan's record.
 """
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from navigan.goals import toward
 from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
 
 #: A sub-goal one prediction horizon ahead at the Husky's 1 m/s.
@@ -55,12 +56,6 @@ class NaviganRController:
     def reset(self, seed: int) -> None:
         self.planner.reset(seed)
 
-    def subgoal(self, position: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """The point `reach_m` from `position` in the direction of `goal`."""
-        offset = goal - position
-        distance = float(np.hypot(*offset))
-        return position + offset * (self.reach_m / max(distance, 1e-9))
-
     def plan(self, observation: Observation) -> Plan:
         started = time.perf_counter()
         origin = np.asarray(observation.robot_pose[:2], dtype=float)
@@ -69,7 +64,7 @@ class NaviganRController:
         def to_robot(points: np.ndarray) -> np.ndarray:
             return (np.asarray(points, dtype=float) - origin) @ rotation
 
-        subgoal = self.subgoal(origin, np.asarray(observation.goal, dtype=float)[:2])
+        subgoal = toward(origin, np.asarray(observation.goal, dtype=float)[:2], self.reach_m)
         out = self.planner.plan(to_robot(observation.robot_history), to_robot(observation.pedestrian_history), to_robot(subgoal))
         waypoints = out.waypoints.astype(float) @ rotation.T + origin
         record = {
