@@ -5,8 +5,7 @@ Planning: one target among 6 other agents, a 12-step plan, one CPU thread; media
 the eth split's (PairPoolNet). Training: one NaviGAN-R epoch (discriminator and
 generator steps) over the eth split's training scenes, for each --batch (target agents per
 batch; 32 is the paper's, 256 the shipped weights'), on --threads CPU threads (goal: under 10 s),
-with the paper's recipe and with the shipped weights' (PairPoolNet, encounter rows and, where
-their recipe has them, the walk through the training scenes for visited states).
+with the paper's recipe and with the shipped weights' (PairPoolNet and encounter rows).
 
     python benchmarks/bench_navigan.py [--data DIR] [--calls 1000] [--batch 32 256] [--threads 1]
 """
@@ -26,9 +25,7 @@ from navigan import checkpoint as ckpt
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import Scenes, load_split
 from navigan.planner import Planner
-from navigan.playback.episodes import Episodes
-from navigan.training import Networks, epoch_visits, run_epoch
-from navigan.visits import visit_episodes
+from navigan.training import Networks, run_epoch
 
 DATA = Path(os.environ.get("TRIALS_DATA", Path(__file__).resolve().parents[2] / "shared" / "datasets" / "eth_ucy"))
 
@@ -52,13 +49,12 @@ def planning_latency(weights: str, calls: int) -> tuple[float, float]:
     return float(np.median(times) * 1e3), float(np.percentile(times, 99) * 1e3)
 
 
-def epoch_seconds(scenes: Scenes, visits: Episodes, model: ModelConfig, config: TrainConfig, threads: int) -> float:
-    """Wall time of one training epoch over `scenes`, walking `visits` first where the recipe asks."""
+def epoch_seconds(scenes: Scenes, model: ModelConfig, config: TrainConfig, threads: int) -> float:
+    """Wall time of one training epoch over `scenes`."""
     torch.set_num_threads(threads)
     nets = Networks.build(model, config, torch.device("cpu"))
     start = time.perf_counter()
-    visited = epoch_visits(nets, visits, model, config, epoch=0)
-    run_epoch(nets, scenes, model, config, epoch=0, device=torch.device("cpu"), progress=False, visited=visited)
+    run_epoch(nets, scenes, model, config, epoch=0, device=torch.device("cpu"), progress=False)
     return time.perf_counter() - start
 
 
@@ -74,13 +70,12 @@ def main() -> None:
         median, p99 = planning_latency(weights, args.calls)
         print(f"planning ({weights}, 1 target, 6 others, 12 steps, 1 thread): "
               f"median {median:.2f} ms, p99 {p99:.2f} ms  [goal: < 5 ms]")
-    split = load_split(args.data, "eth")
-    scenes, visits = Scenes.from_files(split.train), visit_episodes(split.train)
+    scenes = Scenes.from_files(load_split(args.data, "eth").train)
     shipped = ckpt.load(ckpt.shipped("navigan-r", "eth"))
     recipes = {"paper's recipe": (ModelConfig("navigan-r"), TrainConfig("eth")), "shipped recipe": (shipped.model, shipped.train)}
     for batch in args.batch:
         for name, (model, config) in recipes.items():
-            seconds = epoch_seconds(scenes, visits, model, dataclasses.replace(config, batch=batch), args.threads)
+            seconds = epoch_seconds(scenes, model, dataclasses.replace(config, batch=batch), args.threads)
             print(f"training epoch (NaviGAN-R, {name}, eth split, {scenes.n_targets} targets, batch {batch}, "
                   f"{args.threads} thread{'s' if args.threads > 1 else ''}): {seconds:.1f} s  [goal: < 10 s]")
 

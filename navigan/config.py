@@ -104,11 +104,9 @@ class TrainConfig:
         resist_steps: the resistance loss scores the plan's first this many way-points (None: all).
         encounters: synthetic collision-course rows per target of a batch (`navigan.encounters`).
         force_size: weight of the social force's squared size beside its squared changes in
-            encounter rows (`losses.force_losses`).
+            encounter rows (`losses.encounter_losses`).
         encounter_crowd: fraction of encounter walkers who keep their window's whole crowd (the
             others keep only the agent they meet, or nobody).
-        on_policy: rows per target of a batch drawn from the states the generator visited walking
-            the training scenes at the start of the epoch (`navigan.visits`; resistance models).
     """
 
     split: str
@@ -132,7 +130,6 @@ class TrainConfig:
     encounters: float = 0.0
     encounter_crowd: float = 0.0
     force_size: float = 0.1
-    on_policy: float = 0.0
 
     def __post_init__(self) -> None:
         self.sampling  # checks the goal range

@@ -240,7 +240,7 @@ class Sampling:
             raise NaviganError(f"goal steps {first}-{last}: expected 1 <= first <= last <= {FAR_STEPS}")
 
 
-def turn_windows(positions: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _turn(positions: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """(W, A, T, 2) windows, each turned by a random angle about the origin and mirrored at random."""
     angle = rng.uniform(0.0, 2 * np.pi, len(positions))
     mirror = np.where(rng.random(len(positions)) < 0.5, -1.0, 1.0)
@@ -318,7 +318,7 @@ class Scenes:
         width = int(self.agents[windows].max())
         positions = self.positions[windows, :width]
         if sampling.augment and rng is not None:
-            positions = turn_windows(positions, rng)
+            positions = _turn(positions, rng)
         obs, present = fill_tracks(positions[:, :, :T_OBS])
         future = positions[:, :, T_OBS:SEQ_LEN]
         seen = ~np.isnan(future[..., 0])

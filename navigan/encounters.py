@@ -10,7 +10,7 @@ sideways offset (so some encounters need no room at all); its goal lies farther 
 walker in place of a standing target stands where j will pass. Half the walkers are left alone,
 without j, the way a robot crosses an empty stretch. A walker has no recorded future: its
 way-points are scored by how smoothly its force departs from the intention (see
-`losses.force_losses`) and against j's recorded future (the resistance loss), so the social
+`losses.encounter_losses`) and against j's recorded future (the resistance loss), so the social
 force learns an early, held side-step that keeps d_safe, and none when nobody is in the way.
 
 By default only j is kept, because the paper's PoolNet max-pools over the others: in a crowd one

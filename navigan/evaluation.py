@@ -9,7 +9,7 @@ from navigan.config import TrainConfig
 from navigan.data import T_PRED, Sampling, Scenes
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.encounters import encounter_batch
-from navigan.losses import ade, force_losses, fde, near_rate, supervised_losses, weighted_sum
+from navigan.losses import ade, encounter_losses, fde, near_rate, supervised_losses, weighted_sum
 
 #: Targets per evaluation batch (no gradients, so bigger than training's).
 EVAL_BATCH = 1024
@@ -54,7 +54,7 @@ def evaluate(
             if rows is not None:
                 rows = rows.to(device)
                 walked = generator(rows.obs, rows.mask, rows.goals, targets=rows.targets)
-                sums["loss"] += weighted_sum(force_losses(walked, rows, train), train).item() * len(batch.goals)
+                sums["loss"] += weighted_sum(encounter_losses(walked, rows, train), train).item() * len(batch.goals)
         batch = batch.to(device)
         goals, truth = batch.goals, batch.truth
         noise = None

@@ -116,13 +116,10 @@ def supervised_losses(
     return terms
 
 
-def force_losses(
-    prediction: Prediction, batch: SceneBatch, config: TrainConfig, kind: str = "encounter"
-) -> dict[str, torch.Tensor]:
-    """The terms `KIND_l2` and `KIND_resistance` of rows without a recorded future for their
-    targets (encounter rows, `navigan.encounters`; visited states, `navigan.visits`), which train
-    the social force only: the force's squared step-to-step changes (from zero before the plan)
-    plus `config.force_size` times its squared size, and the resistance loss.
+def encounter_losses(prediction: Prediction, batch: SceneBatch, config: TrainConfig) -> dict[str, torch.Tensor]:
+    """The terms of encounter rows (see `navigan.encounters`), which train the social force only:
+    the force's squared step-to-step changes (from zero before the plan) plus `config.force_size`
+    times its squared size, and the resistance loss.
 
     Scoring mostly the changes asks for a side-step that begins at once and is held until the agent
     is passed, a path a robot's follower can drive; scoring only the size would ask for the least
@@ -135,14 +132,14 @@ def force_losses(
     waypoints = prediction.intention.detach() + forces
     changes = torch.diff(forces, dim=1, prepend=torch.zeros_like(forces[:, :1]))
     return {
-        f"{kind}_l2": (changes.pow(2) + config.force_size * forces.pow(2)).sum(dim=-1).mean(),
-        f"{kind}_resistance": resistance_loss(
+        "encounter_l2": (changes.pow(2) + config.force_size * forces.pow(2)).sum(dim=-1).mean(),
+        "encounter_resistance": resistance_loss(
             waypoints, *batch.neighbours(), d_safe=config.d_safe, steps=config.resist_steps
         ),
     }
 
 
 def weighted_sum(terms: dict[str, torch.Tensor], config: TrainConfig) -> torch.Tensor:
-    """Sum of loss terms, each times its weight `w_<name>` in the training config (a
-    `<kind>_<name>` term of `force_losses` weighs as `<name>`)."""
-    return sum(getattr(config, f"w_{name.rpartition('_')[2]}") * value for name, value in terms.items())
+    """Sum of loss terms, each times its weight `w_<name>` in the training config (an
+    `encounter_<name>` term weighs as `<name>`)."""
+    return sum(getattr(config, f"w_{name.removeprefix('encounter_')}") * value for name, value in terms.items())

@@ -22,17 +22,15 @@ from tqdm.auto import tqdm
 
 from navigan import checkpoint as ckpt
 from navigan.config import ModelConfig, TrainConfig
-from navigan.data import T_PRED, SceneBatch, Scenes
+from navigan.data import SceneBatch, Scenes
 from navigan.discriminator import Discriminator
 from navigan.encounters import encounter_batch
 from navigan.errors import NaviganError
 from navigan.evaluation import evaluate
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, Prediction, build_generator
 from navigan.losses import (
-    discriminator_loss, force_losses, generator_adversarial_loss, supervised_losses, weighted_sum,
+    discriminator_loss, encounter_losses, generator_adversarial_loss, supervised_losses, weighted_sum,
 )
-from navigan.playback.episodes import Episodes
-from navigan.visits import pick, visited_rows
 
 
 @dataclass
@@ -88,14 +86,12 @@ class Networks:
 
 
 def train_batch(
-    nets: Networks, batch: SceneBatch, model: ModelConfig, config: TrainConfig,
-    extra: dict[str, SceneBatch] | None = None,
+    nets: Networks, batch: SceneBatch, model: ModelConfig, config: TrainConfig, encounters: SceneBatch | None = None
 ) -> dict[str, float]:
     """One optimisation step of the discriminator (GAN models) and the generator; the losses.
 
     The discriminator sees the targets only: their whole paths are known, the context agents'
-    futures may not be. `extra` rows without a recorded future for their targets ("encounter",
-    "visited") add their `force_losses` to the generator's loss.
+    futures may not be. Encounter rows (if any) add their terms to the generator's loss.
     """
     recipe = model.recipe
     prediction = nets.plan(batch, model)
@@ -118,8 +114,8 @@ def train_batch(
         nets.discriminator.requires_grad_(False)
         terms["adversarial"] = generator_adversarial_loss(nets.discriminator(fake, scene, targets))
         nets.discriminator.requires_grad_(True)
-    for kind, rows in (extra or {}).items():
-        terms |= force_losses(nets.plan(rows, model), rows, config, kind)
+    if encounters is not None:
+        terms |= encounter_losses(nets.plan(encounters, model), encounters, config)
     total = weighted_sum(terms, config)
     nets.g_optimizer.zero_grad(set_to_none=True)
     total.backward()
@@ -136,12 +132,8 @@ def run_epoch(
     epoch: int,
     device: torch.device,
     progress: bool = True,
-    visited: SceneBatch | None = None,
 ) -> dict[str, float]:
-    """One pass over the training scenes in the epoch's seeded order, goals and turns; mean losses.
-
-    With `visited` rows (`navigan.visits`), each batch also draws `config.on_policy` of them per target.
-    """
+    """One pass over the training scenes in the epoch's seeded order, goals and turns; mean losses."""
     nets.generator.train()
     batches = scenes.batches(config.batch, seed=(config.seed, epoch))
     sampling, rng = config.sampling, np.random.default_rng([config.seed, epoch, 1])
@@ -149,32 +141,14 @@ def run_epoch(
     bar = tqdm(batches, desc=f"epoch {epoch + 1}", leave=False, disable=not progress, unit="batch")
     for i, windows in enumerate(bar, start=1):
         batch = scenes.batch(windows, sampling, rng)
-        extra: dict[str, SceneBatch] = {}
+        extra = None
         if config.encounters and model.recipe.resistance:
-            rows = encounter_batch(batch, config.encounters, sampling.goal_steps, rng, config.encounter_crowd)
-            if rows is not None:
-                extra["encounter"] = rows.to(device)
-        if visited is not None:
-            count = min(len(visited.goals), max(1, round(config.on_policy * len(batch.goals))))
-            extra["visited"] = pick(visited, rng.choice(len(visited.goals), size=count, replace=False)).to(device)
-        losses = train_batch(nets, batch.to(device), model, config, extra)
+            extra = encounter_batch(batch, config.encounters, sampling.goal_steps, rng, config.encounter_crowd)
+        losses = train_batch(nets, batch.to(device), model, config, extra and extra.to(device))
         for k, v in losses.items():
             totals[k] = totals.get(k, 0.0) + v
         bar.set_postfix({k: f"{v / i:.3f}" for k, v in totals.items()}, refresh=False)
     return {k: v / len(batches) for k, v in totals.items()}
-
-
-def epoch_visits(
-    nets: Networks, visits: Episodes | None, model: ModelConfig, config: TrainConfig, epoch: int
-) -> SceneBatch | None:
-    """The visited-state rows of an epoch (`navigan.visits`), walked with the generator as it is at
-    the epoch's start; None where the training asks for none."""
-    if not (config.on_policy and model.recipe.resistance and visits is not None):
-        return None
-    return visited_rows(
-        nets.generator, visits, config.seed, config.d_safe, config.resist_steps or T_PRED,
-        np.random.default_rng([config.seed, epoch, 2]), config.augment,
-    )
 
 
 def start(
@@ -211,7 +185,6 @@ def train(
     device: str = "cpu",
     progress: bool = True,
     on_epoch: Callable[[ckpt.Checkpoint], None] | None = None,
-    visits: Episodes | None = None,
 ) -> ckpt.Checkpoint:
     """Train (or resume) until the epoch limit or early stopping; the checkpoint is saved every epoch.
 
@@ -224,11 +197,6 @@ def train(
         device: torch device.
         progress: show tqdm bars.
         on_epoch: called with the checkpoint after each saved epoch.
-        visits: the training scenes' episodes, walked at the start of each epoch for the visited
-            states `config.on_policy` asks for (`navigan.visits`).
-
-    Raises:
-        NaviganError: `config.on_policy` without `visits`; see `start`.
     """
     out = Path(out)
     dev = torch.device(device)
@@ -236,8 +204,6 @@ def train(
         part: {"windows": len(s.counts), "targets": s.n_targets, "skipped_rows": s.skipped}
         for part, s in (("train", train_scenes), ("val", val_scenes))
     }
-    if config.on_policy and model.recipe.resistance and visits is None:
-        raise NaviganError("training on visited states (on_policy > 0) needs the training scenes' episodes")
     record = start(out, model, config, split, data, command)
     if record.finished:
         return record
@@ -251,8 +217,7 @@ def train(
     )
     for epoch in epochs:
         began = time.perf_counter()
-        visited = epoch_visits(nets, visits, model, config, epoch)
-        losses = run_epoch(nets, train_scenes, model, config, epoch, dev, progress, visited)
+        losses = run_epoch(nets, train_scenes, model, config, epoch, dev, progress)
         seconds = time.perf_counter() - began
         metrics = evaluate(nets.generator, val_scenes, seed=config.seed, device=dev, train=config)
         record.history.append({"epoch": epoch + 1, "seconds": round(seconds, 2), "train": losses, "val": metrics})

@@ -66,19 +66,19 @@ def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
     assert main(["train", "--model", "navigan-r", "--split", "zara2", "--epochs", "1", "--batch", "64",
                  "--goal-steps", "8-36", "--augment", "--w-resistance", "5", "--d-safe", "0.9", "--resist-forces-only",
                  "--resist-beyond-truth", "--resist-steps", "4", "--encounters", "0.5", "--encounter-crowd", "0.25",
-                 "--pair-pool", "--on-policy", "0.5", "--data", str(data), "--out", str(out), "--quiet"]) == 0
+                 "--pair-pool", "--data", str(data), "--out", str(out), "--quiet"]) == 0
     record = load(out)
     assert record.command == (
         "trials train --model navigan-r --split zara2 --epochs 1 --pair-pool --batch 64 --lr 0.001 --seed 0 "
         "--goal-steps 8-36 --augment --w-resistance 5 --d-safe 0.9 --resist-forces-only --resist-beyond-truth "
-        "--resist-steps 4 --encounters 0.5 --encounter-crowd 0.25 --on-policy 0.5 --out r.pt"
+        "--resist-steps 4 --encounters 0.5 --encounter-crowd 0.25 --out r.pt"
     )
     train = record.train
     settings = (train.goal_first, train.goal_last, train.augment, train.w_resistance, train.d_safe, train.resist_steps)
     assert settings == (8, 36, True, 5.0, 0.9, 4)
     assert not train.resist_intention and train.resist_beyond_truth and train.encounters == 0.5
-    assert train.encounter_crowd == 0.25 and record.model.pair_pool and train.on_policy == 0.5
-    assert {"encounter_l2", "encounter_resistance", "visited_l2", "visited_resistance"} <= set(record.history[0]["train"])
+    assert train.encounter_crowd == 0.25 and record.model.pair_pool
+    assert {"encounter_l2", "encounter_resistance"} <= set(record.history[0]["train"])
 
 
 @pytest.mark.parametrize(("option", "value", "message"), [
@@ -89,7 +89,6 @@ def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
     ("--encounter-crowd", "1.5", "--encounter-crowd: expected a fraction in [0, 1], got 1.5"),
     ("--resist-steps", "0", "--resist-steps: expected a positive whole number, got 0"),
     ("--force-size", "-1", "--force-size: expected a number >= 0, got -1.0"),
-    ("--on-policy", "-1", "--on-policy: expected a number >= 0, got -1.0"),
 ])
 def test_bad_social_training_options(data, tmp_path, capsys, option, value, message):
     assert main(["train", "--model", "navigan-r", "--split", "zara2", option, value, "--data", str(data),

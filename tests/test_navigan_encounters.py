@@ -11,7 +11,7 @@ from navigan.config import ModelConfig, TrainConfig
 from navigan.data import STEP_S, T_OBS, T_PRED, Sampling, Scenes
 from navigan.encounters import encounter_batch
 from navigan.generators import Prediction, build_generator
-from navigan.losses import force_losses
+from navigan.losses import encounter_losses
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,7 @@ def test_encounter_terms_train_only_the_social_force(rows):
     torch.manual_seed(0)
     generator = build_generator(ModelConfig("navigan-r"))
     prediction = generator(rows.obs, rows.mask, rows.goals, targets=rows.targets)
-    terms = force_losses(prediction, rows, TrainConfig("zara2"))
+    terms = encounter_losses(prediction, rows, TrainConfig("zara2"))
     assert terms["encounter_resistance"].item() > 0
     (terms["encounter_l2"] + terms["encounter_resistance"]).backward()
     for name, parameter in generator.named_parameters():
@@ -90,7 +90,7 @@ def test_the_force_term_scores_mostly_changes_so_a_held_side_step_costs_little_m
         config = TrainConfig("zara2", force_size=size)
         for force, cost in ((held, 0.36 * (1 + size * T_PRED)), (bump, 0.36 * (2 + size))):
             prediction = Prediction(intention + force, intention, force)
-            assert force_losses(prediction, rows, config)["encounter_l2"].item() == pytest.approx(cost / T_PRED)
+            assert encounter_losses(prediction, rows, config)["encounter_l2"].item() == pytest.approx(cost / T_PRED)
 
 
 def test_no_rows_when_nobody_is_asked_for(batch):

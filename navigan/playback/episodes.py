@@ -109,13 +109,8 @@ class Episodes:
                         self.steps[index], self.goal[index], self.standing)
 
 
-def episodes_of(scenes: Sequence[SceneGrid], every: int | None = None) -> Episodes:
-    """Every episode of some scenes, in scene then pedestrian order.
-
-    With `every`, a pedestrian also starts an episode every `every` frames after its first where
-    it stays long enough (more starts for training on visited states, `navigan.visits`); the
-    playback evaluation uses only the first.
-    """
+def episodes_of(scenes: Sequence[SceneGrid]) -> Episodes:
+    """Every episode of some scenes, in scene then pedestrian order."""
     need = T_OBS + GOAL_STEPS
     rows: list[tuple[int, int, int, int]] = []
     goals: list[np.ndarray] = []
@@ -126,17 +121,14 @@ def episodes_of(scenes: Sequence[SceneGrid], every: int | None = None) -> Episod
             continue
         long_enough = np.lib.stride_tricks.sliding_window_view(present, need, axis=0).all(axis=-1)
         for agent in np.flatnonzero(long_enough.any(axis=0)):
-            first = int(np.argmax(long_enough[:, agent]))
-            windows = [first] if every is None else np.flatnonzero(long_enough[first::every, agent]) * every + first
-            for window in windows:
-                start = int(window) + T_OBS - 1
-                goal = grid.positions[start + GOAL_STEPS, agent]
-                if np.linalg.norm(goal - grid.positions[start, agent]) <= GOAL_RADIUS:
-                    standing += 1
-                    continue
-                steps = min(CUTOFF_STEPS, grid.positions.shape[0] - 1 - start)
-                rows.append((s, int(agent), start, steps))
-                goals.append(goal)
+            start = int(np.argmax(long_enough[:, agent])) + T_OBS - 1
+            goal = grid.positions[start + GOAL_STEPS, agent]
+            if np.linalg.norm(goal - grid.positions[start, agent]) <= GOAL_RADIUS:
+                standing += 1
+                continue
+            steps = min(CUTOFF_STEPS, grid.positions.shape[0] - 1 - start)
+            rows.append((s, int(agent), start, steps))
+            goals.append(goal)
     table = np.asarray(rows, dtype=np.int64).reshape(-1, 4)
     return Episodes(
         scenes=tuple(scenes), scene=table[:, 0], agent=table[:, 1], start=table[:, 2], steps=table[:, 3],
@@ -144,13 +136,13 @@ def episodes_of(scenes: Sequence[SceneGrid], every: int | None = None) -> Episod
     )
 
 
-def load_episodes(files: Sequence[str | Path], every: int | None = None) -> Episodes:
-    """The episodes of some recordings (a split's test ones for playback; see `episodes_of` for `every`).
+def load_episodes(files: Sequence[str | Path]) -> Episodes:
+    """The episodes of a split's test recordings.
 
     Raises:
         NaviganError: a file cannot be read, or no pedestrian stays long enough.
     """
-    episodes = episodes_of([scene_grid(read_recording(f)) for f in files], every)
+    episodes = episodes_of([scene_grid(read_recording(f)) for f in files])
     if not len(episodes):
         names = ", ".join(Path(f).name for f in files)
         raise NaviganError(f"no playback episodes in {names}: no pedestrian is present for "

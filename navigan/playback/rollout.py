@@ -5,9 +5,9 @@ the observation is used up), the other pedestrians' recorded last T_OBS position
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
 (4.8 s) ahead, so by default they are handed a sub-goal that far ahead at a walking pace toward
 the episode's goal, as the trial controller hands them; given the goal itself, 36 steps ahead,
-they hurry to reach it in 12. An episode stops when it reaches its goal or its
-cut-off, and leaves the batch. The fluctuation noise of each episode and step is drawn from the
-seed and the episode's name alone, so a batch walks exactly as its episodes one at a time.
+they hurry to reach it in 12. An episode stops when it reaches its goal or its cut-off, and
+leaves the batch. The fluctuation noise of each episode and step is drawn from the seed and the
+episode's name alone, so a batch walks exactly as its episodes one at a time.
 """
 
 from __future__ import annotations
@@ -109,28 +109,24 @@ class Rollout:
         return self.paths[e, : self.steps[e] + 1]
 
 
-def neighbours(episodes: Episodes, active: np.ndarray, step: int, ahead: int = 0) -> np.ndarray:
-    """(B, N, T_OBS + ahead, 2) the recorded last T_OBS positions of the agents present around each
-    active episode's target at `step`, and their next `ahead` ones, in column order, padded with NaN
-    rows (NaN too where the recording ends)."""
+def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
+    """(B, N, T_OBS, 2) the recorded last T_OBS positions of the agents present around each active
+    episode's target at `step`, in column order, padded with NaN rows."""
     scene = episodes.scene[active]
     parts: list[tuple[np.ndarray, np.ndarray]] = []
     for s in np.unique(scene):
         rows = np.flatnonzero(scene == s)
         chosen = active[rows]
         positions = episodes.scenes[s].positions
-        frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1 + ahead)
-        beyond = frames >= len(positions)
-        frames = np.minimum(frames, len(positions) - 1)
-        present = ~np.isnan(positions[frames[:, T_OBS - 1], :, 0])
+        frames = episodes.start[chosen, None] + step + np.arange(1 - T_OBS, 1)
+        present = ~np.isnan(positions[frames[:, -1], :, 0])
         present[np.arange(len(chosen)), episodes.agent[chosen]] = False
         order = np.argsort(~present, axis=1, kind="stable")[:, : present.sum(axis=1).max()]
         window = positions[frames[:, :, None], order[:, None, :]].transpose(0, 2, 1, 3)
         window[~np.take_along_axis(present, order, axis=1)] = np.nan
-        window[np.broadcast_to(beyond[:, None], window.shape[:3])] = np.nan
         parts.append((rows, window))
     width = max(p.shape[1] for _, p in parts)
-    out = np.full((len(active), width, T_OBS + ahead, 2), np.nan, dtype=np.float32)
+    out = np.full((len(active), width, T_OBS, 2), np.nan, dtype=np.float32)
     for rows, part in parts:
         out[rows, : part.shape[1]] = part
     return out

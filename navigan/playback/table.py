@@ -172,9 +172,9 @@ def document(
         "# Table I: long-term playback navigation", "",
         "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
         "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
-        f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The episode ends on arrival "
-        "(within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The human column is the "
-        "recorded path itself.", "",
+        f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
+        "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
+        "human column is the recorded path itself.", "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
         f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
         "(collision), else +1 if the step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 "

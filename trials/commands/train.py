@@ -53,9 +53,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="fraction of encounter rows that keep their window's whole crowd (default 0)")
     parser.add_argument("--force-size", type=float, default=0.1, metavar="W",
                         help="weight of the social force's size beside its changes in encounter rows (default 0.1)")
-    parser.add_argument("--on-policy", type=float, default=0.0, metavar="RATE",
-                        help="rows per target from the states the model visits walking the training scenes, "
-                             "walked again each epoch (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
@@ -83,7 +80,6 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         f"--encounters {args.encounters:g}" if args.encounters else "",
         f"--encounter-crowd {args.encounter_crowd:g}" if args.encounter_crowd else "",
         f"--force-size {args.force_size:g}" if args.force_size != 0.1 else "",
-        f"--on-policy {args.on_policy:g}" if args.on_policy else "",
         f"--out {out.name}",
     ]
     return " ".join(p for p in parts if p)
@@ -111,7 +107,6 @@ def run(args: argparse.Namespace) -> int:
     from navigan.data import Scenes, data_dir, load_split
     from navigan.errors import NaviganError
     from navigan.training import train
-    from navigan.visits import visit_episodes
 
     for name in ("epochs", "batch", "patience", "threads", "hidden", "resist_steps"):
         value = getattr(args, name)
@@ -123,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError(f"--d-safe: expected a positive distance in metres, got {args.d_safe}")
     if not 0 <= args.encounter_crowd <= 1:
         raise NaviganError(f"--encounter-crowd: expected a fraction in [0, 1], got {args.encounter_crowd}")
-    for name in ("w_resistance", "encounters", "force_size", "on_policy"):
+    for name in ("w_resistance", "encounters", "force_size"):
         if not getattr(args, name) >= 0:
             raise NaviganError(f"--{name.replace('_', '-')}: expected a number >= 0, got {getattr(args, name)}")
     first, last = goal_steps(args.goal_steps)
@@ -143,12 +138,11 @@ def run(args: argparse.Namespace) -> int:
         w_resistance=args.w_resistance, d_safe=args.d_safe, goal_first=first, goal_last=last, augment=args.augment,
         resist_intention=not args.resist_forces_only, resist_beyond_truth=args.resist_beyond_truth,
         resist_steps=args.resist_steps, encounters=args.encounters, encounter_crowd=args.encounter_crowd,
-        force_size=args.force_size, on_policy=args.on_policy,
+        force_size=args.force_size,
     )
-    visits = visit_episodes(split.train) if args.on_policy and args.model == "navigan-r" else None
     record = train(
         ModelConfig(args.model, hidden=args.hidden, pair_pool=args.pair_pool), config, train_scenes, val_scenes, split.describe(), out,
-        command=command_line(args, out), device=args.device, progress=not args.quiet, visits=visits,
+        command=command_line(args, out), device=args.device, progress=not args.quiet,
     )
     best = record.best or {"epoch": 0, "val": {}}
     status = record.finished or "unfinished"
