@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def toward(position: np.ndarray, goal: np.ndarray, reach: float) -> np.ndarray:
-    """(..., 2) the points `reach` metres from `position` toward `goal`, beyond it when it is nearer.
+def toward(position: np.ndarray, goal: np.ndarray, reach: float | np.ndarray) -> np.ndarray:
+    """(..., 2) the points `reach` metres ((..., 1) or one for all) from `position` toward `goal`,
+    beyond it when it is nearer.
 
     The networks were trained with goals one horizon (T_PRED steps, 4.8 s) ahead, so a farther goal
     is passed as such a sub-goal, at a walking pace (`reach` = speed * 4.8 s). Kept at that

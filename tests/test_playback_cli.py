@@ -49,14 +49,14 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
     assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
     markdown = (out / "table1.md").read_text()
     assert "0.9^((k-1) * 0.4 s * 1 m/s)" in markdown and "| zara1 | crowds_zara01.txt | 3 | 0 |" in markdown
-    assert "toward a sub-goal 12 steps ahead at 1 m/s in the goal's direction" in markdown
+    assert "toward a sub-goal 12 steps ahead at the recorded pedestrian's pace" in markdown
     for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     stored = {p: p.stat().st_mtime_ns for p in (out / "episodes" / "zara1").glob("*.json")}
     assert len(stored) == 3
     record = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["seed"] == 0
-    assert record["identity"]["settings"]["subgoal_speed"] == 1.0
+    assert record["identity"]["settings"]["subgoal_speed"] == "recorded"
     assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
 
     (out / "episodes" / "zara1" / "navigan-r-dagger.json").unlink()  # as if interrupted before it
@@ -89,7 +89,9 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
         (["--models", "human", "--gamma", "0"], "--gamma"),
         (["--models", "human", "--v-pref", "-1"], "--v-pref"),
         (["--models", "human", "--episodes", "0"], "--episodes"),
-        (["--models", "human", "--subgoal-speed", "-1"], "--subgoal-speed: expected a speed >= 0, got -1"),
+        (["--models", "human", "--subgoal-speed", "-1"],
+         "--subgoal-speed: expected 'recorded' or a speed >= 0 in m/s, got '-1'"),
+        (["--models", "human", "--subgoal-speed", "fast"], "--subgoal-speed: expected 'recorded'"),
     ],
 )
 def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navigan.data import T_OBS, T_PRED, Recording, read_recording
+from navigan.data import STEP_S, T_OBS, T_PRED, Recording, read_recording
 from navigan.errors import NaviganError
 
 GOAL_STEPS = 3 * T_PRED
@@ -86,6 +86,13 @@ class Episodes:
     def ids(self) -> list[str]:
         """A stable name per episode: `file:pedestrian`."""
         return [f"{self.scenes[s].name}:{self.scenes[s].ids[a]:g}" for s, a in zip(self.scene, self.agent)]
+
+    @property
+    def pace(self) -> np.ndarray:
+        """(E,) each target's straight-line speed (m/s) from its start to its goal in GOAL_STEPS
+        steps: the pace that arrives when the recorded person was there."""
+        start = np.stack([self.scenes[s].positions[t, a] for s, a, t in zip(self.scene, self.agent, self.start)])
+        return np.linalg.norm(self.goal - start.reshape(-1, 2), axis=-1) / (GOAL_STEPS * STEP_S)
 
     def history(self) -> np.ndarray:
         """(E, T_OBS, 2) each target's observed positions, oldest first."""

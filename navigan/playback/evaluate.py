@@ -31,7 +31,7 @@ from navigan.errors import NaviganError
 from navigan.playback import figures
 from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
-from navigan.playback.rollout import SUBGOAL_SPEED, Policy, Rollout, recorded_rollout, roll_out
+from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
     COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, paper_values, summarize,
 )
@@ -50,14 +50,15 @@ class Settings:
         scoring: the reward's settings.
         seed: seeds the fluctuation noise (with each episode's name).
         limit: evaluate only the first `limit` episodes of each split (a quick look).
-        subgoal_speed: the pace (m/s) of the sub-goals the networks are handed, T_PRED steps
-            ahead toward the goal (`navigan.goals.toward`); None hands them the goal itself.
+        subgoal_speed: the pace of the sub-goals the networks are handed, T_PRED steps ahead
+            toward the goal: RECORDED (each target's own) or m/s; None hands them the goal itself
+            (see `rollout.roll_out`).
     """
 
     scoring: Scoring = field(default_factory=Scoring)
     seed: int = 0
     limit: int | None = None
-    subgoal_speed: float | None = SUBGOAL_SPEED
+    subgoal_speed: float | str | None = RECORDED
 
     def record(self) -> dict[str, Any]:
         return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed}

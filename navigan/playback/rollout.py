@@ -3,9 +3,9 @@
 At each 0.4 s step the policy sees each target's own last T_OBS positions (the walked ones once
 the observation is used up), the other pedestrians' recorded last T_OBS positions and a goal,
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
-(4.8 s) ahead, so by default they are handed a sub-goal that far ahead at a walking pace toward
-the episode's goal, as the trial controller hands them; given the goal itself, 36 steps ahead,
-they hurry to reach it in 12. An episode stops when it reaches its goal or its cut-off, and
+(4.8 s) ahead, so by default they are handed a sub-goal that far ahead toward the episode's goal
+at the recorded person's pace (as the trial controller hands the robot's at its speed); given
+the goal itself, 36 steps ahead, they hurry to reach it in 12. An episode stops when it reaches its goal or its cut-off, and
 leaves the batch. The fluctuation noise of each episode and step is drawn from the seed and the
 episode's name alone, so a batch walks exactly as its episodes one at a time.
 """
@@ -27,8 +27,18 @@ from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
 
 
-#: The walking pace (m/s) of the default sub-goals: CrowdNav's preferred speed, the Husky's speed.
-SUBGOAL_SPEED = 1.0
+#: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
+RECORDED = "recorded"
+
+
+def subgoal_speeds(episodes: Episodes, speed: float | str | None) -> np.ndarray | None:
+    """(E,) the pace (m/s) of each episode's sub-goals: the recorded person's (RECORDED) or
+    `speed` for all; None to hand the goals themselves."""
+    if speed is None:
+        return None
+    if speed == RECORDED:
+        return episodes.pace
+    return np.full(len(episodes), float(speed))
 
 
 @dataclass(frozen=True)
@@ -137,16 +147,18 @@ def roll_out(
     episodes: Episodes,
     record: bool = False,
     progress: Callable[[int], object] | None = None,
-    subgoal_speed: float | None = SUBGOAL_SPEED,
+    subgoal_speed: float | str | None = RECORDED,
 ) -> Rollout:
     """Walk every episode with `policy`, all active episodes in one batch per step.
 
     Args:
         record: keep each step's plan (for figures; memory grows with the episodes).
         progress: called with 1 after each step.
-        subgoal_speed: the pace (m/s) of the sub-goals handed to the policy (`navigan.goals.toward`);
-            None hands it the episode's goal itself, as the paper describes.
+        subgoal_speed: the pace of the sub-goals handed to the policy (`navigan.goals.toward`):
+            RECORDED (each target's own, see `Episodes.pace`) or a speed in m/s; None hands it
+            the episode's goal itself, as the paper describes.
     """
+    speeds = subgoal_speeds(episodes, subgoal_speed)
     count = len(episodes)
     track = np.full((count, T_OBS + CUTOFF_STEPS, 2), np.nan, dtype=np.float32)
     track[:, :T_OBS] = episodes.history()
@@ -158,8 +170,8 @@ def roll_out(
         if not len(active):
             break
         goals = episodes.goal[active]
-        if subgoal_speed is not None:
-            goals = toward(track[active, step + T_OBS - 1], goals, subgoal_speed * T_PRED * STEP_S)
+        if speeds is not None:
+            goals = toward(track[active, step + T_OBS - 1], goals, speeds[active, None] * T_PRED * STEP_S)
         waypoints, intention, forces = policy.plan(
             track[active, step : step + T_OBS], neighbours(episodes, active, step), goals,
             None if noise is None else noise[active, step],

@@ -165,9 +165,10 @@ def document(
     """
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
+    pace = "the recorded pedestrian's pace (straight to the goal in 14.4 s)" if speed == "recorded" else f"{speed} m/s"
     handed = ("the goal itself" if speed is None else
-              f"a sub-goal 12 steps ahead at {speed:g} m/s in the goal's direction (beyond the goal once "
-              "nearer), as the networks were trained with goals 12 steps ahead")
+              f"a sub-goal 12 steps ahead at {pace} in the goal's direction (beyond the goal once nearer), "
+              "as the networks were trained with goals 12 steps ahead")
     lines = [
         "# Table I: long-term playback navigation", "",
         "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
@@ -35,9 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="preferred speed in S's discount, m/s (default 1.0)")
     parser.add_argument("--collision", type=float, default=0.1,
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
-    parser.add_argument("--subgoal-speed", type=float, default=1.0, metavar="M/S",
-                        help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead at this "
-                             "pace on the line to the goal (default 1.0); 0: the goal itself, as the paper describes")
+    parser.add_argument("--subgoal-speed", default="recorded", metavar="recorded|M/S",
+                        help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead toward the "
+                             "goal at the recorded pedestrian's pace (default) or at M/S; 0: the goal itself, as the "
+                             "paper describes")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N",
                         help="only the first N episodes of each split (a quick look)")
@@ -45,6 +47,26 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="CPU threads for torch (default 1: small batches; more threads thrash on a busy machine)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run)
+
+
+def subgoal_speed(text: str) -> float | str | None:
+    """`recorded`, or a speed in m/s (None for 0: the goal itself).
+
+    Raises:
+        NaviganError: anything else.
+    """
+    from navigan.errors import NaviganError
+    from navigan.playback.rollout import RECORDED
+
+    if text == RECORDED:
+        return RECORDED
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = -1.0
+    if not (math.isfinite(speed) and speed >= 0):
+        raise NaviganError(f"--subgoal-speed: expected 'recorded' or a speed >= 0 in m/s, got {text!r}")
+    return speed or None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,8 +82,7 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError(f"--gamma: expected a number in (0, 1], got {args.gamma:g}")
     if not args.v_pref > 0:
         raise NaviganError(f"--v-pref: expected a positive speed, got {args.v_pref:g}")
-    if not args.subgoal_speed >= 0:
-        raise NaviganError(f"--subgoal-speed: expected a speed >= 0, got {args.subgoal_speed:g}")
+    speed = subgoal_speed(args.subgoal_speed)
     if not 0 <= args.collision < 0.2:
         raise NaviganError(f"--collision: expected a distance in [0, 0.2) m, got {args.collision:g}")
     for name in ("episodes", "threads"):
@@ -79,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     playback = Playback(
         data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
-                          args.subgoal_speed or None),
+                          speed),
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
     print(tables[0].markdown({}).rstrip())
