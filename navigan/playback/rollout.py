@@ -5,9 +5,10 @@ the observation is used up), the other pedestrians' recorded last T_OBS position
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
 (4.8 s) ahead, so by default they are handed a sub-goal that far ahead toward the episode's goal
 at the recorded person's pace (as the trial controller hands the robot's at its speed); given
-the goal itself, 36 steps ahead, they hurry to reach it in 12. An episode stops when it reaches its goal or its cut-off, and
-leaves the batch. The fluctuation noise of each episode and step is drawn from the seed and the
-episode's name alone, so a batch walks exactly as its episodes one at a time.
+the goal itself, 36 steps ahead, they hurry to reach it in 12. An episode stops when it reaches
+its goal or its cut-off, and leaves the batch. The fluctuation noise of each episode and step is
+drawn from the seed and the episode's name alone, so a batch walks exactly as its episodes one
+at a time.
 """
 
 from __future__ import annotations

@@ -165,7 +165,9 @@ def document(
     """
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
-    pace = "the recorded pedestrian's pace (straight to the goal in 14.4 s)" if speed == "recorded" else f"{speed} m/s"
+    pace = f"{speed} m/s"
+    if speed == "recorded":
+        pace = "the recorded pedestrian's pace (straight to the goal in 14.4 s)"
     handed = ("the goal itself" if speed is None else
               f"a sub-goal 12 steps ahead at {pace} in the goal's direction (beyond the goal once nearer), "
               "as the networks were trained with goals 12 steps ahead")
