@@ -22,6 +22,8 @@ GOAL_STEPS = 3 * T_PRED
 CUTOFF_STEPS = 5 * T_PRED
 #: An episode ends with success once the target is this close to its goal (m).
 GOAL_RADIUS = 0.5
+#: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
+RECORDED = "recorded"
 
 
 @dataclass(frozen=True)
@@ -91,8 +93,7 @@ class Episodes:
     def pace(self) -> np.ndarray:
         """(E,) each target's straight-line speed (m/s) from its start to its goal in GOAL_STEPS
         steps: the pace that arrives when the recorded person was there."""
-        start = np.stack([self.scenes[s].positions[t, a] for s, a, t in zip(self.scene, self.agent, self.start)])
-        return np.linalg.norm(self.goal - start.reshape(-1, 2), axis=-1) / (GOAL_STEPS * STEP_S)
+        return np.linalg.norm(self.goal - self.history()[:, -1], axis=-1) / (GOAL_STEPS * STEP_S)
 
     def history(self) -> np.ndarray:
         """(E, T_OBS, 2) each target's observed positions, oldest first."""

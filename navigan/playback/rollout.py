@@ -25,11 +25,7 @@ from navigan import checkpoint as ckpt
 from navigan.data import STEP_S, T_OBS, T_PRED, fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
-from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
-
-
-#: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
-RECORDED = "recorded"
+from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes
 
 
 def subgoal_speeds(episodes: Episodes, speed: float | str | None) -> np.ndarray | None:

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from navigan.playback.episodes import RECORDED
+
 #: Model name -> Table I column, in the paper's order.
 COLUMNS: dict[str, str] = {
     "goal-social-lstm": "Goal",
@@ -166,7 +168,7 @@ def document(
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
     pace = f"{speed} m/s"
-    if speed == "recorded":
+    if speed == RECORDED:
         pace = "the recorded pedestrian's pace (straight to the goal in 14.4 s)"
     handed = ("the goal itself" if speed is None else
               f"a sub-goal 12 steps ahead at {pace} in the goal's direction (beyond the goal once nearer), "
