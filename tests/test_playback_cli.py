@@ -81,6 +81,18 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
     assert [r["path"] for r in direct["results"]] != [r["path"] for r in record["results"]]
 
 
+def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, tmp_path):
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r,navigan-r-shield", "--shield", "0.6") == 0
+    with (out / "table1.csv").open() as f:
+        assert list(next(csv.DictReader(f)))[3:] == ["R", "R+shield"]
+    assert "it would come within 0.6 m of anyone's constant-velocity forecast" in (out / "table1.md").read_text()
+    record = json.loads((out / "episodes" / "zara1" / "navigan-r-shield.json").read_text())
+    assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["shield"] == 0.6
+    plain = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
+    assert [r["path"] for r in record["results"]] != [r["path"] for r in plain["results"]]
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -92,6 +104,7 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
         (["--models", "human", "--subgoal-speed", "-1"],
          "--subgoal-speed: expected 'recorded' or a speed >= 0 in m/s, got '-1'"),
         (["--models", "human", "--subgoal-speed", "fast"], "--subgoal-speed: expected 'recorded'"),
+        (["--models", "human", "--shield", "0"], "--shield: expected a positive distance in m, got 0"),
     ],
 )
 def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):

@@ -12,6 +12,7 @@ from navigan.playback.episodes import GOAL_STEPS, SceneGrid, episodes_of, load_e
 from navigan.playback.evaluate import Playback, Settings, score_rollout
 from navigan.playback.metrics import Scoring
 from navigan.playback.rollout import RECORDED, Policy, neighbours, recorded_rollout, roll_out
+from navigan.shield import shielded_steps
 
 WEIGHTS = ckpt.WEIGHTS_DIR / "navigan-r-zara1.pt"
 
@@ -104,6 +105,22 @@ def test_full_walks_the_way_points_and_dagger_the_intention(few):
             expected = intention if dagger else waypoints
             np.testing.assert_allclose(walked.paths[0, 1], expected[0, 0], atol=1e-6)
             np.testing.assert_allclose(walked.plans[0, 0, 1], intention[0], atol=1e-6)
+
+
+def test_a_shield_checks_the_first_step_and_keeps_zara1_comfortable(zara1, few):
+    first = few.subset([0])
+    policy = Policy.load(WEIGHTS, shield=3.0)  # so wide that the planned step cannot keep it
+    around = neighbours(first, np.array([0]), 0)
+    goal = toward(first.history()[:, -1], first.goal, first.pace[:, None] * 4.8)
+    waypoints, _, _ = policy.plan(first.history(), around, goal, policy.noise(first.ids)[:, 0])
+    checked = shielded_steps(first.history()[:, -1], waypoints[:, 0], around, 3.0)
+    assert np.linalg.norm(checked - waypoints[:, 0]) > 0.05
+    np.testing.assert_allclose(roll_out(policy, first).paths[0, 1], checked[0], atol=1e-6)
+    comfortable = {}
+    for shield in (None, 0.5):
+        walked = roll_out(Policy.load(WEIGHTS, shield=shield), zara1)
+        comfortable[shield] = sum(r["comfortable"] for r in score_rollout(zara1, walked, Scoring()))
+    assert comfortable == {None: 18, 0.5: 19}
 
 
 def test_a_subgoal_lies_one_reach_toward_the_goal_even_past_it():

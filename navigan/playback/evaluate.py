@@ -38,6 +38,8 @@ from navigan.playback.table import (
 
 MODELS: tuple[str, ...] = tuple(COLUMNS)
 HUMAN = "human"
+#: The shielded columns' margin by default (m): the paper's d_safe between people.
+SHIELD_MARGIN = 0.5
 #: Which model's full and dagger paths Fig. 4 shows: the first of these evaluated with its dagger.
 FIGURE_MODELS = ("navigan-r", "navigan", "navil2")
 
@@ -53,20 +55,24 @@ class Settings:
         subgoal_speed: the pace of the sub-goals the networks are handed, T_PRED steps ahead
             toward the goal: RECORDED (each target's own) or m/s; None hands them the goal itself
             (see `rollout.roll_out`).
+        shield: the margin (m) of the shielded columns' check (`navigan.shield`).
     """
 
     scoring: Scoring = field(default_factory=Scoring)
     seed: int = 0
     limit: int | None = None
     subgoal_speed: float | str | None = RECORDED
+    shield: float = SHIELD_MARGIN
 
     def record(self) -> dict[str, Any]:
-        return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed}
+        return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed,
+                                       "shield": self.shield}
 
 
 def base_model(model: str) -> str:
-    """The trained model a column walks with: `navigan-dagger` -> `navigan`."""
-    return model.removesuffix("-dagger")
+    """The trained model a column walks with: `navigan-dagger` and `navigan-r-shield` -> `navigan`
+    and `navigan-r`."""
+    return model.removesuffix("-dagger").removesuffix("-shield")
 
 
 def checkpoint_file(model: str, split: str, folder: Path) -> Path | None:
@@ -181,7 +187,8 @@ class Playback:
         if path is None:
             return recorded_rollout(episodes), None
         record = ckpt.load(path)
-        policy = Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.settings.seed)
+        shield = self.settings.shield if model.endswith("-shield") else None
+        policy = Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.settings.seed, shield=shield)
         about = {"file": path.name, "trained_on": record.split.get("name"), "epochs": record.epoch,
                  "kept_epoch": (record.best or {}).get("epoch"), "finished": record.finished}
         return roll_out(policy, episodes, progress=progress, subgoal_speed=self.settings.subgoal_speed), about

@@ -5,7 +5,9 @@ the observation is used up), the other pedestrians' recorded last T_OBS position
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
 (4.8 s) ahead, so by default they are handed a sub-goal that far ahead toward the episode's goal
 at the recorded person's pace (as the trial controller hands the robot's at its speed); given
-the goal itself, 36 steps ahead, they hurry to reach it in 12. An episode stops when it reaches
+the goal itself, 36 steps ahead, they hurry to reach it in 12. A policy with a shield has its
+first step checked against everyone's constant-velocity forecast (`navigan.shield`) before it is
+walked. An episode stops when it reaches
 its goal or its cut-off, and leaves the batch. The fluctuation noise of each episode and step is
 drawn from the seed and the episode's name alone, so a batch walks exactly as its episodes one
 at a time.
@@ -26,6 +28,7 @@ from navigan.data import STEP_S, T_OBS, T_PRED, fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes
+from navigan.shield import shielded_steps
 
 
 def subgoal_speeds(episodes: Episodes, speed: float | str | None) -> np.ndarray | None:
@@ -48,6 +51,8 @@ class Policy:
         noise_size: size of the fluctuation noise z; 0 for models that run without it.
         seed: seeds each episode's noise (with the episode's name).
         checkpoint: where the weights came from.
+        shield: the margin (m) its first step must keep from everyone's constant-velocity
+            forecast (`navigan.shield.shielded_steps`); None walks the plan as it is.
     """
 
     generator: NaviganGenerator | GoalSocialGenerator
@@ -55,21 +60,23 @@ class Policy:
     noise_size: int
     seed: int
     checkpoint: Path
+    shield: float | None = None
 
     @classmethod
-    def load(cls, path: str | Path, dagger: bool = False, seed: int = 0) -> Policy:
+    def load(cls, path: str | Path, dagger: bool = False, seed: int = 0, shield: float | None = None) -> Policy:
         """The policy of a checkpoint file.
 
         Raises:
             NaviganError: the checkpoint cannot be read.
         """
-        return cls.of(ckpt.load(path), Path(path), dagger, seed)
+        return cls.of(ckpt.load(path), Path(path), dagger, seed, shield)
 
     @classmethod
-    def of(cls, record: ckpt.Checkpoint, path: Path, dagger: bool = False, seed: int = 0) -> Policy:
+    def of(cls, record: ckpt.Checkpoint, path: Path, dagger: bool = False, seed: int = 0,
+           shield: float | None = None) -> Policy:
         """The policy of a loaded checkpoint (read from `path`)."""
         noise = record.model.noise if record.model.recipe.fluctuation else 0
-        return cls(record.build_generator(), dagger, noise, seed, path)
+        return cls(record.build_generator(), dagger, noise, seed, path, shield)
 
     def noise(self, names: list[str]) -> np.ndarray | None:
         """(E, CUTOFF_STEPS, noise) each episode's noise for each step, or None without noise."""
@@ -169,11 +176,14 @@ def roll_out(
         goals = episodes.goal[active]
         if speeds is not None:
             goals = toward(track[active, step + T_OBS - 1], goals, speeds[active, None] * T_PRED * STEP_S)
+        around = neighbours(episodes, active, step)
         waypoints, intention, forces = policy.plan(
-            track[active, step : step + T_OBS], neighbours(episodes, active, step), goals,
-            None if noise is None else noise[active, step],
+            track[active, step : step + T_OBS], around, goals, None if noise is None else noise[active, step],
         )
-        track[active, step + T_OBS] = (intention if policy.dagger else waypoints)[:, 0]
+        walked = (intention if policy.dagger else waypoints)[:, 0]
+        if policy.shield is not None:
+            walked = shielded_steps(track[active, step + T_OBS - 1], walked, around, policy.shield)
+        track[active, step + T_OBS] = walked
         if plans is not None:
             plans[active, step] = np.stack([waypoints, intention, forces], axis=1)
         reached = np.linalg.norm(track[active, step + T_OBS] - episodes.goal[active], axis=-1) <= GOAL_RADIUS

@@ -23,6 +23,7 @@ COLUMNS: dict[str, str] = {
     "navigan-dagger": "NG-dagger",
     "navigan-r": "R",
     "navigan-r-dagger": "R-dagger",
+    "navigan-r-shield": "R+shield",
     "human": "human",
 }
 
@@ -163,7 +164,7 @@ def document(
     Args:
         tables: the pooled table first, then one per split.
         weights: (split, model) -> the checkpoint's description (None for the recordings).
-        settings: gamma, v_pref, collision, seed, limit and subgoal_speed.
+        settings: gamma, v_pref, collision, seed, limit, subgoal_speed and shield.
     """
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
@@ -179,7 +180,11 @@ def document(
         "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
         f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
         "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
-        "human column is the recorded path itself.", "",
+        "human column is the recorded path itself."
+        + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for 3 steps "
+           f"(1.2 s), it would come within {settings['shield']:g} m of anyone's constant-velocity "
+           "forecast, it is replaced by the move nearest to it that keeps the distance (navigan/shield.py)."
+           if "navigan-r-shield" in columns else ""), "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
         f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
         "(collision), else +1 if the step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 "

@@ -7,7 +7,8 @@ import math
 from pathlib import Path
 
 SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
-ALL_MODELS = ("goal-social-lstm,navil2,navil2-dagger,navigan,navigan-dagger,navigan-r,navigan-r-dagger,human")
+ALL_MODELS = ("goal-social-lstm,navil2,navil2-dagger,navigan,navigan-dagger,navigan-r,navigan-r-dagger,"
+              "navigan-r-shield,human")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead toward the "
                              "goal at the recorded pedestrian's pace (default) or at M/S; 0: the goal itself, as the "
                              "paper describes")
+    parser.add_argument("--shield", type=float, default=0.5, metavar="M",
+                        help="R+shield column: the distance (m) its first step must keep from everyone's "
+                             "constant-velocity forecast over 1.2 s (default 0.5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N",
                         help="only the first N episodes of each split (a quick look)")
@@ -83,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.v_pref > 0:
         raise NaviganError(f"--v-pref: expected a positive speed, got {args.v_pref:g}")
     speed = subgoal_speed(args.subgoal_speed)
+    if not (math.isfinite(args.shield) and args.shield > 0):
+        raise NaviganError(f"--shield: expected a positive distance in m, got {args.shield:g}")
     if not 0 <= args.collision < 0.2:
         raise NaviganError(f"--collision: expected a distance in [0, 0.2) m, got {args.collision:g}")
     for name in ("episodes", "threads"):
@@ -100,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     playback = Playback(
         data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
-                          speed),
+                          speed, args.shield),
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
     print(tables[0].markdown({}).rstrip())
