@@ -22,8 +22,8 @@ import torch
 from navigan import checkpoint as ckpt
 from navigan.data import SPLITS, load_split
 from navigan.playback.episodes import load_episodes
-from navigan.playback.evaluate import HUMAN, MODELS, Playback, checkpoint_file
-from navigan.playback.rollout import Policy, roll_out
+from navigan.playback.evaluate import HUMAN, MODELS, Playback, Settings, checkpoint_file
+from navigan.playback.rollout import roll_out
 from navigan.playback.table import COLUMNS
 
 DATA = Path(os.environ.get("TRIALS_DATA", Path(__file__).resolve().parents[2] / "shared" / "datasets" / "eth_ucy"))
@@ -54,7 +54,8 @@ def main() -> None:
     for model in have:
         if model == HUMAN:
             continue
-        policy = Policy.load(checkpoint_file(model, args.split, ckpt.WEIGHTS_DIR), dagger=model.endswith("-dagger"))
+        path = checkpoint_file(model, args.split, ckpt.WEIGHTS_DIR)
+        policy = Settings().policy(model, ckpt.load(path), path)
         start = time.perf_counter()
         rollout = roll_out(policy, episodes)
         seconds = time.perf_counter() - start

@@ -60,8 +60,12 @@ def shielded_steps(
         others: (B, N, T, 2) the others' recent positions (T >= 2), NaN where unknown.
     """
     step = planned - positions
-    moves = np.broadcast_to(MOVES * STEP_S, (len(positions),) + MOVES.shape)
-    candidates = np.concatenate([step[:, None], moves], axis=1)
-    gap = clearance(positions, candidates, forecast(others, horizon))
-    cost = np.linalg.norm(candidates - step[:, None], axis=-1) + PENALTY * np.clip(margin - gap, 0.0, None)
-    return positions + candidates[np.arange(len(positions)), cost.argmin(axis=1)]
+    ahead = forecast(others, horizon)
+    short = clearance(positions, step[:, None], ahead)[:, 0] < margin
+    if short.any():  # only the walkers whose planned step falls short weigh the alternatives
+        moves = np.broadcast_to(MOVES * STEP_S, (int(short.sum()),) + MOVES.shape)
+        candidates = np.concatenate([step[short, None], moves], axis=1)
+        gap = clearance(positions[short], candidates, ahead[short])
+        cost = np.linalg.norm(candidates - step[short, None], axis=-1) + PENALTY * np.clip(margin - gap, 0.0, None)
+        step[short] = candidates[np.arange(len(candidates)), cost.argmin(axis=1)]
+    return positions + step

@@ -68,6 +68,11 @@ class Settings:
         return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed,
                                        "shield": self.shield}
 
+    def policy(self, model: str, record: ckpt.Checkpoint, path: Path) -> Policy:
+        """The policy a learned column walks with: its checkpoint's, its dagger or shield, our seed."""
+        shield = self.shield if model.endswith("-shield") else None
+        return Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.seed, shield=shield)
+
 
 def base_model(model: str) -> str:
     """The trained model a column walks with: `navigan-dagger` and `navigan-r-shield` -> `navigan`
@@ -187,8 +192,7 @@ class Playback:
         if path is None:
             return recorded_rollout(episodes), None
         record = ckpt.load(path)
-        shield = self.settings.shield if model.endswith("-shield") else None
-        policy = Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.settings.seed, shield=shield)
+        policy = self.settings.policy(model, record, path)
         about = {"file": path.name, "trained_on": record.split.get("name"), "epochs": record.epoch,
                  "kept_epoch": (record.best or {}).get("epoch"), "finished": record.finished}
         return roll_out(policy, episodes, progress=progress, subgoal_speed=self.settings.subgoal_speed), about
