@@ -1,8 +1,8 @@
 """A constant-velocity check of a plan's first step: the nearest move that keeps its distance.
 
-Everyone else is forecast to keep their last move for `horizon` steps. If the planned first step,
-held for those steps, would bring the walker closer than `margin` to someone, it is replaced by
-the move (a ring of headings and speeds) that costs least: its distance from the planned step
+Everyone else is forecast to keep their last move for `horizon` steps (HORIZON by default). If
+the planned first step, held for those steps, would bring the walker closer than `margin` to
+someone, it is replaced by the move (a ring of headings and speeds) that costs least: its distance from the planned step
 plus PENALTY times the shortfall of its closest forecast approach. A step that keeps the margin
 costs nothing and is kept, so the check only bends the plan where the forecast says it must.
 """
@@ -18,6 +18,9 @@ HEADINGS = np.deg2rad(np.arange(0, 360, 15))
 SPEEDS = np.array([0.0, 0.3, 0.6, 0.9, 1.2, 1.5])
 #: Cost per metre of shortfall, against one per metre of change to the planned step.
 PENALTY = 10.0
+#: Steps (0.4 s each) of the forecast: 1.6 s, the part of a plan the playback NaviGAN-R's
+#: resistance loss scores and its pooling looks ahead.
+HORIZON = 4
 
 MOVES = (SPEEDS[:, None, None] * np.stack([np.cos(HEADINGS), np.sin(HEADINGS)], axis=-1)[None]).reshape(-1, 2)
 
@@ -49,7 +52,7 @@ def clearance(positions: np.ndarray, steps: np.ndarray, ahead: np.ndarray) -> np
 
 
 def shielded_steps(
-    positions: np.ndarray, planned: np.ndarray, others: np.ndarray, margin: float, horizon: int = 3
+    positions: np.ndarray, planned: np.ndarray, others: np.ndarray, margin: float, horizon: int = HORIZON
 ) -> np.ndarray:
     """(B, 2) each walker's step: the planned one if it keeps `margin` from everyone's forecast
     over `horizon` steps, else the cheapest move (see the module's docstring).

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navigan.shield import MOVES, forecast, shielded_steps
+from navigan.shield import HORIZON, MOVES, forecast, shielded_steps
 
 STEP = 0.4
 
@@ -15,7 +15,7 @@ def track(now: tuple[float, float], move: tuple[float, float]) -> np.ndarray:
     return np.asarray(now) + np.arange(-7, 1)[:, None] * np.asarray(move)
 
 
-def closest(position: np.ndarray, step: np.ndarray, others: np.ndarray, horizon: int = 3) -> float:
+def closest(position: np.ndarray, step: np.ndarray, others: np.ndarray, horizon: int = HORIZON) -> float:
     """The closest approach over the horizon of `step` held from `position`, by plain loops."""
     best = np.inf
     for other in others:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from navigan.playback.episodes import RECORDED
+from navigan.shield import HORIZON
 
 #: Model name -> Table I column, in the paper's order.
 COLUMNS: dict[str, str] = {
@@ -181,8 +182,8 @@ def document(
         f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
         "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
         "human column is the recorded path itself."
-        + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for 3 steps "
-           f"(1.2 s), it would come within {settings['shield']:g} m of anyone's constant-velocity "
+        + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for {HORIZON} steps "
+           f"({HORIZON * 0.4:g} s), it would come within {settings['shield']:g} m of anyone's constant-velocity "
            "forecast, it is replaced by the move nearest to it that keeps the distance (navigan/shield.py)."
            if "navigan-r-shield" in columns else ""), "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "

@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "paper describes")
     parser.add_argument("--shield", type=float, default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
-                             "constant-velocity forecast over 1.2 s (default 0.5)")
+                             "constant-velocity forecast over 1.6 s (default 0.5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N",
                         help="only the first N episodes of each split (a quick look)")
