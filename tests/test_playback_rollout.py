@@ -56,8 +56,8 @@ def test_who_makes_an_episode():
 
 
 def test_batched_and_one_at_a_time_roll_outs_agree(few):
-    for dagger in (False, True):
-        policy = Policy.load(WEIGHTS, dagger=dagger, seed=3)
+    for dagger, shield in ((False, None), (True, None), (False, 0.5)):
+        policy = Policy.load(WEIGHTS, dagger=dagger, seed=3, shield=shield)
         batched = roll_out(policy, few)
         for e in range(len(few)):
             alone = roll_out(policy, few.subset([e]))
