@@ -1,10 +1,11 @@
 """A constant-velocity check of a plan's first step: the nearest move that keeps its distance.
 
-Everyone else is forecast to keep their last move for `horizon` steps (HORIZON by default). If
-the planned first step, held for those steps, would bring the walker closer than `margin` to
-someone, it is replaced by the move (a ring of headings and speeds) that costs least: its distance from the planned step
-plus PENALTY times the shortfall of its closest forecast approach. A step that keeps the margin
-costs nothing and is kept, so the check only bends the plan where the forecast says it must.
+Everyone else is forecast to keep their last move for `horizon` steps (HORIZON by default). If the
+planned first step, held for those steps, would bring the walker closer than `margin` to someone,
+it is replaced by the move (a ring of headings and speeds) that costs least: its distance from the
+planned step plus PENALTY times the shortfall of its closest forecast approach. A step that keeps
+the margin costs nothing and is kept, so the check only bends the plan where the forecast says it
+must.
 """
 
 from __future__ import annotations

@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from navigan.data import STEP_S
 from navigan.shield import HORIZON, MOVES, forecast, shielded_steps
-
-STEP = 0.4
 
 
 def track(now: tuple[float, float], move: tuple[float, float]) -> np.ndarray:
@@ -51,7 +50,7 @@ def test_head_on_the_nearest_move_that_keeps_the_margin_is_taken():
     assert closest(position[0], planned[0], others[0]) == pytest.approx(0.1)
     step = shielded_steps(position, planned, others, margin=0.5)[0] - position[0]
     assert closest(position[0], step, others[0]) >= 0.5
-    keeping = [m * STEP for m in MOVES if closest(position[0], m * STEP, others[0]) >= 0.5]
+    keeping = [m * STEP_S for m in MOVES if closest(position[0], m * STEP_S, others[0]) >= 0.5]
     change = np.linalg.norm(step - planned[0])
     assert change == pytest.approx(min(np.linalg.norm(m - planned[0]) for m in keeping))
     assert 0.1 < change < 0.6

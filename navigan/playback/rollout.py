@@ -4,13 +4,12 @@ At each 0.4 s step the policy sees each target's own last T_OBS positions (the w
 the observation is used up), the other pedestrians' recorded last T_OBS positions and a goal,
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
 (4.8 s) ahead, so by default they are handed a sub-goal that far ahead toward the episode's goal
-at the recorded person's pace (as the trial controller hands the robot's at its speed); given
-the goal itself, 36 steps ahead, they hurry to reach it in 12. A policy with a shield has its
-first step checked against everyone's constant-velocity forecast (`navigan.shield`) before it is
-walked. An episode stops when it reaches
-its goal or its cut-off, and leaves the batch. The fluctuation noise of each episode and step is
-drawn from the seed and the episode's name alone, so a batch walks exactly as its episodes one
-at a time.
+at the recorded person's pace (as the trial controller hands the robot's at its speed); given the
+goal itself, 36 steps ahead, they hurry to reach it in 12. A policy with a shield has its first
+step checked against everyone's constant-velocity forecast (`navigan.shield`) before it is walked.
+An episode stops when it reaches its goal or its cut-off, and leaves the batch. The fluctuation
+noise of each episode and step is drawn from the seed and the episode's name alone, so a batch
+walks exactly as its episodes one at a time.
 """
 
 from __future__ import annotations

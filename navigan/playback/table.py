@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from navigan.data import STEP_S
 from navigan.playback.episodes import RECORDED
 from navigan.shield import HORIZON
 
@@ -182,9 +183,10 @@ def document(
         f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
         "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
         "human column is the recorded path itself."
-        + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for {HORIZON} steps "
-           f"({HORIZON * 0.4:g} s), it would come within {settings['shield']:g} m of anyone's constant-velocity "
-           "forecast, it is replaced by the move nearest to it that keeps the distance (navigan/shield.py)."
+        + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for {HORIZON} "
+           f"steps ({HORIZON * STEP_S:g} s), it would come within {settings['shield']:g} m of anyone's "
+           "constant-velocity forecast, it is replaced by the move nearest to it that keeps the "
+           "distance (navigan/shield.py)."
            if "navigan-r-shield" in columns else ""), "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
         f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
