@@ -133,6 +133,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         self.sampling  # checks the goal range
+        if self.resist_steps is not None and not 1 <= self.resist_steps <= T_PRED:
+            raise NaviganError(f"resistance steps {self.resist_steps}: expected 1 to {T_PRED}, the plan's way-points")
 
     @property
     def sampling(self) -> Sampling:

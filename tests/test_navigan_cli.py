@@ -88,6 +88,7 @@ def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
     ("--d-safe", "0", "--d-safe: expected a positive distance in metres, got 0.0"),
     ("--encounter-crowd", "1.5", "--encounter-crowd: expected a fraction in [0, 1], got 1.5"),
     ("--resist-steps", "0", "--resist-steps: expected a positive whole number, got 0"),
+    ("--resist-steps", "13", "resistance steps 13: expected 1 to 12, the plan's way-points"),
     ("--force-size", "-1", "--force-size: expected a number >= 0, got -1.0"),
 ])
 def test_bad_social_training_options(data, tmp_path, capsys, option, value, message):
