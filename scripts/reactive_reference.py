@@ -22,6 +22,7 @@ from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
 from navigan.playback.rollout import Rollout
+from navigan.shield import clearance, forecast
 
 HEADINGS = np.deg2rad(np.arange(-90, 91, 10))
 SPEEDS = np.array([0.0, 0.4, 0.8, 1.2, 1.5])
@@ -33,21 +34,14 @@ def walk(episodes: Episodes, e: int, position: np.ndarray, margin: float, horizo
     start, goal = episodes.start[e], episodes.goal[e].astype(float)
     others = np.delete(episodes.scenes[episodes.scene[e]].positions, episodes.agent[e], axis=1).astype(float)
     position = position.astype(float)
-    ahead = STEP_S * np.arange(1, horizon + 1)[:, None, None, None]
     path = [position]
     for k in range(episodes.steps[e]):
-        now, before = others[start + k], others[start + k - 1]
-        seen = ~np.isnan(now[:, 0])
-        velocity = np.nan_to_num((now - before) / STEP_S)[seen]
+        ahead = forecast(others[start + k - 1 : start + k + 1].transpose(1, 0, 2)[None], horizon)
         towards = np.arctan2(*(goal - position)[::-1]) + HEADINGS
         moves = SPEEDS[:, None, None] * np.stack([np.cos(towards), np.sin(towards)], axis=-1)[None]
-        candidates = moves.reshape(-1, 2)
-        if seen.any():
-            gap = np.linalg.norm(now[seen] + velocity * ahead - (position + candidates[:, None] * ahead), axis=-1)
-            closest = gap.min(axis=(0, 2))
-        else:
-            closest = np.full(len(candidates), np.inf)
-        after = position + candidates * STEP_S
+        candidates = moves.reshape(-1, 2) * STEP_S
+        closest = clearance(position[None], candidates[None], ahead)[0]
+        after = position + candidates
         cost = np.linalg.norm(goal - after, axis=-1) + PENALTY * np.clip(margin - closest, 0, None)
         position = after[np.argmin(cost)]
         path.append(position)
