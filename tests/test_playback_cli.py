@@ -126,3 +126,69 @@ def test_missing_checkpoint_is_named(eth_ucy_dir, tmp_path, capsys):
 def test_missing_data_folder(tmp_path, capsys):
     assert playback(tmp_path / "nowhere", tmp_path / "pb", "--models", "human") == 2
     assert "splits.json" in error_line(capsys)
+
+
+def transcription(folder, values, source="Tsai & Oh 2020, Table I (hand copy)") -> str:
+    path = folder / "paper.json"
+    path.write_text(json.dumps({"source": source, "values": values}))
+    return str(path)
+
+
+def test_a_transcription_of_the_paper_is_printed_beside_ours(eth_ucy_dir, tmp_path):
+    out = tmp_path / "pb"
+    paper = transcription(tmp_path, {"S": {"human": -0.125}, "C": {"R": 0.875, "human": 0.75}, "A": {"R": 1}})
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r-shield,human", "--paper", paper) == 0
+    with (out / "table1.csv").open() as f:
+        rows = {(r["scope"], r["metric"], r["source"]): r for r in csv.DictReader(f)}
+    assert rows["all", "C", "paper"]["human"] == "0.750" and rows["all", "S", "paper"]["human"] == "-0.125"
+    assert rows["all", "A", "paper"]["human"] == "n/a"  # not transcribed
+    assert rows["all", "C", "paper"]["R+shield"] == ""  # not a column of the paper's
+    assert ("zara1", "C", "paper") not in rows
+    markdown = (out / "table1.md").read_text()
+    assert "| C, paper |  | 0.750 |" in markdown
+    assert "The paper's rows: Tsai & Oh 2020, Table I (hand copy)." in markdown
+
+    # the shipped file: every cell still n/a, and the table says how to supply them
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r-shield,human") == 0
+    markdown = (out / "table1.md").read_text()
+    assert "| C, paper |  | n/a |" in markdown and "`trials playback --paper FILE`" in markdown
+
+
+def test_the_shipped_transcription_is_well_formed():
+    from navigan.playback.paper import PAPER_COLUMNS, load_paper
+
+    paper = load_paper()
+    assert "Tsai & Oh" in paper.source and paper.transcribed == 0
+    assert {m: sorted(row) for m, row in paper.values.items()} == {m: sorted(PAPER_COLUMNS) for m in "SCA"}
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"C": {"R": 1.7}}, "values.C.R: expected null or a fraction in [0, 1], got 1.7"),
+        ({"A": {"human": True}}, "values.A.human: expected null or a fraction in [0, 1], got true"),
+        ({"S": {"R": "0.3"}}, "values.S.R: expected null or a number, got \"0.3\""),
+        ({"C": {"NaviGAN-R": 0.9}}, "values.C.NaviGAN-R: unknown column; expected Goal, L2,"),
+        ({"D": {"R": 0.9}}, "values.D: unknown metric; expected S, C, A"),
+        ({"C": [0.9]}, "values.C: expected an object of columns"),
+        ([], "\"values\": expected an object of metrics"),
+    ],
+)
+def test_a_bad_transcription_is_refused_before_any_work(eth_ucy_dir, tmp_path, capsys, values, message):
+    out = tmp_path / "pb"
+    paper = transcription(tmp_path, values)
+    assert playback(eth_ucy_dir, out, "--models", "human", "--paper", paper) == 2
+    assert f"error: {paper}: {message}" in error_line(capsys)
+    assert not out.exists()
+
+
+def test_an_unreadable_or_unsourced_transcription_is_refused(eth_ucy_dir, tmp_path, capsys):
+    out = tmp_path / "pb"
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"source": "x", "values": {"C": {"R": 0.9,}}}')
+    assert playback(eth_ucy_dir, out, "--models", "human", "--paper", str(broken)) == 2
+    assert f"cannot read the paper's table {broken}: Expecting property name" in error_line(capsys)
+    assert playback(eth_ucy_dir, out, "--models", "human", "--paper", transcription(tmp_path, {}, source=" ")) == 2
+    assert "expected an object with a non-empty \"source\" text" in error_line(capsys)
+    assert playback(eth_ucy_dir, out, "--models", "human", "--paper", str(tmp_path / "absent.json")) == 2
+    assert "cannot read the paper's table" in error_line(capsys) and not out.exists()

@@ -31,9 +31,10 @@ from navigan.errors import NaviganError
 from navigan.playback import figures
 from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
+from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
-    COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, paper_values, summarize,
+    COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, summarize,
 )
 
 MODELS: tuple[str, ...] = tuple(COLUMNS)
@@ -143,12 +144,14 @@ def _digest(path: Path) -> str:
 
 @dataclass
 class Playback:
-    """An evaluation writing into `out`, with checkpoints from `checkpoints`, data under `data`."""
+    """An evaluation writing into `out`, with checkpoints from `checkpoints`, data under `data`, and
+    the paper's values from the transcription `paper`."""
 
     data: Path
     out: Path
     checkpoints: Path = ckpt.WEIGHTS_DIR
     settings: Settings = field(default_factory=Settings)
+    paper: Path = PAPER_FILE
 
     def result_file(self, split: str, model: str) -> Path:
         return self.out / "episodes" / split / f"{model}.json"
@@ -201,10 +204,11 @@ class Playback:
         """Evaluate what is not stored yet, then write the tables, the episode CSV and the figures.
 
         Raises:
-            NaviganError: unknown split or model, missing checkpoint or data, or a stored result
-                made differently.
+            NaviganError: unknown split or model, missing checkpoint or data, a bad transcription
+                of the paper's table, or a stored result made differently.
         """
         check_request(splits, models, self.checkpoints)
+        paper = load_paper(self.paper)
         models = [m for m in MODELS if m in models]
         loaded = {s: self.episodes(s) for s in splits}
         results: dict[tuple[str, str], dict[str, Any]] = {}
@@ -229,19 +233,18 @@ class Playback:
                           "identity": identity, "results": score_rollout(episodes, rollout, self.settings.scoring)}
                 write_atomic(self.result_file(split, model), (json.dumps(record) + "\n").encode())
                 results[split, model] = record
-        tables = self.write_tables(splits, models, loaded, results)
+        tables = self.write_tables(splits, models, loaded, results, paper)
         self.write_figures(splits, models, loaded, results)
         return tables
 
     def write_tables(self, splits: Sequence[str], models: Sequence[str],
                      loaded: dict[str, tuple[Episodes, list[str]]],
-                     results: dict[tuple[str, str], dict[str, Any]]) -> list[Table]:
-        """table1.md, table1.csv and episodes.csv from the results."""
+                     results: dict[tuple[str, str], dict[str, Any]], paper: PaperTable) -> list[Table]:
+        """table1.md, table1.csv and episodes.csv from the results, the paper's values beside them."""
         columns = tuple(models)
         pooled = {m: summarize([r for s in splits for r in results[s, m]["results"]]) for m in models}
         tables = [Table("all", columns, pooled)]
         tables += [Table(s, columns, {m: summarize(results[s, m]["results"]) for m in models}) for s in splits]
-        paper = paper_values()
         scenes = [SceneCount(s, loaded[s][1], len(loaded[s][0]), loaded[s][0].standing) for s in splits]
         weights = {(s, m): results[s, m]["checkpoint"] for s in splits for m in models}
         write_atomic(self.out / "table1.md", document(tables, scenes, weights, self.settings.record(), paper).encode())

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from navigan.data import STEP_S
 from navigan.playback.episodes import RECORDED
+from navigan.playback.paper import PAPER_COLUMNS, PaperTable
 from navigan.shield import HORIZON
 
 #: Model name -> Table I column, in the paper's order.
@@ -28,8 +27,6 @@ COLUMNS: dict[str, str] = {
     "navigan-r-shield": "R+shield",
     "human": "human",
 }
-
-PAPER_FILE = Path(__file__).resolve().parent / "paper_table1.json"
 
 Scores = Sequence[Mapping[str, Any]]
 
@@ -78,11 +75,6 @@ def summarize(scores: Scores) -> dict[str, float | None]:
     return {m.key: m.of(scores) for m in METRICS}
 
 
-def paper_values(path: Path = PAPER_FILE) -> dict[str, dict[str, float | None]]:
-    """The paper's Table I values, metric -> column label -> value (None where not transcribed)."""
-    return json.loads(path.read_text(encoding="utf-8"))["values"]
-
-
 def _cell(value: float | None, digits: int) -> str:
     return "n/a" if value is None else f"{value:.{digits}f}"
 
@@ -101,19 +93,21 @@ class Table:
     columns: tuple[str, ...]
     values: Mapping[str, Mapping[str, float | None]]
 
-    def rows(self, paper: Mapping[str, Mapping[str, float | None]]) -> list[tuple[str, str, list[str]]]:
-        """(metric key, source, cells) rows: ours, and the paper's under S, C and A for the pooled table."""
+    def rows(self, paper: PaperTable | None) -> list[tuple[str, str, list[str]]]:
+        """(metric key, source, cells) rows: ours, and the paper's under S, C and A for the pooled
+        table (n/a where not transcribed, empty under a column the paper has not)."""
         rows = []
         for metric in METRICS:
             ours = [_cell(self.values[m][metric.key], metric.digits) if m in self.values else "pending"
                     for m in self.columns]
             rows.append((metric.key, "ours", ours))
-            if self.scope == "all" and metric.key in paper:
-                rows.append((metric.key, "paper",
-                             [_cell(paper[metric.key].get(COLUMNS[m]), metric.digits) for m in self.columns]))
+            if paper is not None and self.scope == "all" and metric.key in paper.values:
+                row = paper.values[metric.key]
+                rows.append((metric.key, "paper", [_cell(row.get(COLUMNS[m]), metric.digits)
+                                                   if COLUMNS[m] in PAPER_COLUMNS else "" for m in self.columns]))
         return rows
 
-    def markdown(self, paper: Mapping[str, Mapping[str, float | None]]) -> str:
+    def markdown(self, paper: PaperTable | None) -> str:
         labels = {m.key: m.label for m in METRICS}
         lines = ["| | " + " | ".join(COLUMNS[m] for m in self.columns) + " |",
                  "|---" + "|---:" * len(self.columns) + "|"]
@@ -123,7 +117,7 @@ class Table:
         return "\n".join(lines) + "\n"
 
 
-def csv_text(tables: Sequence[Table], paper: Mapping[str, Mapping[str, float | None]]) -> str:
+def csv_text(tables: Sequence[Table], paper: PaperTable | None) -> str:
     """All tables as one CSV: scope, metric, source (ours/paper), then one column per model."""
     models = list(dict.fromkeys(m for t in tables for m in t.columns))
     out = io.StringIO()
@@ -158,7 +152,7 @@ def document(
     scenes: Sequence[SceneCount],
     weights: Mapping[tuple[str, str], Mapping[str, Any] | None],
     settings: Mapping[str, Any],
-    paper: Mapping[str, Mapping[str, float | None]],
+    paper: PaperTable,
 ) -> str:
     """table1.md: the protocol and exact metric definitions, the pooled table beside the paper's,
     the episodes per split, the weights used, and one table per split.
@@ -199,6 +193,9 @@ def document(
         f"- Seed {settings['seed']}" + (f"; first {limit} episodes of each split only" if limit else "") + ".", "",
         f"## All splits pooled ({', '.join(c.split for c in scenes)}; {sum(c.episodes for c in scenes)} episodes)",
         "", tables[0].markdown(paper), "",
+        f"The paper's rows: {paper.source.rstrip('.')}" + ("" if paper.transcribed else
+                                               " (no cell transcribed yet: n/a; `trials playback --paper FILE` "
+                                               "takes a transcription)") + ".", "",
         "## Episodes per split", "",
         "| split | test recordings | episodes | left out: goal within 0.5 m of the start |",
         "|---|---|---:|---:|",

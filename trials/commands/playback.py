@@ -44,6 +44,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--shield", type=float, default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
                              "constant-velocity forecast over 1.6 s (default 0.5)")
+    parser.add_argument("--paper", type=Path, metavar="FILE",
+                        help="the paper's Table I values to print beside ours, as JSON {\"source\": text, "
+                             "\"values\": {\"S\"|\"C\"|\"A\": {column: number or null}}} (default: the shipped "
+                             "navigan/playback/paper_table1.json)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=int, metavar="N",
                         help="only the first N episodes of each split (a quick look)")
@@ -81,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.errors import NaviganError
     from navigan.playback.evaluate import Playback, Settings
     from navigan.playback.metrics import Scoring
+    from navigan.playback.paper import PAPER_FILE
 
     if not 0 < args.gamma <= 1:
         raise NaviganError(f"--gamma: expected a number in (0, 1], got {args.gamma:g}")
@@ -107,9 +112,10 @@ def run(args: argparse.Namespace) -> int:
         data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
                           speed, args.shield),
+        paper=args.paper or PAPER_FILE,
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
-    print(tables[0].markdown({}).rstrip())
+    print(tables[0].markdown(None).rstrip())
     counts = ", ".join(f"{t.scope} {int(next(iter(t.values.values()))['episodes'])}" for t in tables[1:])
     print(f"episodes per split: {counts}")
     print(f"wrote {args.out / 'table1.md'}, table1.csv, episodes.csv, figures/")
