@@ -28,6 +28,9 @@ COLUMNS: dict[str, str] = {
     "human": "human",
 }
 
+#: Said after the paper's source while none of its cells holds a number.
+UNTRANSCRIBED = " (no cell transcribed yet: n/a; `trials playback --paper FILE` takes a transcription)"
+
 Scores = Sequence[Mapping[str, Any]]
 
 
@@ -193,9 +196,7 @@ def document(
         f"- Seed {settings['seed']}" + (f"; first {limit} episodes of each split only" if limit else "") + ".", "",
         f"## All splits pooled ({', '.join(c.split for c in scenes)}; {sum(c.episodes for c in scenes)} episodes)",
         "", tables[0].markdown(paper), "",
-        f"The paper's rows: {paper.source.rstrip('.')}" + ("" if paper.transcribed else
-                                               " (no cell transcribed yet: n/a; `trials playback --paper FILE` "
-                                               "takes a transcription)") + ".", "",
+        f"The paper's rows: {paper.source.rstrip('.')}{'' if paper.transcribed else UNTRANSCRIBED}.", "",
         "## Episodes per split", "",
         "| split | test recordings | episodes | left out: goal within 0.5 m of the start |",
         "|---|---|---:|---:|",
