@@ -24,7 +24,7 @@ from trials.controllers.lattice.environment import read_cfg
 from trials.controllers.lattice.planner import LatticePlanner, make_planner
 from trials.controllers.lattice.primitives import read_mprim
 
-SBPL_DIR = Path(__file__).resolve().parents[2] / "shared" / "samples" / "sbpl"
+SBPL_DIR = Path(__file__).resolve().parents[1] / "tests" / "data" / "sbpl"
 RECTANGLE = [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)]
 #: (environment, primitives, footprint, SBPL's expansions first / eps 1, SBPL's seconds first / eps 1)
 PROBLEMS = [

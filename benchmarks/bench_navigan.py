@@ -23,11 +23,11 @@ import torch
 
 from navigan import checkpoint as ckpt
 from navigan.config import ModelConfig, TrainConfig
-from navigan.data import Scenes, load_split
+from navigan.data import SHIPPED_DATA, Scenes, load_split
 from navigan.planner import Planner
 from navigan.training import Networks, run_epoch
 
-DATA = Path(os.environ.get("TRIALS_DATA", Path(__file__).resolve().parents[2] / "shared" / "datasets" / "eth_ucy"))
+DATA = Path(os.environ.get("TRIALS_DATA", SHIPPED_DATA))
 
 
 def planning_latency(weights: str, calls: int) -> tuple[float, float]:
@@ -60,7 +60,7 @@ def epoch_seconds(scenes: Scenes, model: ModelConfig, config: TrainConfig, threa
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=DATA, help="ETH/UCY folder (default: $TRIALS_DATA or ../shared)")
+    parser.add_argument("--data", type=Path, default=DATA, help="ETH/UCY folder (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--calls", type=int, default=1000, help="planning calls to time (default 1000)")
     parser.add_argument("--batch", type=int, nargs="+", default=[32, 256], help="batch sizes to time an epoch at")
     parser.add_argument("--threads", type=int, default=1, help="CPU threads for the epoch (default 1)")

@@ -20,13 +20,13 @@ from pathlib import Path
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import SPLITS, load_split
+from navigan.data import SHIPPED_DATA, SPLITS, load_split
 from navigan.playback.episodes import load_episodes
 from navigan.playback.evaluate import HUMAN, MODELS, Playback, Settings, checkpoint_file
 from navigan.playback.rollout import roll_out
 from navigan.playback.table import COLUMNS
 
-DATA = Path(os.environ.get("TRIALS_DATA", Path(__file__).resolve().parents[2] / "shared" / "datasets" / "eth_ucy"))
+DATA = Path(os.environ.get("TRIALS_DATA", SHIPPED_DATA))
 
 
 def available(models: tuple[str, ...], splits: tuple[str, ...]) -> tuple[list[str], list[str]]:
@@ -40,7 +40,7 @@ def available(models: tuple[str, ...], splits: tuple[str, ...]) -> tuple[list[st
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=DATA, help="ETH/UCY folder (default: $TRIALS_DATA or ../shared)")
+    parser.add_argument("--data", type=Path, default=DATA, help="ETH/UCY folder (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--split", default="univ", help="split of the roll-out timing (default univ)")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     parser.add_argument("--skip-full", action="store_true", help="time the roll-outs only")

@@ -29,7 +29,7 @@ from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.pipeline import PersonTracker
 from robot_logs.reader import LogReader
 
-SAMPLES = Path(__file__).resolve().parents[2] / "shared" / "samples" / "robot_logs"
+SAMPLES = Path(__file__).resolve().parents[1] / "tests" / "data" / "robot_logs"
 PEOPLE = 6
 
 

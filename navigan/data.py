@@ -380,15 +380,16 @@ class Split:
         return record
 
 
+SHIPPED_DATA = Path(__file__).resolve().parent / "datasets" / "eth_ucy"
+
+
 def data_dir(path: str | Path | None) -> Path:
-    """The ETH/UCY folder: `path` if given, else $TRIALS_DATA.
+    """The ETH/UCY folder: `path` if given, else $TRIALS_DATA, else the copy shipped with the package.
 
     Raises:
-        NaviganError: neither is set, or the folder has no splits.json.
+        NaviganError: the folder has no splits.json.
     """
-    chosen = path if path is not None else os.environ.get("TRIALS_DATA")
-    if not chosen:
-        raise NaviganError("no ETH/UCY data folder: pass --data DIR or set TRIALS_DATA")
+    chosen = path if path is not None else os.environ.get("TRIALS_DATA") or SHIPPED_DATA
     root = Path(chosen)
     if not (root / "splits.json").is_file():
         raise NaviganError(f"{root} is not an ETH/UCY data folder: it has no splits.json")

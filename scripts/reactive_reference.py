@@ -7,7 +7,7 @@ approach over the next --horizon steps falls short of --margin. It is scored wit
 metrics, so its C and A sit beside Table I's: what a non-learned avoider reaches among the same
 recordings that never give way.
 
-    python scripts/reactive_reference.py --data ../shared/datasets/eth_ucy [--split univ] [--margin 0.5]
+    python scripts/reactive_reference.py [--split univ] [--margin 0.5]
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navigan.data import SPLITS, STEP_S, load_split
+from navigan.data import SHIPPED_DATA, SPLITS, STEP_S, load_split
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
@@ -63,7 +63,7 @@ def walk_all(episodes: Episodes, margin: float, horizon: int) -> Rollout:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, required=True, help="the ETH/UCY folder with splits.json")
+    parser.add_argument("--data", type=Path, default=SHIPPED_DATA, help="the ETH/UCY folder (default: the shipped copy)")
     parser.add_argument("--split", default="all", help="a split or all five (default)")
     parser.add_argument("--margin", type=float, default=0.5, help="predicted distance kept from others (m)")
     parser.add_argument("--horizon", type=int, default=3, help="steps of 0.4 s the prediction looks ahead")

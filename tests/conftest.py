@@ -1,39 +1,32 @@
-"""Shared fixtures: where the shared data and samples live (never inside the project)."""
+"""Shared fixtures: the data the tests read, all of it inside the repository (tests/data, navigan/datasets)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
+from navigan.data import SHIPPED_DATA
 
-
-def _existing(path: Path, what: str) -> Path:
-    if not path.exists():
-        pytest.fail(f"{what} not found at {path}; CI and the dev machine keep it there")
-    return path
+DATA = Path(__file__).resolve().parent / "data"
 
 
 @pytest.fixture(scope="session")
 def eth_ucy_dir() -> Path:
-    """The ETH/UCY data: $TRIALS_DATA if set, else ../shared/datasets/eth_ucy."""
-    env = os.environ.get("TRIALS_DATA")
-    return _existing(Path(env) if env else SHARED / "datasets" / "eth_ucy", "ETH/UCY data")
+    """The ETH/UCY data shipped with navigan (navigan/datasets/eth_ucy, provenance in its README)."""
+    return SHIPPED_DATA
 
 
 @pytest.fixture(scope="session")
 def robot_logs_dir() -> Path:
-    """Real lidar recordings: ../shared/samples/robot_logs."""
-    return _existing(SHARED / "samples" / "robot_logs", "robot log samples")
+    """Real lidar recordings from angusleigh/leg_tracker (tests/data/robot_logs, provenance in its README)."""
+    return DATA / "robot_logs"
 
 
 @pytest.fixture(scope="session")
 def sbpl_dir() -> Path:
-    """SBPL problems, primitives and answers: ../shared/samples/sbpl."""
-    return _existing(SHARED / "samples" / "sbpl", "SBPL samples")
+    """SBPL problems, primitives and SBPL's own answers (tests/data/sbpl, provenance in its README)."""
+    return DATA / "sbpl"
 
 
 @pytest.fixture(scope="module")

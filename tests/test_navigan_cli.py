@@ -120,9 +120,9 @@ def test_malformed_data_is_one_error_line(data, tmp_path, capsys):
 
 
 def test_missing_data_and_bad_values(monkeypatch, tmp_path, capsys):
-    monkeypatch.delenv("TRIALS_DATA", raising=False)
-    assert main(["train", "--model", "navil2", "--split", "eth", "--out", str(tmp_path / "m.pt")]) == 2
-    assert "no ETH/UCY data folder: pass --data DIR or set TRIALS_DATA" in capsys.readouterr().err
+    assert main(["train", "--model", "navil2", "--split", "eth", "--data", str(tmp_path),
+                 "--out", str(tmp_path / "m.pt")]) == 2
+    assert f"{tmp_path} is not an ETH/UCY data folder: it has no splits.json" in capsys.readouterr().err
     assert main(["train", "--model", "navil2", "--split", "eth", "--epochs", "0"]) == 2
     assert "--epochs: expected a positive whole number, got 0" in capsys.readouterr().err
     assert main(["evaluate", "--baseline", "constant-velocity"]) == 2

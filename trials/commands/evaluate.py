@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--data", type=Path, metavar="DIR",
-                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--json", type=Path, metavar="FILE",
                         help="where to write the result (default: NAME-SPLIT-eval.json here)")
     parser.set_defaults(handler=run)

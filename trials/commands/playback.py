@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, default=Path("playback"), metavar="DIR",
                         help="where results go (default: ./playback)")
     parser.add_argument("--data", type=Path, metavar="DIR",
-                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--gamma", type=float, default=0.9,
                         help="discount factor of S, per second at the preferred speed (default 0.9)")
     parser.add_argument("--v-pref", type=float, default=1.0,

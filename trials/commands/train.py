@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
-                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA)")
+                        help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--out", type=Path, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(handler=run)
