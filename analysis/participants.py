@@ -21,8 +21,8 @@ import numpy as np
 from scipy.special import expit
 
 from analysis.run_log import RunLog
+from robot_logs.physical import STEP_S
 
-NAVIGAN_STEP_S = 0.4
 
 
 @dataclass(frozen=True)
@@ -82,7 +82,7 @@ class Judgment:
 def abruptness(log: RunLog, model: ParticipantModel) -> np.ndarray:
     """Per robot sample: deceleration and change of turn rate over the next 0.4 s, in the model's units."""
     t, v, w = log.robot[:, 0], log.robot[:, 4], log.robot[:, 5]
-    ahead = np.minimum(np.searchsorted(t, t + NAVIGAN_STEP_S), len(t) - 1)
+    ahead = np.minimum(np.searchsorted(t, t + STEP_S), len(t) - 1)
     span = np.maximum(t[ahead] - t, 1e-9)
     deceleration = np.maximum(v - v[ahead], 0.0) / span
     turn_change = np.abs(w[ahead] - w) / span

@@ -13,14 +13,13 @@ import numpy as np
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_log import FoxgloveReader
+from robot_logs.physical import PEDESTRIAN_RADIUS_M, ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M
 
 ROBOT_TOPIC = "/robot/state"
 PEDESTRIAN_TOPIC = "/pedestrians/state"
 EVENT_TOPIC = "/events"
 
-#: The Husky's half-length and half-width (m), the robot every run drives; a pedestrian is a 0.25 m disc.
-ROBOT_HALF_SIZE = (0.495, 0.335)
-BODY_RADIUS = 0.25
+ROBOT_HALF_SIZE = (ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M)
 
 
 @dataclass(frozen=True)
@@ -47,7 +46,7 @@ class RunLog:
         return np.where(inside, gap, np.inf)
 
 
-def footprint_gap(robot_pose: np.ndarray, points: np.ndarray, half_size: tuple[float, float] = ROBOT_HALF_SIZE, radius: float = BODY_RADIUS) -> np.ndarray:
+def footprint_gap(robot_pose: np.ndarray, points: np.ndarray, half_size: tuple[float, float] = ROBOT_HALF_SIZE, radius: float = PEDESTRIAN_RADIUS_M) -> np.ndarray:
     """Distance from the robot's rectangle at (n, 3) poses to discs of `radius` at (n, 2) points, 0 on contact."""
     dx = points[:, 0] - robot_pose[:, 0]
     dy = points[:, 1] - robot_pose[:, 1]

@@ -22,6 +22,7 @@ import numpy as np
 from analysis.errors import AnalysisError
 from analysis.records import Outcome
 from analysis.run_log import RunLog
+from robot_logs.physical import INTIMATE_M
 
 
 #: Below this speed (m/s) the robot stands still (the outcome row's definition).
@@ -32,7 +33,7 @@ STANDSTILL_MPS = 0.05
 class Rubric:
     """Thresholds of the automatic score; a run breaking any of them scores 2 (see `unnatural_rules`)."""
 
-    intimate_distance_m: float = 0.5
+    intimate_distance_m: float = INTIMATE_M
     turn_in_place_s: float = 1.0
     backing_up_s: float = 0.5
     stopped_s: float = 1.0

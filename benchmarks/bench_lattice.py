@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from trials.controllers.base import STEP_S, T_OBS, Observation
+from robot_logs.physical import STEP_S, T_OBS
+from trials.controllers.base import Observation
 from trials.controllers.lattice.controller import LatticeController
 from trials.controllers.lattice.environment import read_cfg
 from trials.controllers.lattice.planner import LatticePlanner, make_planner

@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from navigan.data import T_PRED, Sampling
+from robot_logs.physical import T_PRED
+from navigan.data import Sampling
 from navigan.errors import NaviganError
 
 

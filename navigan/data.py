@@ -22,12 +22,10 @@ import numpy as np
 import torch
 
 from navigan.errors import NaviganError
+from robot_logs.physical import T_OBS, T_PRED
 
-#: Observed and predicted steps of a window, and the time between steps (s).
-T_OBS = 8
-T_PRED = 12
+#: Observed and predicted steps of a window.
 SEQ_LEN = T_OBS + T_PRED
-STEP_S = 0.4
 #: How far past the last observed step a window keeps its agents' tracks: as far as playback's goals.
 FAR_STEPS = 3 * T_PRED
 

@@ -6,7 +6,8 @@ import numpy as np
 import torch
 
 from navigan.config import TrainConfig
-from navigan.data import T_PRED, Sampling, Scenes
+from robot_logs.physical import T_PRED
+from navigan.data import Sampling, Scenes
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.encounters import encounter_batch
 from navigan.losses import ade, encounter_losses, fde, near_rate, supervised_losses, weighted_sum

@@ -15,7 +15,7 @@ from torch import nn
 
 from navigan.blocks import Encoder, IntentionDecoder, PairPoolNet, PoolNet, SocialForceDecoder
 from navigan.config import ModelConfig
-from navigan.data import T_PRED
+from robot_logs.physical import T_PRED
 
 
 @dataclass(frozen=True)

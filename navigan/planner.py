@@ -17,7 +17,8 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import STEP_S, T_OBS, fill_tracks
+from robot_logs.physical import STEP_S, T_OBS
+from navigan.data import fill_tracks
 from navigan.errors import NaviganError
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from navigan.data import STEP_S
+from robot_logs.physical import STEP_S
 
 #: Headings (rad) and speeds (m/s) of the alternative moves.
 HEADINGS = np.deg2rad(np.arange(0, 360, 15))

@@ -16,14 +16,12 @@ from typing import TextIO
 import numpy as np
 
 from robot_logs.errors import LogError
+from robot_logs.physical import STEP_S, T_OBS
 from robot_logs.records import seconds, stamp_text
 
 #: Columns of a tracks CSV, in order.
 COLUMNS = ("stamp", "scan_index", "track_id", "x", "y", "vx", "vy", "frame")
 
-#: NaviGAN's observation length (steps) and step (s), as in `trials.controllers.base`.
-T_OBS = 8
-STEP_S = 0.4
 
 
 @dataclass(frozen=True)

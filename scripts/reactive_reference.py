@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from navigan.data import SHIPPED_DATA, SPLITS, STEP_S, load_split
+from robot_logs.physical import STEP_S
+from navigan.data import SHIPPED_DATA, SPLITS, load_split
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring

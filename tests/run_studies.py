@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from trials.cli import main
-from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
+from robot_logs.physical import STEP_S, T_PRED
+from trials.controllers.base import Observation, Plan
 
 SMALL_SPEC = """
 [study]

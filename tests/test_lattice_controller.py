@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from trials.controllers.base import STEP_S, T_OBS, T_PRED, Observation
+from robot_logs.physical import ROBOT_FOOTPRINT, STEP_S, T_OBS, T_PRED
+from trials.controllers.base import Observation
 from trials.controllers.lattice.controller import LatticeController, inscribed_radius
 from trials.controllers.lattice.costmap import INSCRIBED, LETHAL, Window, pedestrian_costmap, predicted_centres
 from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.husky import HUSKY_FOOTPRINT
 
 GOAL = (10.0, 0.0)
 
@@ -56,7 +56,7 @@ def test_detours_round_a_standing_pedestrian(fresh):
     assert plan.record["status"] == "solved"
     distance = np.hypot(*(plan.waypoints - ped).T)
     # way-points are centre positions: clear of the disc grown by the margin and the inscribed radius
-    assert distance.min() >= 0.3 + 0.2 + inscribed_radius(HUSKY_FOOTPRINT) - 0.1
+    assert distance.min() >= 0.3 + 0.2 + inscribed_radius(ROBOT_FOOTPRINT) - 0.1
     assert np.abs(plan.waypoints[:, 1]).max() > 0.6  # it went round, not through
     assert plan.waypoints[-1, 0] > ped[0]             # and past
 
@@ -98,7 +98,7 @@ def test_walled_in_robot_heads_for_the_reachable_cell_nearest_the_goal(fresh):
     plan = fresh.plan(observe(peds=ring))
     record = plan.record
     assert record["goal_moved"] and record["status"] == "solved" and not record["holding"]
-    assert 0.3 < record["target"][0] < 1.5 - 0.3 - 0.2 - inscribed_radius(HUSKY_FOOTPRINT) + 0.1
+    assert 0.3 < record["target"][0] < 1.5 - 0.3 - 0.2 - inscribed_radius(ROBOT_FOOTPRINT) + 0.1
     assert plan.waypoints[-1, 0] == pytest.approx(record["target"][0])
     assert record["plan_seconds"] <= fresh.budget_s
 
@@ -129,7 +129,7 @@ def test_prediction_blocks_where_a_walker_is_going():
     assert np.abs(straight[:, 1]).max() < 0.1  # the walker is 2 m to the side now
     tube = np.array([(3.0, y) for y in np.linspace(-2.0, 1.0, 31)])
     gaps = np.hypot(*(around[:, None, :] - tube[None, :, :]).transpose(2, 0, 1)).min()
-    assert gaps >= 0.3 + 0.2 + inscribed_radius(HUSKY_FOOTPRINT) - 0.1
+    assert gaps >= 0.3 + 0.2 + inscribed_radius(ROBOT_FOOTPRINT) - 0.1
 
 
 def test_new_goal_gets_a_new_window(fresh):

@@ -9,7 +9,8 @@ import pytest
 
 from trials.controllers.lattice.actions import action_seconds, base_cost, build_actions, centre_cells
 from trials.controllers.lattice.environment import Environment, heading_to_cont, read_cfg
-from trials.controllers.lattice.husky import HUSKY_FOOTPRINT, husky_primitives
+from robot_logs.physical import ROBOT_FOOTPRINT
+from trials.controllers.lattice.husky import husky_primitives
 from trials.controllers.lattice.primitives import end_mismatch, read_mprim
 
 
@@ -69,7 +70,7 @@ def test_husky_set_is_symmetric():
 
 def test_husky_tables_for_the_husky_footprint():
     env = Environment(grid=np.zeros((1, 1), np.uint8), cell_size=0.1, time_to_turn_45=0.8)
-    actions = build_actions(husky_primitives(0.1), env, HUSKY_FOOTPRINT)
+    actions = build_actions(husky_primitives(0.1), env, ROBOT_FOOTPRINT)
     assert actions.cost.shape == (16, 9) and actions.use_footprint
     # turning in place sweeps the corners: a 0.99 x 0.67 m box turned 22.5 degrees
     turn = next(a for a, p in enumerate(actions.primitives[0]) if p.end == (0, 0, 1))

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from navigan.data import FAR_STEPS, SEQ_LEN, T_OBS, Sampling, Scenes, load_split, read_recording, recording_windows
+from robot_logs.physical import T_OBS
+from navigan.data import FAR_STEPS, SEQ_LEN, Sampling, Scenes, load_split, read_recording, recording_windows
 from navigan.errors import NaviganError
 
 

@@ -7,7 +7,7 @@ import torch
 
 from navigan.blocks import PairPoolNet, PoolNet
 from navigan.config import ModelConfig
-from navigan.data import T_OBS, T_PRED
+from robot_logs.physical import T_OBS, T_PRED
 from navigan.discriminator import Discriminator
 from navigan.evaluation import constant_velocity
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator

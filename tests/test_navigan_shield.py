@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navigan.data import STEP_S
+from robot_logs.physical import STEP_S
 from navigan.shield import HORIZON, MOVES, forecast, shielded_steps
 
 

@@ -26,7 +26,7 @@ from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.records import Odometry, Transform
 from trials.cli import main
-from trials.controllers.base import STEP_S
+from robot_logs.physical import STEP_S
 
 SPEC = """
 [study]

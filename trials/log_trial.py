@@ -30,7 +30,8 @@ from robot_logs.records import seconds, stamp_text
 from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
-from trials.controllers.base import STEP_S, T_OBS, Controller, Observation, Plan
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
+from trials.controllers.base import Controller, Observation, Plan
 from analysis.records import RunMetrics
 from trials.outcomes import measure
 from trials.run_log import RunLog
@@ -44,8 +45,6 @@ LOG_COLUMN = "Log"
 OBSERVATION_S = (T_OBS - 1) * STEP_S
 #: The default goal lies this far ahead of the robot's first pose, as in the simulated scenes.
 GOAL_AHEAD_M = 10.0
-GOAL_TOLERANCE_M = 0.5
-PEDESTRIAN_RADIUS_M = 0.25
 
 
 @dataclass(frozen=True)

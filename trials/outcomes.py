@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from analysis.records import RunMetrics
+from robot_logs.physical import INTIMATE_M, PEDESTRIAN_RADIUS_M, PERSONAL_M
 from trials.sim.robot import RobotLimits, footprint_gaps
 
-INTIMATE_M, PERSONAL_M = 0.5, 1.2
 STILL_SPEED, TURNING_RATE = 0.05, 0.3
 #: Standing still during the first second (starting up) does not count as stopping.
 STARTUP_S = 1.0
@@ -52,7 +52,7 @@ def _text(value: object) -> str:
 
 
 def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
-            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = 0.25) -> RunMetrics:
+            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = PEDESTRIAN_RADIUS_M) -> RunMetrics:
     """Score a run.
 
     Args:

@@ -6,6 +6,7 @@ import io
 
 import numpy as np
 
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
 from trials.run_log import LoggedRun
 from trials.sim.robot import RobotLimits
 
@@ -39,9 +40,9 @@ def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[f
         axes.plot(path[:, 0], path[:, 1], color=colours(j % 10), linewidth=1.2)
         path = path[np.isfinite(path).all(axis=1)]
         axes.plot(*path[0], marker="o", color=colours(j % 10), markersize=4)
-        axes.add_patch(plt.Circle(tuple(path[-1]), 0.25, color=colours(j % 10), alpha=0.5))
+        axes.add_patch(plt.Circle(tuple(path[-1]), PEDESTRIAN_RADIUS_M, color=colours(j % 10), alpha=0.5))
         axes.annotate(str(pid), tuple(path[0]), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    axes.add_patch(plt.Circle(goal, 0.5, color="green", alpha=0.25, label="goal (0.5 m)"))
+    axes.add_patch(plt.Circle(goal, GOAL_TOLERANCE_M, color="green", alpha=0.25, label=f"goal ({GOAL_TOLERANCE_M:g} m)"))
     if cone is not None:
         axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
     for t, name, detail in run.events:

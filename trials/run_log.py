@@ -22,7 +22,8 @@ from robot_logs.errors import LogError
 from robot_logs.foxglove_log import (FoxgloveReader, FoxgloveWriter, color, cylinder, entity, frame_transform, pose,
                                      poses_in_frame, scene_update, text)
 from robot_logs.frames import Pose2D
-from trials.controllers.base import STEP_S, Plan
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S
+from trials.controllers.base import Plan
 from trials.sim.pedestrians import Crowd
 from trials.sim.robot import RobotLimits, RobotState
 
@@ -75,7 +76,7 @@ class RunLog:
         self.blind = blind
         self.records: list[dict[str, Any]] = []
         self._limits = limits
-        self._fixed = [entity(0, FRAME, "goal", cylinders=[cylinder(*goal, 0.5, 0.02, GOAL_COLOUR)])]
+        self._fixed = [entity(0, FRAME, "goal", cylinders=[cylinder(*goal, GOAL_TOLERANCE_M, 0.02, GOAL_COLOUR)])]
         if cone is not None:
             self._fixed.append(entity(0, FRAME, "cone", cylinders=[{**cylinder(*cone, 0.15, 0.5, CONE_COLOUR), "top_scale": 0.0}]))
 
@@ -128,7 +129,7 @@ class RunLog:
         return entity(stamp, FRAME, "robot", cubes=[body])
 
     def _people(self, stamp: int, crowd: Crowd) -> dict[str, Any]:
-        bodies = [cylinder(x, y, 0.25, 1.7, PEDESTRIAN_COLOUR) for x, y in crowd.position]
+        bodies = [cylinder(x, y, PEDESTRIAN_RADIUS_M, 1.7, PEDESTRIAN_COLOUR) for x, y in crowd.position]
         labels = [text(x, y, str(i), z=1.9) for i, (x, y) in zip(crowd.ids, crowd.position)]
         return entity(stamp, FRAME, "pedestrians", cylinders=bodies, texts=labels)
 

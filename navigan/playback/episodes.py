@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from navigan.data import STEP_S, T_OBS, T_PRED, Recording, read_recording
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
+from navigan.data import Recording, read_recording
 from navigan.errors import NaviganError
 
 GOAL_STEPS = 3 * T_PRED

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from navigan.data import STEP_S
+from robot_logs.physical import STEP_S
 from navigan.playback.episodes import GOAL_RADIUS, Episodes
 from navigan.playback.metrics import DISCOMFORT_DISTANCE, step_distances
 

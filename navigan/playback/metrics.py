@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navigan.data import STEP_S
+from robot_logs.physical import STEP_S
 from navigan.playback.episodes import GOAL_RADIUS
 
 #: Closer than this (m) is uncomfortable: C fails and the step's reward is -0.1 + d / 2.

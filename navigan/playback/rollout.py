@@ -23,7 +23,8 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.data import STEP_S, T_OBS, T_PRED, fill_tracks
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
+from navigan.data import fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes

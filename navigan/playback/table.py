@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from navigan.data import STEP_S
+from robot_logs.physical import STEP_S
 from navigan.playback.episodes import RECORDED
 from navigan.playback.paper import PAPER_COLUMNS, PaperTable
 from navigan.shield import HORIZON

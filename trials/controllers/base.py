@@ -11,10 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-#: NaviGAN's planning step (s), observed and predicted horizons (steps).
-STEP_S = 0.4
-T_OBS = 8
-T_PRED = 12
+from robot_logs.physical import STEP_S
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from navigan.goals import toward
-from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
+from robot_logs.physical import STEP_S, T_PRED
+from trials.controllers.base import Observation, Plan
 
 #: A sub-goal one prediction horizon ahead at the Husky's 1 m/s.
 REACH_M = 1.0 * T_PRED * STEP_S

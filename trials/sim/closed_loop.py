@@ -14,7 +14,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from trials.controllers.base import STEP_S, T_OBS, Controller, Observation, Plan
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
+from trials.controllers.base import Controller, Observation, Plan
 from trials.scenario import Scenario
 from trials.sim.follower import FollowerParams, WaypointFollower
 from trials.sim.pedestrians import Crowd
@@ -31,8 +32,8 @@ class SimConfig:
 
     physics_dt: float = 0.1
     timeout_s: float = 60.0
-    goal_tolerance_m: float = 0.5
-    pedestrian_radius_m: float = 0.25
+    goal_tolerance_m: float = GOAL_TOLERANCE_M
+    pedestrian_radius_m: float = PEDESTRIAN_RADIUS_M
     limits: RobotLimits = RobotLimits()
     social: SocialForceParams = SocialForceParams()
     follower: FollowerParams = FollowerParams()

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trials.controllers.lattice.husky import HUSKY_FOOTPRINT
+from robot_logs.physical import ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M, ROBOT_SPEED_M_S
 
 
 @dataclass(frozen=True)
@@ -21,13 +21,13 @@ class RobotLimits:
     Defaults: a ClearPath Husky (0.99 x 0.67 m, 1.0 m/s, 2 rad/s); backwards at most 0.5 m/s.
     """
 
-    max_speed: float = 1.0
+    max_speed: float = ROBOT_SPEED_M_S
     max_reverse_speed: float = 0.5
     max_turn_rate: float = 2.0
     max_acceleration: float = 1.5
     max_angular_acceleration: float = 3.0
-    half_length: float = HUSKY_FOOTPRINT[1][0]
-    half_width: float = HUSKY_FOOTPRINT[2][1]
+    half_length: float = ROBOT_HALF_LENGTH_M
+    half_width: float = ROBOT_HALF_WIDTH_M
 
 
 @dataclass

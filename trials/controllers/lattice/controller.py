@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from trials.controllers.base import STEP_S, T_PRED, Observation, Plan
+from robot_logs.physical import ROBOT_FOOTPRINT, ROBOT_SPEED_M_S, STEP_S, T_PRED
+from trials.controllers.base import Observation, Plan
 from trials.controllers.lattice.actions import build_actions
 from trials.controllers.lattice.costmap import (
     CIRCUMSCRIBED_THRESH,
@@ -32,7 +33,7 @@ from trials.controllers.lattice.costmap import (
 from trials.controllers.lattice.environment import Environment, cont_to_cell, cont_to_heading
 from trials.controllers.lattice.errors import LatticeError
 from trials.controllers.lattice.footprint import Polygon
-from trials.controllers.lattice.husky import HUSKY_FOOTPRINT, HUSKY_SPEED, HUSKY_TURN_45_S, husky_primitives
+from trials.controllers.lattice.husky import HUSKY_TURN_45_S, husky_primitives
 from trials.controllers.lattice.planner import LatticePlanner, PlanResult, State
 from trials.controllers.lattice.primitives import PrimitiveSet
 
@@ -93,8 +94,8 @@ class LatticeController:
     def __init__(self, cell_size: float = 0.1, pedestrian_radius: float = 0.3, comfort_margin: float = 0.2,
                  predict_s: float = 0.0, budget_s: float = 0.25, eps: float = 3.0, eps_step: float = 0.2,
                  horizon_steps: int = T_PRED, window_margin: float = 4.0, goal_tolerance: float = 0.3,
-                 footprint: Polygon = HUSKY_FOOTPRINT, primitives: PrimitiveSet | None = None,
-                 speed: float = HUSKY_SPEED, turn_45_s: float = HUSKY_TURN_45_S) -> None:
+                 footprint: Polygon = ROBOT_FOOTPRINT, primitives: PrimitiveSet | None = None,
+                 speed: float = ROBOT_SPEED_M_S, turn_45_s: float = HUSKY_TURN_45_S) -> None:
         for option, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
                               ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps), ("eps_step", eps_step)):
             if not value > 0:

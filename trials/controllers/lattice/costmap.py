@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trials.controllers.base import STEP_S
+from robot_logs.physical import STEP_S
 
 FREE, INSCRIBED, LETHAL = 0, 1, 2
 #: The thresholds that give these values their meaning in the planner (obstacle, inscribed, always

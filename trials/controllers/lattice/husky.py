@@ -19,9 +19,6 @@ from trials.controllers.lattice.environment import heading_to_cont, normalize_an
 from trials.controllers.lattice.errors import LatticeError
 from trials.controllers.lattice.primitives import MotionPrimitive, PrimitiveSet, check_uniform, end_mismatch
 
-#: The Husky's outline (robot frame, metres): 0.99 m long, 0.67 m wide, centred on the robot.
-HUSKY_FOOTPRINT = ((-0.495, -0.335), (0.495, -0.335), (0.495, 0.335), (-0.495, 0.335))
-HUSKY_SPEED = 1.0            # m/s
 HUSKY_TURN_45_S = 0.8        # s to turn 45 degrees in place (about 1 rad/s)
 NUM_ANGLES = 16
 BASE_CELL = 0.1              # the cell size the base table is written for
