@@ -5,7 +5,7 @@ Planning: one target among 6 other agents, a 12-step plan, one CPU thread; media
 the eth split's (PairPoolNet). Training: one NaviGAN-R epoch (discriminator and
 generator steps) over the eth split's training scenes, for each --batch (target agents per
 batch; 32 is the paper's, 256 the shipped weights'), on --threads CPU threads (goal: under 10 s),
-with the paper's recipe and with the shipped weights' (PairPoolNet and encounter rows).
+with the paper's recipe and the playback's (PairPoolNet and encounter rows; navigan/recipes).
 
     python benchmarks/bench_navigan.py [--data DIR] [--calls 1000] [--batch 32 256] [--threads 1]
 """
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from navigan import checkpoint as ckpt
+from navigan import recipes
 from navigan.config import ModelConfig, TrainConfig
 from navigan.data import SHIPPED_DATA, Scenes, load_split
 from navigan.planner import Planner
@@ -71,12 +71,11 @@ def main() -> None:
         print(f"planning ({weights}, 1 target, 6 others, 12 steps, 1 thread): "
               f"median {median:.2f} ms, p99 {p99:.2f} ms  [goal: < 5 ms]")
     scenes = Scenes.from_files(load_split(args.data, "eth").train)
-    shipped = ckpt.load(ckpt.shipped("navigan-r", "eth"))
-    recipes = {"paper's recipe": (ModelConfig("navigan-r"), TrainConfig("eth")), "shipped recipe": (shipped.model, shipped.train)}
+    configs = {name: recipes.load(name).configs("eth") for name in ("paper", "playback")}
     for batch in args.batch:
-        for name, (model, config) in recipes.items():
+        for name, (model, config) in configs.items():
             seconds = epoch_seconds(scenes, model, dataclasses.replace(config, batch=batch), args.threads)
-            print(f"training epoch (NaviGAN-R, {name}, eth split, {scenes.n_targets} targets, batch {batch}, "
+            print(f"training epoch (NaviGAN-R, {name} recipe, eth split, {scenes.n_targets} targets, batch {batch}, "
                   f"{args.threads} thread{'s' if args.threads > 1 else ''}): {seconds:.1f} s  [goal: < 10 s]")
 
 

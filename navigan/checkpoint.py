@@ -1,9 +1,10 @@
 """Checkpoints: the best generator weights with everything needed to trust and remake them.
 
-A checkpoint holds the model and training configs, the data split (file names), the seed,
-the command that made it, per-epoch validation metrics, and the best weights. While training
-runs it also holds `state` (latest weights of both networks, optimisers, noise RNG) so an
-interrupted run resumes; a finished training drops it, which keeps shipped files small.
+A checkpoint holds the model and training configs (the recipe's settings as resolved), the
+recipe file's text, the data split (file names), the seed, the command that made it, per-epoch
+validation metrics, and the best weights. While training runs it also holds `state` (latest
+weights of both networks, optimisers, noise RNG) so an interrupted run resumes; a finished
+training drops it, which keeps shipped files small.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 import torch
 
 from navigan.config import ModelConfig, TrainConfig, from_dict, to_dict
+from navigan.data import T_PRED
 from navigan.errors import NaviganError
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator
 
@@ -28,16 +30,22 @@ WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 #: The checkpoint the trial controller loads by default.
 DEFAULT_MODEL, DEFAULT_SPLIT = "navigan-r", "all"
 
+#: Training settings older checkpoints record that training no longer has, each with the one
+#: value every training now uses (the goal a target's last future position, as the paper).
+RETIRED_SETTINGS: dict[str, object] = {"goal_first": T_PRED, "goal_last": T_PRED}
+
 
 @dataclass
 class Checkpoint:
     """A training record (see the module docstring).
 
     Attributes:
-        model, train: the configs.
+        model, train: the configs, as resolved from the recipe and the command's overrides.
         split: the split's name and data files (relative to the data folder).
         data: window and target counts and NaN/missing rows skipped, per part.
         command: the command line that made it.
+        recipe: the recipe's name, file and text (see `navigan.recipes`); None in checkpoints
+            made before recipes were files.
         epoch: epochs completed.
         history: one dict of training losses and validation metrics per epoch.
         best: the epoch and validation metrics of the kept weights.
@@ -51,6 +59,7 @@ class Checkpoint:
     split: dict[str, Any]
     data: dict[str, Any]
     command: str
+    recipe: dict[str, str] | None = None
     epoch: int = 0
     history: list[dict[str, Any]] = field(default_factory=list)
     best: dict[str, Any] | None = None
@@ -76,6 +85,7 @@ def save(checkpoint: Checkpoint, path: str | Path) -> None:
         "split": checkpoint.split,
         "data": checkpoint.data,
         "command": checkpoint.command,
+        "recipe": checkpoint.recipe,
         "epoch": checkpoint.epoch,
         "history": checkpoint.history,
         "best": checkpoint.best,
@@ -110,10 +120,11 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoi
     try:
         return Checkpoint(
             model=from_dict(ModelConfig, record["model"]),
-            train=from_dict(TrainConfig, record["train"]),
+            train=_train_config(record["train"], path),
             split=record["split"],
             data=record["data"],
             command=record["command"],
+            recipe=record.get("recipe"),
             epoch=record["epoch"],
             history=record["history"],
             best=record["best"],
@@ -123,6 +134,19 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoi
         )
     except KeyError as exc:
         raise NaviganError(f"{path} lacks the field {exc}") from exc
+
+
+def _train_config(values: dict[str, Any], path: Path) -> TrainConfig:
+    """The training config a checkpoint records, less the retired settings at their one value.
+
+    Raises:
+        NaviganError: a retired setting holds another value, or a field is unknown.
+    """
+    current = dict(values)
+    for name, value in RETIRED_SETTINGS.items():
+        if current.pop(name, value) != value:
+            raise NaviganError(f"{path} was trained with {name} = {values[name]}, a setting training no longer has")
+    return from_dict(TrainConfig, current)
 
 
 def shipped(model: str = DEFAULT_MODEL, split: str = DEFAULT_SPLIT) -> Path:

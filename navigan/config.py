@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from robot_logs.physical import T_PRED
 from navigan.data import Sampling
 from navigan.errors import NaviganError
 
@@ -94,9 +93,6 @@ class TrainConfig:
         d_safe: the resistance loss's safe distance (m).
         w_l2, w_fde, w_adversarial, w_resistance: loss weights.
         clip: gradient norm clip.
-        goal_first, goal_last: a target's goal is its recorded position a uniformly drawn number
-            of steps in this range after the last observed one (T_PRED, T_PRED: the paper's last
-            future position).
         augment: turn each training window by a random angle and mirror half of them.
         resist_intention: the resistance loss's gradient also reaches the intention generator
             (the paper's L_resist on y_hat); else only the social-force generator.
@@ -122,8 +118,6 @@ class TrainConfig:
     w_adversarial: float = 1.0
     w_resistance: float = 1.0
     clip: float = 1.0
-    goal_first: int = T_PRED
-    goal_last: int = T_PRED
     augment: bool = False
     resist_intention: bool = True
     resist_beyond_truth: bool = False
@@ -132,15 +126,10 @@ class TrainConfig:
     encounter_crowd: float = 0.0
     force_size: float = 0.1
 
-    def __post_init__(self) -> None:
-        self.sampling  # checks the goal range
-        if self.resist_steps is not None and not 1 <= self.resist_steps <= T_PRED:
-            raise NaviganError(f"resistance steps {self.resist_steps}: expected 1 to {T_PRED}, the plan's way-points")
-
     @property
     def sampling(self) -> Sampling:
-        """How training batches draw goals and turn scenes."""
-        return Sampling((self.goal_first, self.goal_last), self.augment)
+        """How training batches draw goals (the last future position, as the paper) and turn scenes."""
+        return Sampling(augment=self.augment)
 
 
 def to_dict(record: Any) -> dict[str, Any]:

@@ -32,24 +32,21 @@ def evaluate(
     and `near`, the fraction of way-points closer than NEAR_M to another agent present then.
 
     One noise sample per target from `seed` (as SGAN-1V-1 draws one sample) where the model
-    samples noise. Goals are the last future positions, or with `train` drawn from its goal range
-    (from `seed`); with `train` also the validation `loss`: the weighted non-adversarial objective
-    of the model's recipe, averaged over targets, plus that of encounter rows drawn from `seed`
-    where the training has them.
+    samples noise. Goals are the last future positions. With `train` also the validation `loss`:
+    the weighted non-adversarial objective of the model's recipe, averaged over targets, plus that
+    of encounter rows drawn from `seed` where the training has them.
     """
     recipe = generator.config.recipe
     was_training = generator.training
     generator.eval()
     noise_rng = torch.Generator(device=device).manual_seed(seed)
-    sampling, goal_rng = Sampling(), None
-    if train is not None:
-        sampling, goal_rng = Sampling((train.goal_first, train.goal_last)), np.random.default_rng(seed)
+    sampling = Sampling()
     encounter_rng = None
     if train is not None and train.encounters and recipe.resistance:
         encounter_rng = np.random.default_rng([seed, 1])
     sums = {"ade": 0.0, "fde": 0.0, "ade_dagger": 0.0, "fde_dagger": 0.0, "near": 0.0, "loss": 0.0}
     for windows in scenes.batches(EVAL_BATCH):
-        batch = scenes.batch(windows, sampling, goal_rng)
+        batch = scenes.batch(windows, sampling)
         if encounter_rng is not None:
             rows = encounter_batch(batch, train.encounters, sampling.goal_steps, encounter_rng, train.encounter_crowd)
             if rows is not None:

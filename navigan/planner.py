@@ -72,8 +72,8 @@ class Planner:
             others: (N, 8, 2) the other agents' last positions (N may be 0); NaN where an
                 agent was not yet seen; a row whose newest position is NaN is ignored.
             goal: (2,) where the target should be at the end of the plan (T_PRED * 0.4 = 4.8 s
-                ahead); the shipped weights were trained with goals that far (`trials train
-                --goal-steps` can train others), so pass a sub-goal on the way to a farther one.
+                ahead); every model is trained with goals that far, so pass a sub-goal on the way to
+                a farther one.
             seed: seed of this call's fluctuation noise (default: the planner's running RNG).
 
         Returns:

@@ -152,7 +152,13 @@ def run_epoch(
 
 
 def start(
-    out: Path, model: ModelConfig, config: TrainConfig, split: dict[str, Any], data: dict[str, Any], command: str
+    out: Path,
+    model: ModelConfig,
+    config: TrainConfig,
+    split: dict[str, Any],
+    data: dict[str, Any],
+    command: str,
+    recipe: dict[str, str] | None,
 ) -> ckpt.Checkpoint:
     """The checkpoint to continue: the one at `out` if it matches this training, else a new one.
 
@@ -161,7 +167,7 @@ def start(
             epochs and patience), which would be overwritten.
     """
     if not out.exists():
-        return ckpt.Checkpoint(model=model, train=config, split=split, data=data, command=command)
+        return ckpt.Checkpoint(model=model, train=config, split=split, data=data, command=command, recipe=recipe)
     found = ckpt.load(out)
     same = {"epochs": config.epochs, "patience": config.patience}
     if found.model != model or found.split != split or replace(found.train, **same) != config:
@@ -169,8 +175,8 @@ def start(
             f"{out} holds another training ({found.model.model} on {found.split['name']}, "
             f"{found.train}); choose another --out or delete it"
         )
-    found.train = config
-    found.command = command  # the limits may differ; the command that finishes the training is the one to record
+    # The limits may differ: the command and recipe that finish the training are the ones to record.
+    found.train, found.command, found.recipe = config, command, recipe
     return found
 
 
@@ -182,6 +188,7 @@ def train(
     split: dict[str, Any],
     out: str | Path,
     command: str = "",
+    recipe: dict[str, str] | None = None,
     device: str = "cpu",
     progress: bool = True,
     on_epoch: Callable[[ckpt.Checkpoint], None] | None = None,
@@ -194,6 +201,7 @@ def train(
         split: the split's record (name and files) stored with the weights.
         out: the checkpoint file; an unfinished one for the same training is resumed.
         command: the command line, recorded.
+        recipe: the recipe's record (`navigan.recipes.TrainingRecipe.record`), recorded.
         device: torch device.
         progress: show tqdm bars.
         on_epoch: called with the checkpoint after each saved epoch.
@@ -204,7 +212,7 @@ def train(
         part: {"windows": len(s.counts), "targets": s.n_targets, "skipped_rows": s.skipped}
         for part, s in (("train", train_scenes), ("val", val_scenes))
     }
-    record = start(out, model, config, split, data, command)
+    record = start(out, model, config, split, data, command, recipe)
     if record.finished:
         return record
     nets = Networks.build(model, config, dev)

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
 
-from navigan import config
 from navigan.checkpoint import load
+from navigan.config import TrainConfig
 from trials.cli import main
-from trials.commands import train as train_command
 
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
@@ -30,9 +30,17 @@ def data(eth_ucy_dir, tmp_path) -> Path:
     return root
 
 
+def recipe_file(folder: Path, text: str) -> Path:
+    """A user's recipe file holding `text`."""
+    path = folder / "mine.toml"
+    path.write_text(text)
+    return path
+
+
 def test_train_then_resume_then_evaluate(data, tmp_path, capsys):
     out = tmp_path / "m.pt"
-    args = ["train", "--model", "navil2", "--split", "zara2", "--epochs", "2", "--batch", "64", "--data", str(data),
+    mine = recipe_file(tmp_path, 'model = "navil2"\n[train]\nbatch = 64\n')
+    args = ["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "2", "--data", str(data),
             "--out", str(out), "--quiet"]
     assert main(args) == 0
     assert "epoch limit after 2 epochs" in capsys.readouterr().out
@@ -48,54 +56,94 @@ def test_train_then_resume_then_evaluate(data, tmp_path, capsys):
     assert 0 < record["full"]["ade"] < 5 and 0 < record["dagger"]["fde"] < 5
 
 
-def test_recorded_command_reproduces_the_settings(data, tmp_path):
+def test_checkpoint_records_the_recipe_and_the_command_that_reproduce_it(data, tmp_path):
     out = tmp_path / "m.pt"
-    assert main(["train", "--model", "goal-social-lstm", "--split", "zara2", "--epochs", "1", "--patience", "3",
-                 "--hidden", "16", "--batch", "48", "--seed", "4", "--data", str(data), "--out", str(out),
-                 "--quiet"]) == 0
+    mine = recipe_file(tmp_path, 'model = "goal-social-lstm"\n[network]\nhidden = 16\n[train]\nbatch = 48\n')
+    assert main(["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--patience", "3",
+                 "--seed", "4", "--data", str(data), "--out", str(out), "--quiet"]) == 0
     record = load(out)
-    assert record.command == (
-        "trials train --model goal-social-lstm --split zara2 --epochs 1 --patience 3 --hidden 16 --batch 48 "
-        "--lr 0.001 --seed 4 --out m.pt"
-    )
+    assert record.command == f"trials train --recipe {mine} --split zara2 --epochs 1 --patience 3 --seed 4 --out m.pt"
+    assert record.recipe == {"name": str(mine), "file": str(mine), "text": mine.read_text()}
     assert record.model.hidden == 16 and record.train.batch == 48 and record.train.patience == 3
+    assert record.train.seed == 4 and record.train.epochs == 1
 
 
-def test_recorded_command_keeps_the_social_training_options(data, tmp_path):
+def test_recipe_sets_the_social_training_settings(data, tmp_path):
     out = tmp_path / "r.pt"
-    assert main(["train", "--model", "navigan-r", "--split", "zara2", "--epochs", "1", "--batch", "64",
-                 "--goal-steps", "8-36", "--augment", "--w-resistance", "5", "--d-safe", "0.9", "--resist-forces-only",
-                 "--resist-beyond-truth", "--resist-steps", "4", "--encounters", "0.5", "--encounter-crowd", "0.25",
-                 "--pair-pool", "--data", str(data), "--out", str(out), "--quiet"]) == 0
+    mine = recipe_file(tmp_path, '''model = "navigan-r"
+[network]
+pair_pool = true
+[train]
+batch = 64
+augment = true
+w_resistance = 5
+d_safe = 0.9
+resist_intention = false
+resist_beyond_truth = true
+resist_steps = 4
+encounters = 0.5
+encounter_crowd = 0.25
+''')
+    assert main(["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+                 "--out", str(out), "--quiet"]) == 0
     record = load(out)
-    assert record.command == (
-        "trials train --model navigan-r --split zara2 --epochs 1 --pair-pool --batch 64 --lr 0.001 --seed 0 "
-        "--goal-steps 8-36 --augment --w-resistance 5 --d-safe 0.9 --resist-forces-only --resist-beyond-truth "
-        "--resist-steps 4 --encounters 0.5 --encounter-crowd 0.25 --out r.pt"
-    )
     train = record.train
-    settings = (train.goal_first, train.goal_last, train.augment, train.w_resistance, train.d_safe, train.resist_steps)
-    assert settings == (8, 36, True, 5.0, 0.9, 4)
+    assert (train.augment, train.w_resistance, train.d_safe, train.resist_steps) == (True, 5.0, 0.9, 4)
     assert not train.resist_intention and train.resist_beyond_truth and train.encounters == 0.5
     assert train.encounter_crowd == 0.25 and record.model.pair_pool
     assert {"encounter_l2", "encounter_resistance"} <= set(record.history[0]["train"])
 
 
-@pytest.mark.parametrize(("option", "value", "message"), [
-    ("--goal-steps", "far", "--goal-steps: expected FIRST or FIRST-LAST whole numbers of steps, got 'far'"),
-    ("--goal-steps", "20-10", "goal steps 20-10: expected 1 <= first <= last <= 36"),
-    ("--encounters", "-1", "--encounters: expected a number >= 0, got -1.0"),
-    ("--d-safe", "0", "--d-safe: expected a positive distance in metres, got 0.0"),
-    ("--encounter-crowd", "1.5", "--encounter-crowd: expected a fraction in [0, 1], got 1.5"),
-    ("--resist-steps", "0", "--resist-steps: expected a positive whole number, got 0"),
-    ("--resist-steps", "13", "resistance steps 13: expected 1 to 12, the plan's way-points"),
-    ("--force-size", "-1", "--force-size: expected a number >= 0, got -1.0"),
+def test_rerun_refuses_a_recipe_with_other_settings(data, tmp_path, capsys):
+    out = tmp_path / "m.pt"
+    mine = recipe_file(tmp_path, 'model = "navil2"\n[train]\nepochs = 1\nbatch = 64\n')
+    args = ["train", "--recipe", str(mine), "--split", "zara2", "--data", str(data), "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    before = out.read_bytes()
+    mine.write_text('model = "navil2"\n[train]\nepochs = 1\nbatch = 64\nlr = 0.01\n')
+    assert main(args) == 2
+    assert "m.pt holds another training" in capsys.readouterr().err
+    mine.write_text('model = "navil2"\n[train]\nepochs = 3\nbatch = 64\n')  # only a limit: the same training
+    assert main(args) == 0
+    assert out.read_bytes() == before
+
+
+SETTINGS = ", ".join(f.name for f in fields(TrainConfig) if f.name != "split")
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ('model = "navigan-r"\n[train]\nbatchsize = 64', f"unknown key train.batchsize: expected one of {SETTINGS}"),
+    ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train"),
+    ('[train]\nepochs = 3', "model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got nothing"),
+    ('model = "navigan-x"', 'model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got "navigan-x"'),
+    ('model = "navigan-r"\ntrain = 3', "train: expected a table of TrainConfig settings, got 3"),
+    ('model = "navigan-r"\n[train]\nbatch = "256"', 'train.batch: expected a positive whole number, got "256"'),
+    ('model = "navigan-r"\n[train]\naugment = 1', "train.augment: expected true or false, got 1"),
+    ('model = "navigan-r"\n[train]\nencounters = -1', "train.encounters: expected a number >= 0, got -1"),
+    ('model = "navigan-r"\n[train]\nd_safe = 0', "train.d_safe: expected a positive distance in metres, got 0"),
+    ('model = "navigan-r"\n[train]\nencounter_crowd = 1.5', "train.encounter_crowd: expected a fraction in [0, 1], got 1.5"),
+    ('model = "navigan-r"\n[train]\nresist_steps = 13',
+     "train.resist_steps: expected a whole number of way-points from 1 to 12, got 13"),
+    ('model = "navigan-r"\n[train]\nforce_size = -1.0', "train.force_size: expected a number >= 0, got -1.0"),
+    ('model = "navigan-r"\n[network]\nhidden = 0', "network.hidden: expected a positive whole number, got 0"),
+    ('model = "navigan-r"\nepochs 3', "not valid TOML: Expected '=' after a key in a key/value pair (at line 2, column 8)"),
 ])
-def test_bad_social_training_options(data, tmp_path, capsys, option, value, message):
-    assert main(["train", "--model", "navigan-r", "--split", "zara2", option, value, "--data", str(data),
+def test_bad_recipe_is_one_error_line(data, tmp_path, capsys, text, message):
+    mine = recipe_file(tmp_path, text)
+    assert main(["train", "--recipe", str(mine), "--split", "zara2", "--data", str(data),
                  "--out", str(tmp_path / "r.pt"), "--quiet"]) == 2
-    assert capsys.readouterr().err == f"error: {message}\n"
+    assert capsys.readouterr().err == f"error: {mine}: {message}\n"
     assert not (tmp_path / "r.pt").exists()
+
+
+def test_unknown_recipe_lists_the_shipped_ones(capsys):
+    assert main(["train", "--recipe", "fast", "--split", "eth"]) == 2
+    assert capsys.readouterr().err == (
+        "error: unknown recipe 'fast': shipped recipes are goal-social-lstm, navigan, navil2, paper, playback, robot "
+        "(or give a .toml file)\n"
+    )
+    assert main(["train", "--recipe", "missing.toml", "--split", "eth"]) == 2
+    assert capsys.readouterr().err == "error: no recipe file missing.toml\n"
 
 
 def test_constant_velocity_baseline(data, tmp_path, capsys):
@@ -110,7 +158,7 @@ def test_constant_velocity_baseline(data, tmp_path, capsys):
 def test_malformed_data_is_one_error_line(data, tmp_path, capsys):
     with (data / "train" / "crowds_zara01_train.txt").open("a") as f:
         f.write("9990\t1.0\t2.0\n")
-    code = main(["train", "--model", "navil2", "--split", "zara2", "--epochs", "1", "--data", str(data),
+    code = main(["train", "--recipe", "navil2", "--split", "zara2", "--epochs", "1", "--data", str(data),
                  "--out", str(tmp_path / "m.pt"), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2
@@ -120,14 +168,10 @@ def test_malformed_data_is_one_error_line(data, tmp_path, capsys):
 
 
 def test_missing_data_and_bad_values(monkeypatch, tmp_path, capsys):
-    assert main(["train", "--model", "navil2", "--split", "eth", "--data", str(tmp_path),
+    assert main(["train", "--recipe", "navil2", "--split", "eth", "--data", str(tmp_path),
                  "--out", str(tmp_path / "m.pt")]) == 2
     assert f"{tmp_path} is not an ETH/UCY data folder: it has no splits.json" in capsys.readouterr().err
-    assert main(["train", "--model", "navil2", "--split", "eth", "--epochs", "0"]) == 2
+    assert main(["train", "--recipe", "navil2", "--split", "eth", "--epochs", "0"]) == 2
     assert "--epochs: expected a positive whole number, got 0" in capsys.readouterr().err
     assert main(["evaluate", "--baseline", "constant-velocity"]) == 2
     assert "--baseline needs --split" in capsys.readouterr().err
-
-
-def test_command_lists_every_model():
-    assert train_command.MODELS == tuple(config.MODELS)

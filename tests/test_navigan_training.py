@@ -57,13 +57,14 @@ def test_interrupted_training_resumes_to_the_same_weights(small, tmp_path):
     straight = train(model, config, train_scenes, val_scenes, split, tmp_path / "a.pt", progress=False)
     with pytest.raises(Interrupt):
         train(model, replace(config, epochs=5), train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False,
-              on_epoch=interrupt_after(1), command="five epochs")
+              on_epoch=interrupt_after(1), command="five epochs", recipe={"name": "five"})
     partial = ckpt.load(tmp_path / "b.pt")
     assert partial.epoch == 1 and partial.finished is None and partial.state is not None
     resumed = train(model, config, train_scenes, val_scenes, split, tmp_path / "b.pt", progress=False,
-                    command="two epochs")  # a new epoch limit: the command that finished it is recorded
+                    command="two epochs", recipe={"name": "two"})  # a new limit: what finished it is recorded
     assert resumed.epoch == 2 and [h["epoch"] for h in resumed.history] == [1, 2]
     assert resumed.command == "two epochs" and ckpt.load(tmp_path / "b.pt").command == "two epochs"
+    assert ckpt.load(tmp_path / "b.pt").recipe == {"name": "two"}
     assert resumed.finished == "epoch limit" and resumed.state is None
     for name, value in straight.generator.items():
         torch.testing.assert_close(resumed.generator[name], value)
@@ -110,3 +111,12 @@ def test_unreadable_checkpoint_is_a_clear_error(tmp_path):
         ckpt.load(bad)
     with pytest.raises(NaviganError, match="no checkpoint at"):
         ckpt.load(tmp_path / "missing.pt")
+
+
+def test_retired_settings_load_only_at_the_value_training_keeps(tmp_path):
+    record = torch.load(ckpt.shipped("navil2", "zara2"), weights_only=True)
+    assert ckpt.load(ckpt.shipped("navil2", "zara2")).train.batch == 256  # records goal_first = goal_last = 12
+    record["train"]["goal_last"] = 36
+    torch.save(record, tmp_path / "old.pt")
+    with pytest.raises(NaviganError, match="old.pt was trained with goal_last = 36, a setting training no longer has"):
+        ckpt.load(tmp_path / "old.pt")

@@ -1,0 +1,43 @@
+"""The shipped training recipes: each names exactly the settings its shipped weights record."""
+
+from __future__ import annotations
+
+import pytest
+
+from navigan import checkpoint as ckpt
+from navigan import config, recipes
+from navigan.data import SPLITS
+
+#: Each shipped recipe and the shipped weights it made, with the overrides their commands gave.
+MADE: dict[str, list[tuple[str, dict[str, int]]]] = {
+    "robot": [("navigan-r-all", {})],
+    "playback": [(f"navigan-r-{s}", {"epochs": 60} if s == "univ" else {}) for s in SPLITS],
+    **{model: [(f"{model}-{s}", {}) for s in SPLITS] for model in ("goal-social-lstm", "navil2", "navigan")},
+}
+
+
+def test_shipped_recipes_cover_every_model():
+    assert set(recipes.shipped()) == {*MADE, "paper"}
+    assert {recipes.load(name).model for name in recipes.shipped()} == set(config.MODELS)
+
+
+@pytest.mark.parametrize("name", sorted(MADE))
+def test_recipe_matches_the_settings_its_weights_record(name):
+    recipe = recipes.load(name)
+    for weights, overrides in MADE[name]:
+        record = ckpt.load(ckpt.resolve(weights))
+        model, train = recipe.configs(record.split["name"], **overrides)
+        assert (model, train) == (record.model, record.train), weights
+
+
+def test_paper_recipe_is_the_papers_settings():
+    model, train = recipes.load("paper").configs("eth")
+    assert (model.model, model.hidden, model.pair_pool) == ("navigan-r", 32, False)
+    assert (train.epochs, train.patience, train.batch, train.lr, train.d_safe) == (500, None, 32, 1e-3, 0.5)
+    assert not (train.augment or train.encounters or train.resist_beyond_truth) and train.resist_intention
+
+
+def test_overrides_replace_only_what_they_set():
+    recipe = recipes.load("playback")
+    model, train = recipe.configs("eth", epochs=3, patience=None, seed=7)
+    assert (train.epochs, train.patience, train.seed, train.batch) == (3, 10, 7, 256) and model.pair_pool
