@@ -1,4 +1,4 @@
-"""What a model is (sizes, recipe) and how it is trained, as plain records stored in checkpoints."""
+"""What a model is (sizes, variant) and how it is trained, as plain records stored in checkpoints."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from navigan.errors import NaviganError
 
 
 @dataclass(frozen=True)
-class Recipe:
+class Variant:
     """Which generator a model uses and which losses train it.
 
     Attributes:
@@ -29,16 +29,16 @@ class Recipe:
 
 
 #: The four trainable models of the paper.
-MODELS: dict[str, Recipe] = {
-    "goal-social-lstm": Recipe("goal-social-lstm", fde=False, adversarial=False, resistance=False, fluctuation=False),
-    "navil2": Recipe("navigan", fde=True, adversarial=False, resistance=False, fluctuation=False),
-    "navigan": Recipe("navigan", fde=True, adversarial=True, resistance=False, fluctuation=True),
-    "navigan-r": Recipe("navigan", fde=True, adversarial=True, resistance=True, fluctuation=True),
+MODELS: dict[str, Variant] = {
+    "goal-social-lstm": Variant("goal-social-lstm", fde=False, adversarial=False, resistance=False, fluctuation=False),
+    "navil2": Variant("navigan", fde=True, adversarial=False, resistance=False, fluctuation=False),
+    "navigan": Variant("navigan", fde=True, adversarial=True, resistance=False, fluctuation=True),
+    "navigan-r": Variant("navigan", fde=True, adversarial=True, resistance=True, fluctuation=True),
 }
 
 
-def recipe(model: str) -> Recipe:
-    """The recipe of a model name.
+def variant(model: str) -> Variant:
+    """The variant a model name stands for.
 
     Raises:
         NaviganError: unknown model.
@@ -75,8 +75,8 @@ class ModelConfig:
     pair_pool: bool = False
 
     @property
-    def recipe(self) -> Recipe:
-        return recipe(self.model)
+    def variant(self) -> Variant:
+        return variant(self.model)
 
 
 @dataclass(frozen=True)

@@ -33,16 +33,16 @@ def evaluate(
 
     One noise sample per target from `seed` (as SGAN-1V-1 draws one sample) where the model
     samples noise. Goals are the last future positions. With `train` also the validation `loss`:
-    the weighted non-adversarial objective of the model's recipe, averaged over targets, plus that
+    the weighted non-adversarial objective of the model's variant, averaged over targets, plus that
     of encounter rows drawn from `seed` where the training has them.
     """
-    recipe = generator.config.recipe
+    variant = generator.config.variant
     was_training = generator.training
     generator.eval()
     noise_rng = torch.Generator(device=device).manual_seed(seed)
     sampling = Sampling()
     encounter_rng = None
-    if train is not None and train.encounters and recipe.resistance:
+    if train is not None and train.encounters and variant.resistance:
         encounter_rng = np.random.default_rng([seed, 1])
     sums = {"ade": 0.0, "fde": 0.0, "ade_dagger": 0.0, "fde_dagger": 0.0, "near": 0.0, "loss": 0.0}
     for windows in scenes.batches(EVAL_BATCH):
@@ -56,7 +56,7 @@ def evaluate(
         batch = batch.to(device)
         goals, truth = batch.goals, batch.truth
         noise = None
-        if recipe.fluctuation:
+        if variant.fluctuation:
             noise = torch.randn(len(goals), generator.config.noise, generator=noise_rng, device=device)
         prediction = generator(batch.obs, batch.mask, goals, targets=batch.targets, noise=noise)
         sums["ade"] += ade(prediction.waypoints, truth).sum().item()
@@ -65,7 +65,7 @@ def evaluate(
         sums["fde_dagger"] += fde(prediction.intention, truth).sum().item()
         sums["near"] += near_rate(prediction.waypoints, *batch.neighbours(), NEAR_M).sum().item()
         if train is not None:
-            terms = supervised_losses(prediction, batch, recipe, train)
+            terms = supervised_losses(prediction, batch, variant, train)
             sums["loss"] += weighted_sum(terms, train).item() * len(goals)
     generator.train(was_training)
     metrics = {k: v / scenes.n_targets for k, v in sums.items()}

@@ -122,6 +122,6 @@ class GoalSocialGenerator(_SceneGenerator):
 
 def build_generator(config: ModelConfig) -> NaviganGenerator | GoalSocialGenerator:
     """The generator a model config names."""
-    if config.recipe.generator == "goal-social-lstm":
+    if config.variant.generator == "goal-social-lstm":
         return GoalSocialGenerator(config)
     return NaviganGenerator(config)

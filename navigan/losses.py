@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from navigan.config import Recipe, TrainConfig
+from navigan.config import TrainConfig, Variant
 from navigan.data import SceneBatch
 from navigan.generators import Prediction
 
@@ -94,18 +94,18 @@ def near_rate(waypoints: torch.Tensor, others: torch.Tensor, present: torch.Tens
 
 
 def supervised_losses(
-    prediction: Prediction, batch: SceneBatch, recipe: Recipe, config: TrainConfig
+    prediction: Prediction, batch: SceneBatch, variant: Variant, config: TrainConfig
 ) -> dict[str, torch.Tensor]:
-    """The non-adversarial terms a model trains on: l2, and fde / resistance where its recipe has them.
+    """The non-adversarial terms a model trains on: l2, and fde / resistance where its variant has them.
 
     The resistance loss scores the way-points y_hat; unless `config.resist_intention`, its
     gradient reaches only the social force (the way-points with the intention held fixed), the
     part of the model that sees the other agents.
     """
     terms = {"l2": l2_loss(prediction.waypoints, batch.truth)}
-    if recipe.fde:
+    if variant.fde:
         terms["fde"] = fde_loss(prediction.intention, batch.truth)
-    if recipe.resistance:
+    if variant.resistance:
         waypoints = prediction.waypoints
         if not config.resist_intention:
             waypoints = prediction.intention.detach() + prediction.forces

@@ -119,7 +119,7 @@ class Planner:
         targets = np.zeros_like(mask)
         targets[:, 0] = True
         noise = None
-        if self.checkpoint.model.recipe.fluctuation:
+        if self.checkpoint.model.variant.fluctuation:
             rng = self.noise if seed is None else torch.Generator(device=self.device).manual_seed(seed)
             noise = torch.randn(batch, self.checkpoint.model.noise, generator=rng, device=self.device)
         prediction = self.generator(

@@ -2,7 +2,7 @@
 
 Each batch (goals drawn and scenes turned as the config's sampling says): the generator plans
 every target; for GAN models the discriminator is updated on real against generated paths, then
-the generator on its weighted losses (L2, FDE, resistance, adversarial as the recipe says, and the
+the generator on its weighted losses (L2, FDE, resistance, adversarial as the model's variant says, and the
 encounter rows' terms where the config asks for them). After each epoch the validation loss (the
 non-adversarial objective with fixed goals and noise from the seed) decides which weights are
 kept, and the checkpoint is saved.
@@ -49,7 +49,7 @@ class Networks:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(train.seed)
             generator = build_generator(model).to(device)
-            discriminator = Discriminator(model).to(device) if model.recipe.adversarial else None
+            discriminator = Discriminator(model).to(device) if model.variant.adversarial else None
         return cls(
             generator=generator,
             discriminator=discriminator,
@@ -61,7 +61,7 @@ class Networks:
     def plan(self, batch: SceneBatch, model: ModelConfig) -> Prediction:
         """The generator's plan for a batch's targets, with fluctuation noise where the model samples it."""
         noise = None
-        if model.recipe.fluctuation:
+        if model.variant.fluctuation:
             noise = torch.randn(len(batch.goals), model.noise, generator=self.noise, device=batch.goals.device)
         return self.generator(batch.obs, batch.mask, batch.goals, targets=batch.targets, noise=noise)
 
@@ -93,9 +93,9 @@ def train_batch(
     The discriminator sees the targets only: their whole paths are known, the context agents'
     futures may not be. Encounter rows (if any) add their terms to the generator's loss.
     """
-    recipe = model.recipe
+    variant = model.variant
     prediction = nets.plan(batch, model)
-    terms = supervised_losses(prediction, batch, recipe, config)
+    terms = supervised_losses(prediction, batch, variant, config)
     logged: dict[str, float] = {}
     if nets.discriminator is not None and nets.d_optimizer is not None:
         scene = torch.cat([batch.obs, batch.future], dim=2)
@@ -142,7 +142,7 @@ def run_epoch(
     for i, windows in enumerate(bar, start=1):
         batch = scenes.batch(windows, sampling, rng)
         extra = None
-        if config.encounters and model.recipe.resistance:
+        if config.encounters and model.variant.resistance:
             extra = encounter_batch(batch, config.encounters, sampling.goal_steps, rng, config.encounter_crowd)
         losses = train_batch(nets, batch.to(device), model, config, extra and extra.to(device))
         for k, v in losses.items():

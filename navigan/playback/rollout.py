@@ -75,7 +75,7 @@ class Policy:
     def of(cls, record: ckpt.Checkpoint, path: Path, dagger: bool = False, seed: int = 0,
            shield: float | None = None) -> Policy:
         """The policy of a loaded checkpoint (read from `path`)."""
-        noise = record.model.noise if record.model.recipe.fluctuation else 0
+        noise = record.model.noise if record.model.variant.fluctuation else 0
         return cls(record.build_generator(), dagger, noise, seed, path, shield)
 
     def noise(self, names: list[str]) -> np.ndarray | None:

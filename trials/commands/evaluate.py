@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         metrics = evaluate(loaded.build_generator().to(args.device), scenes, seed=args.seed, device=args.device)
         record.update(seed=args.seed, full={"ade": metrics["ade"], "fde": metrics["fde"]})
         rows.append((label, record["full"]))
-        if loaded.model.recipe.generator == "navigan":
+        if loaded.model.variant.generator == "navigan":
             record["dagger"] = {"ade": metrics["ade_dagger"], "fde": metrics["fde_dagger"]}
             rows.append((label + "†", record["dagger"]))
     else:
