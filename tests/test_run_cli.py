@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from run_studies import design_small_study
 
 from robot_logs.foxglove_log import FoxgloveReader
+from tests.support.run_studies import design_small_study
 from trials.cli import main
 from trials.outcomes import COLUMNS
 from trials.runner import run_seed
