@@ -23,6 +23,7 @@ def rates(reference, episodes, margin: float) -> tuple[float, float]:
     return float(np.mean([r["comfortable"] for r in records])), float(np.mean([r["arrived"] for r in records]))
 
 
+@pytest.mark.slow
 def test_the_reactive_walker_arrives_and_keeps_clear_only_when_asked_to(reference, eth_ucy_dir):
     episodes = load_episodes(load_split(eth_ucy_dir, "zara2").test)
     comfort, arrival = rates(reference, episodes, 0.5)

@@ -19,6 +19,8 @@ from tests.support.scripts import load_script
 from tests.support.synthetic_study import Behaviour, design, run_all, write_run
 from trials.cli import main
 
+pytestmark = pytest.mark.slow  # whole study folders synthesised and reported
+
 screenshot_report = load_script("screenshot_report")
 
 CONTROLLER_NAMES = ("navigan", "lattice", "sbpl")

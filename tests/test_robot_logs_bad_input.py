@@ -60,6 +60,7 @@ def test_a_damaged_log_is_refused_by_name(damaged: dict[str, Path], kind: str, c
 
 
 @pytest.mark.parametrize(("kind", "scans"), [("bag", 365), ("ros2", 490), ("mcap", 490), ("garbled", 1195)])
+@pytest.mark.slow
 def test_salvage_reads_what_can_be_read(damaged: dict[str, Path], kind: str, scans: int, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run(capsys, "inspect", damaged[kind], "--salvage")
     assert code == 0

@@ -14,6 +14,8 @@ from robot_logs.tracks import TrackTable
 from tests.support.evaluation import labelled_scans, score_detections
 from trials.cli import main
 
+pytestmark = pytest.mark.slow  # the real recordings tracked end to end
+
 
 @pytest.fixture(scope="module")
 def tracked(robot_logs_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:

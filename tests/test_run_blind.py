@@ -14,6 +14,8 @@ from tests.support.blinding import NAMES, mcap_text
 from tests.support.run_studies import design_small_study
 from trials.cli import main
 
+pytestmark = pytest.mark.slow  # a blinded study run end to end in worker processes
+
 
 def trials(*args: str) -> subprocess.CompletedProcess:
     """The real command in its own process, workers included: everything it prints is captured."""

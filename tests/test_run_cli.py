@@ -18,6 +18,8 @@ from trials.cli import main
 from trials.outcomes import COLUMNS
 from trials.runner import run_seed
 
+pytestmark = pytest.mark.slow  # studies run end to end through `trials run`
+
 CONTRACT_COLUMNS = [
     "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m", "min_distance_m",
     "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2", "max_jerk_mps3",

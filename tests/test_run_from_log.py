@@ -28,6 +28,8 @@ from tests.support.blinding import NAMES, mcap_text
 from trials.cli import main
 from trials.controllers.base import STEP_S
 
+pytestmark = pytest.mark.slow  # logged trials: bags tracked and studies run end to end
+
 SPEC = """
 [study]
 name = "{name}"
