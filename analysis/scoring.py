@@ -23,7 +23,6 @@ from analysis.errors import AnalysisError
 from analysis.records import Outcome
 from analysis.run_log import RunLog
 
-
 #: Below this speed (m/s) the robot stands still (the outcome row's definition).
 STANDSTILL_MPS = 0.05
 

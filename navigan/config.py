@@ -132,7 +132,7 @@ class TrainConfig:
     force_size: float = 0.1
 
     def __post_init__(self) -> None:
-        self.sampling  # checks the goal range
+        _ = self.sampling  # the property checks the goal range
         if self.resist_steps is not None and not 1 <= self.resist_steps <= T_PRED:
             raise NaviganError(f"resistance steps {self.resist_steps}: expected 1 to {T_PRED}, the plan's way-points")
 

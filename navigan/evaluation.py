@@ -7,8 +7,8 @@ import torch
 
 from navigan.config import TrainConfig
 from navigan.data import T_PRED, Sampling, Scenes
-from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.encounters import encounter_batch
+from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.losses import ade, encounter_losses, fde, near_rate, supervised_losses, weighted_sum
 
 #: Targets per evaluation batch (no gradients, so bigger than training's).

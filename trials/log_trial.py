@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.records import RunMetrics
 from robot_logs.convert import to_odometry
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import LogTracking, result_rows
@@ -31,7 +32,6 @@ from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import STEP_S, T_OBS, Controller, Observation, Plan
-from analysis.records import RunMetrics
 from trials.outcomes import measure
 from trials.run_log import RunLog
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT

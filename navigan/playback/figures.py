@@ -19,7 +19,6 @@ from navigan.data import STEP_S
 from navigan.playback.episodes import GOAL_RADIUS, Episodes
 from navigan.playback.metrics import DISCOMFORT_DISTANCE, step_distances
 
-
 #: Fig. 4 shows the footprints of the agents that come this close (m) to either walked path.
 NEAR = 2.0
 
