@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 from scipy.special import expit
-from scipy.stats import chi2, f as f_dist, norm, t as t_dist
+from scipy.stats import chi2, norm
+from scipy.stats import f as f_dist
+from scipy.stats import t as t_dist
 
 from designs.model import Model
 

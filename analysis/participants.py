@@ -24,7 +24,6 @@ from analysis.run_log import RunLog
 from robot_logs.physical import STEP_S
 
 
-
 @dataclass(frozen=True)
 class ParticipantModel:
     """The coefficients of the simulated judgment (see the module's docstring)."""

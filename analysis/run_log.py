@@ -46,7 +46,9 @@ class RunLog:
         return np.where(inside, gap, np.inf)
 
 
-def footprint_gap(robot_pose: np.ndarray, points: np.ndarray, half_size: tuple[float, float] = ROBOT_HALF_SIZE, radius: float = PEDESTRIAN_RADIUS_M) -> np.ndarray:
+def footprint_gap(
+    robot_pose: np.ndarray, points: np.ndarray, half_size: tuple[float, float] = ROBOT_HALF_SIZE, radius: float = PEDESTRIAN_RADIUS_M
+) -> np.ndarray:
     """Distance from the robot's rectangle at (n, 3) poses to discs of `radius` at (n, 2) points, 0 on contact."""
     dx = points[:, 0] - robot_pose[:, 0]
     dy = points[:, 1] - robot_pose[:, 1]

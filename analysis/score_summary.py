@@ -95,7 +95,7 @@ def by_factor(spec: StudySpec, runs: list[StudyRun], final: dict[str, int], arm_
             levels = [level_of(factor, run.values[factor.name], distinct) for run in scored]
         order = _level_order(factor, levels)
         for level in order:
-            rows.append(LevelScores(factor.name, level, counts(final[r.code] for r, l in zip(scored, levels) if l == level)))
+            rows.append(LevelScores(factor.name, level, counts(final[r.code] for r, at in zip(scored, levels) if at == level)))
     return rows
 
 

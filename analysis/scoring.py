@@ -24,7 +24,6 @@ from analysis.records import Outcome
 from analysis.run_log import RunLog
 from robot_logs.physical import INTIMATE_M
 
-
 #: Below this speed (m/s) the robot stands still (the outcome row's definition).
 STANDSTILL_MPS = 0.05
 

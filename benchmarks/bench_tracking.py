@@ -16,18 +16,21 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")  # one core, before numpy loads its BLAS
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for tests.support
+
 import numpy as np
 
-from robot_logs.crowd import walking_crowd
 from robot_logs.detection import detect
-from robot_logs.evaluation import clear_mot, labelled_scans, score_detections
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.pipeline import PersonTracker
 from robot_logs.reader import LogReader
+from tests.support.crowd import walking_crowd
+from tests.support.evaluation import clear_mot, labelled_scans, score_detections
 
 SAMPLES = Path(__file__).resolve().parents[1] / "tests" / "data" / "robot_logs"
 PEOPLE = 6

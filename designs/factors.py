@@ -8,7 +8,6 @@ plan but are no model term, so they have no setting.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
@@ -125,14 +124,14 @@ class FixedFactor:
     """A factor held at one value: recorded in every run, never a model term."""
 
     name: str
-    value: Union[float, str]
+    value: float | str
     units: str = ""
 
     kind = "fixed"
 
 
-DesignFactor = Union[ContinuousFactor, DiscreteFactor, CategoricalFactor]
-Factor = Union[ContinuousFactor, DiscreteFactor, CategoricalFactor, FixedFactor]
+DesignFactor = ContinuousFactor | DiscreteFactor | CategoricalFactor
+Factor = ContinuousFactor | DiscreteFactor | CategoricalFactor | FixedFactor
 
 
 def plain(value: float | str) -> float | int | str:

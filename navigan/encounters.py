@@ -26,8 +26,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from robot_logs.physical import STEP_S, T_OBS, T_PRED
 from navigan.data import SceneBatch
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 #: Steps after the last observed one at which the walker passes its agent.
 MEET_STEPS = (1, T_PRED)

@@ -6,11 +6,11 @@ import numpy as np
 import torch
 
 from navigan.config import TrainConfig
-from robot_logs.physical import T_PRED
 from navigan.data import Sampling, Scenes
-from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.encounters import encounter_batch
+from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.losses import ade, encounter_losses, fde, near_rate, supervised_losses, weighted_sum
+from robot_logs.physical import T_PRED
 
 #: Targets per evaluation batch (no gradients, so bigger than training's).
 EVAL_BATCH = 1024

@@ -17,9 +17,9 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from robot_logs.physical import STEP_S, T_OBS
 from navigan.data import fill_tracks
 from navigan.errors import NaviganError
+from robot_logs.physical import STEP_S, T_OBS
 
 
 @dataclass(frozen=True)

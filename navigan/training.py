@@ -29,7 +29,11 @@ from navigan.errors import NaviganError
 from navigan.evaluation import evaluate
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, Prediction, build_generator
 from navigan.losses import (
-    discriminator_loss, encounter_losses, generator_adversarial_loss, supervised_losses, weighted_sum,
+    discriminator_loss,
+    encounter_losses,
+    generator_adversarial_loss,
+    supervised_losses,
+    weighted_sum,
 )
 
 

@@ -58,11 +58,6 @@ class Pose2D:
         rotation = np.array([[c, -s], [s, c]])
         return np.asarray(points, dtype=float).reshape(-1, 2) @ rotation.T + (self.x, self.y)
 
-    def rotate(self, vectors: np.ndarray) -> np.ndarray:
-        """(N, 2) child-frame vectors (velocities) rotated into the parent frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return np.asarray(vectors, dtype=float).reshape(-1, 2) @ np.array([[c, -s], [s, c]]).T
-
 
 def interpolate(a: Pose2D, b: Pose2D, fraction: float) -> Pose2D:
     """The pose a fraction of the way from a to b (heading along the shorter arc)."""

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_logs.physical import STEP_S
 from navigan.data import SHIPPED_DATA, SPLITS, load_split
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
 from navigan.playback.rollout import Rollout
 from navigan.shield import clearance, forecast
+from robot_logs.physical import STEP_S
 
 HEADINGS = np.deg2rad(np.arange(-90, 91, 10))
 SPEEDS = np.array([0.0, 0.4, 0.8, 1.2, 1.5])

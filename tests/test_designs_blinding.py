@@ -41,6 +41,7 @@ def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
     assert len(plan) == 19
 
 
+@pytest.mark.slow
 def test_allocation_does_not_follow_from_the_public_seed(tmp_path):
     """The same public seed gives the same public plan; each key comes from a fresh secret seed."""
     keys = []

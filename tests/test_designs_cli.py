@@ -78,6 +78,7 @@ def test_qualitative_default_writes_the_study_folder(tmp_path, capsys):
     assert record["seed"] == 4 and record["blinding"] is None
 
 
+@pytest.mark.slow
 def test_same_seed_same_plan_other_seed_other_order(tmp_path):
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
     for folder, seed in [(a, "9"), (b, "9"), (c, "10")]:
@@ -90,6 +91,7 @@ def test_same_seed_same_plan_other_seed_other_order(tmp_path):
     assert read_plan(a) != read_plan(c)
 
 
+@pytest.mark.slow
 def test_seed_is_drawn_and_recorded_when_not_given(tmp_path, capsys):
     assert design(tmp_path) == 0
     seed = json.loads((tmp_path / "design.json").read_text())["seed"]
@@ -100,6 +102,7 @@ def test_seed_is_drawn_and_recorded_when_not_given(tmp_path, capsys):
     assert (rebuilt / "plan.csv").read_text() == (tmp_path / "plan.csv").read_text()
 
 
+@pytest.mark.slow
 def test_generic_study_from_a_spec_file(tmp_path):
     spec = tmp_path / "spec.toml"
     spec.write_text(GENERIC_SPEC)
@@ -127,6 +130,7 @@ def test_the_folders_own_study_toml_is_used_when_no_preset_is_asked(tmp_path):
     assert len(read_plan(tmp_path)) == 12
 
 
+@pytest.mark.slow
 def test_existing_plan_is_never_overwritten_without_force(tmp_path, capsys):
     assert design(tmp_path, "--seed", "1") == 0
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
@@ -137,6 +141,7 @@ def test_existing_plan_is_never_overwritten_without_force(tmp_path, capsys):
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
 
 
+@pytest.mark.slow
 def test_force_moves_the_old_plan_and_results_aside(tmp_path):
     assert design(tmp_path, "--seed", "1") == 0
     old_plan = (tmp_path / "plan.csv").read_text()

@@ -90,6 +90,7 @@ def brute_force(grid: np.ndarray, prims, polygon, circumscribed: int, cell_size:
 @pytest.mark.parametrize("seed", [0, 1, 4, 6, 7])
 @pytest.mark.parametrize("polygon, circumscribed", [([], 0), (RECT, 0), (RECT, 2)],
                          ids=["point", "rectangle", "rectangle-checked-from-2"])
+@pytest.mark.slow
 def test_optimal_cost_equals_brute_force(tmp_path, seed, polygon, circumscribed):
     env = read_cfg(write_cfg(tmp_path / "map.cfg", random_map(seed), circumscribed))
     prims = husky_primitives(0.1)

@@ -14,7 +14,7 @@ def test_text_report_lists_every_epsilon_then_the_path(sbpl_dir, capsys):
     out = capsys.readouterr().out.splitlines()
     assert code == 0
     assert out[0].startswith("env1.cfg + pr2.mprim: 15 x 15 cells of 0.025 m, 16 headings, 7 primitives per heading")
-    rows = [line.split() for line in out[out.index(next(l for l in out if l.split()[:2] == ["eps", "cost"])) + 1:]
+    rows = [line.split() for line in out[out.index(next(line for line in out if line.split()[:2] == ["eps", "cost"])) + 1:]
             if len(line.split()) == 4 and line.split()[0][0].isdigit() and "." in line.split()[0]]
     assert float(rows[0][0]) == 3.0 and float(rows[-1][0]) == 1.0 and rows[-1][1] == "8348"
     assert "status: solved: path of cost 8348 within eps 1 of optimal" in out

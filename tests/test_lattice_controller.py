@@ -139,6 +139,7 @@ def test_new_goal_gets_a_new_window(fresh):
     assert plan.waypoints[-1, 1] > 3.0 and abs(plan.waypoints[-1, 0]) < 1.5
 
 
+@pytest.mark.slow
 def test_five_centimetre_cells():
     plan = LatticeController(cell_size=0.05, budget_s=2.0).plan(observe(peds=[((4.0, 0.3), (-1.0, 0.0))]))
     assert plan.record["status"] == "solved" and plan.waypoints.shape == (T_PRED, 2)

@@ -159,6 +159,7 @@ def test_start_on_an_obstacle_is_in_collision():
     assert result.status == "start_in_collision" and "its cell (5, 10) has cost 1" in result.message
 
 
+@pytest.mark.slow
 def test_budget_spent_before_the_goal_gives_the_best_partial_path(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
@@ -174,6 +175,7 @@ def test_budget_spent_before_the_goal_gives_the_best_partial_path(sbpl_dir):
     assert len(result.poses) > 1 and result.cost > 0
 
 
+@pytest.mark.slow
 def test_budget_cut_after_a_first_solution_keeps_it(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])

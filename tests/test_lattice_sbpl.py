@@ -36,6 +36,7 @@ def _plan(sbpl_dir, env_name, prims_name, footprint):
 
 @pytest.mark.parametrize("env_name, prims_name, footprint, first_cost, optimal_cost", SBPL_ANSWERS,
                          ids=[f"{e}+{p}" for e, p, *_ in SBPL_ANSWERS])
+@pytest.mark.slow
 def test_matches_sbpl(sbpl_dir, env_name, prims_name, footprint, first_cost, optimal_cost):
     planner, result = _plan(sbpl_dir, env_name, prims_name, footprint)
     assert result.status == "solved"

@@ -12,7 +12,6 @@ from navigan.checkpoint import load
 from navigan.config import TrainConfig
 from trials.cli import main
 
-
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
@@ -22,7 +21,7 @@ def data(eth_ucy_dir, tmp_path) -> Path:
     root = tmp_path / "data"
     parts = {"train": "train/crowds_zara01_train.txt", "val": "val/crowds_zara01_val.txt",
              "test": "all_data/crowds_zara02.txt"}
-    for part, name in parts.items():
+    for name in parts.values():
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         lines = (eth_ucy_dir / name).read_text().splitlines(keepends=True)
         (root / name).write_text("".join(lines[:600]))
@@ -37,6 +36,7 @@ def recipe_file(folder: Path, text: str) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_train_then_resume_then_evaluate(data, tmp_path, capsys):
     out = tmp_path / "m.pt"
     mine = recipe_file(tmp_path, 'model = "navil2"\n[train]\nbatch = 64\n')

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from robot_logs.physical import T_OBS
 from navigan.data import FAR_STEPS, SEQ_LEN, Sampling, Scenes, load_split, read_recording, recording_windows
 from navigan.errors import NaviganError
+from robot_logs.physical import T_OBS
 
 
 def write(tmp_path: Path, text: str, name: str = "scene.txt") -> Path:

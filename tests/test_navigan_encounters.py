@@ -8,11 +8,11 @@ import torch
 
 from navigan import encounters
 from navigan.config import ModelConfig, TrainConfig
-from robot_logs.physical import STEP_S, T_OBS, T_PRED
 from navigan.data import Sampling, Scenes
 from navigan.encounters import encounter_batch
 from navigan.generators import Prediction, build_generator
 from navigan.losses import encounter_losses
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 
 @pytest.fixture(scope="module")

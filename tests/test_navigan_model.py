@@ -7,11 +7,11 @@ import torch
 
 from navigan.blocks import PairPoolNet, PoolNet
 from navigan.config import ModelConfig
-from robot_logs.physical import T_OBS, T_PRED
 from navigan.discriminator import Discriminator
 from navigan.evaluation import constant_velocity
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator
 from navigan.losses import ade, fde, resistance_loss
+from robot_logs.physical import T_OBS, T_PRED
 
 
 def scene(batch: int = 2, agents: int = 4, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:

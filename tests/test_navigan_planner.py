@@ -9,7 +9,6 @@ from navigan.data import fill_tracks
 from navigan.errors import NaviganError
 from navigan.planner import Planner
 
-
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_logs.physical import STEP_S
 from navigan.shield import HORIZON, MOVES, forecast, shielded_steps
+from robot_logs.physical import STEP_S
 
 
 def track(now: tuple[float, float], move: tuple[float, float]) -> np.ndarray:

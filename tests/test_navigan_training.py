@@ -14,7 +14,6 @@ from navigan.errors import NaviganError
 from navigan.evaluation import evaluate
 from navigan.training import Networks, train
 
-
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
@@ -27,6 +26,7 @@ def small(eth_ucy_dir):
     return train_scenes, val_scenes, split.describe()
 
 
+@pytest.mark.slow
 def test_short_training_lowers_the_validation_loss(small, tmp_path):
     train_scenes, val_scenes, split = small
     model, config = ModelConfig("navigan-r"), TrainConfig("zara2", epochs=3, batch=32, seed=0)
@@ -51,6 +51,7 @@ def interrupt_after(epochs: int):
     return on_epoch
 
 
+@pytest.mark.slow
 def test_interrupted_training_resumes_to_the_same_weights(small, tmp_path):
     train_scenes, val_scenes, split = small
     model, config = ModelConfig("navigan"), TrainConfig("zara2", epochs=2, batch=64, seed=3)
@@ -71,6 +72,7 @@ def test_interrupted_training_resumes_to_the_same_weights(small, tmp_path):
     assert resumed.history[1]["val"] == straight.history[1]["val"]
 
 
+@pytest.mark.slow
 def test_early_stopping_keeps_the_best_epoch(small, tmp_path):
     train_scenes, val_scenes, split = small
     config = TrainConfig("zara2", epochs=10, patience=2, batch=64, lr=0.0)  # nothing changes: no improvement

@@ -33,6 +33,7 @@ def test_every_model_and_split_is_shipped_with_its_record():
 
 
 @pytest.mark.parametrize("split", SPLITS)
+@pytest.mark.slow
 def test_shipped_navigan_r_beats_constant_velocity(split, eth_ucy_dir):
     test = Scenes.from_files(load_split(eth_ucy_dir, split).test)
     model = evaluate(ckpt.load(ckpt.shipped("navigan-r", split)).build_generator(), test, seed=0)

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
+import shutil
+from pathlib import Path
 
 import pytest
 import torch
@@ -31,34 +35,60 @@ def error_line(capsys) -> str:
     return err
 
 
-def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, capsys):
-    out = tmp_path / "pb"
-    assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
-    printed = capsys.readouterr().out
-    assert "| C (comfort rate) |" in printed and "episodes per split: zara1 3" in printed
+def table_rows(markdown: str) -> list[list[str]]:
+    """The cells of every row of the Markdown tables in `markdown`."""
+    return [[cell.strip() for cell in line.strip("|").split("|")] for line in markdown.splitlines() if line.startswith("| ")]  # rules start "|-"
+
+
+@pytest.fixture(scope="module")
+def walked(eth_ucy_dir, tmp_path_factory) -> tuple[Path, str]:
+    """One playback of three columns on 3 zara1 episodes: its folder and what it printed."""
+    out = tmp_path_factory.mktemp("walked") / "pb"
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
+    return out, printed.getvalue()
+
+
+def stored_result(out: Path, model: str) -> dict:
+    return json.loads((out / "episodes" / "zara1" / f"{model}.json").read_text())
+
+
+@pytest.mark.slow
+def test_the_printed_table_is_the_pooled_table_of_the_csv_and_markdown(walked):
+    out, printed = walked
     with (out / "table1.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0])[3:] == ["R", "R-dagger", "human"]
-    pooled = {(r["metric"], r["source"]): r for r in rows if r["scope"] == "all"}
+    assert list(rows[0])[3:] == ["R", "R-dagger", "human"] and {r["scope"] for r in rows} == {"all", "zara1"}
+    pooled = {(r["metric"], r["source"]): list(r.values())[3:] for r in rows if r["scope"] == "all"}
     assert {("S", "paper"), ("C", "paper"), ("A", "paper"), ("ade", "ours")} <= set(pooled)
-    assert pooled["episodes", "ours"]["human"] == "3"
-    assert float(pooled["A", "ours"]["human"]) == 1.0 and pooled["C", "paper"]["R"] == "n/a"
-    assert {r["scope"] for r in rows} == {"all", "zara1"}
+    assert pooled["episodes", "ours"][2] == "3" and pooled["A", "ours"][2] == "1.000" and pooled["C", "paper"][0] == "n/a"
+    shown = table_rows(printed)[1:]  # below the header
+    assert [cells[1:] for cells in shown] == [values for (_, source), values in pooled.items() if source == "ours"]
+    markdown = table_rows((out / "table1.md").read_text())
+    assert all(cells in markdown for cells in shown)
+    assert ["zara1", "crowds_zara01.txt", "3", "0"] in markdown  # episodes per split: recordings, kept, left out
+
+
+@pytest.mark.slow
+def test_every_episode_and_figure_is_written(walked):
+    out, _ = walked
     with (out / "episodes.csv").open() as f:
         episodes = list(csv.DictReader(f))
     assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
-    markdown = (out / "table1.md").read_text()
-    assert "0.9^((k-1) * 0.4 s * 1 m/s)" in markdown and "| zara1 | crowds_zara01.txt | 3 | 0 |" in markdown
-    assert "toward a sub-goal 12 steps ahead at the recorded pedestrian's pace" in markdown
     for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    stored = {p: p.stat().st_mtime_ns for p in (out / "episodes" / "zara1").glob("*.json")}
-    assert len(stored) == 3
-    record = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
-    assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["seed"] == 0
-    assert record["identity"]["settings"]["subgoal_speed"] == "recorded"
+    record = stored_result(out, "navigan-r")
+    assert record["checkpoint"]["file"] == "navigan-r-zara1.pt"
+    settings = record["identity"]["settings"]
+    assert (settings["seed"], settings["gamma"], settings["v_pref"], settings["subgoal_speed"]) == (0, 0.9, 1.0, "recorded")
     assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
 
+
+@pytest.mark.slow
+def test_a_rerun_walks_only_what_is_missing_and_refuses_other_settings(walked, eth_ucy_dir, tmp_path, capsys):
+    out = Path(shutil.copytree(walked[0], tmp_path / "pb"))
+    stored = {p: p.stat().st_mtime_ns for p in (out / "episodes" / "zara1").glob("*.json")}
+    assert len(stored) == 3
     (out / "episodes" / "zara1" / "navigan-r-dagger.json").unlink()  # as if interrupted before it
     assert playback(eth_ucy_dir, out, "--models", COLUMNS) == 0
     for path, mtime in stored.items():
@@ -66,19 +96,21 @@ def test_writes_table_episodes_and_figures_then_resumes(eth_ucy_dir, tmp_path, c
             assert path.stat().st_mtime_ns == mtime  # not walked again
     assert (out / "episodes" / "zara1" / "navigan-r-dagger.json").is_file()
 
-    before = (out / "episodes" / "zara1" / "human.json").read_bytes()
+    human = out / "episodes" / "zara1" / "human.json"
+    before = human.read_bytes()
     assert playback(eth_ucy_dir, out, "--models", "human", "--gamma", "0.95") == 2
-    assert "other settings" in error_line(capsys)
-    assert (out / "episodes" / "zara1" / "human.json").read_bytes() == before
-
-    # handed the goal itself, 36 steps ahead, the same weights walk otherwise
+    assert error_line(capsys).startswith(f"error: {human} ")
+    assert human.read_bytes() == before
     assert playback(eth_ucy_dir, out, "--models", "navigan-r", "--subgoal-speed", "0") == 2
-    assert "other settings" in error_line(capsys)
+    assert error_line(capsys).startswith(f"error: {out / 'episodes' / 'zara1' / 'navigan-r.json'} ")
+
+
+@pytest.mark.slow
+def test_subgoal_speed_0_walks_the_same_weights_toward_the_goal_itself(walked, eth_ucy_dir, tmp_path):
     assert playback(eth_ucy_dir, tmp_path / "goal", "--models", "navigan-r", "--subgoal-speed", "0") == 0
-    assert "toward the goal itself" in (tmp_path / "goal" / "table1.md").read_text()
-    direct = json.loads((tmp_path / "goal" / "episodes" / "zara1" / "navigan-r.json").read_text())
+    direct = stored_result(tmp_path / "goal", "navigan-r")
     assert direct["identity"]["settings"]["subgoal_speed"] is None
-    assert [r["path"] for r in direct["results"]] != [r["path"] for r in record["results"]]
+    assert [r["path"] for r in direct["results"]] != [r["path"] for r in stored_result(walked[0], "navigan-r")["results"]]
 
 
 def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, tmp_path):

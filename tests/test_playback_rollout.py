@@ -55,6 +55,7 @@ def test_who_makes_an_episode():
     np.testing.assert_allclose(episodes.goal[0], [(7 + 36) * 0.4, 0.0])
 
 
+@pytest.mark.slow
 def test_batched_and_one_at_a_time_roll_outs_agree(few):
     for dagger, shield in ((False, None), (True, None), (False, 0.5)):
         policy = Policy.load(WEIGHTS, dagger=dagger, seed=3, shield=shield)

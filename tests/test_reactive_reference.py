@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -12,16 +9,12 @@ from navigan.data import load_split
 from navigan.playback.episodes import load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
-
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "reactive_reference.py"
+from tests.support.scripts import load_script
 
 
 @pytest.fixture(scope="module")
 def reference():
-    spec = importlib.util.spec_from_file_location("reactive_reference", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("reactive_reference")
 
 
 def rates(reference, episodes, margin: float) -> tuple[float, float]:
@@ -30,6 +23,7 @@ def rates(reference, episodes, margin: float) -> tuple[float, float]:
     return float(np.mean([r["comfortable"] for r in records])), float(np.mean([r["arrived"] for r in records]))
 
 
+@pytest.mark.slow
 def test_the_reactive_walker_arrives_and_keeps_clear_only_when_asked_to(reference, eth_ucy_dir):
     episodes = load_episodes(load_split(eth_ucy_dir, "zara2").test)
     comfort, arrival = rates(reference, episodes, 0.5)

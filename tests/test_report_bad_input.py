@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from analysis.records import SIMULATED
-from synthetic_study import design, run_all
+from tests.support.synthetic_study import design, run_all
 from trials.cli import main
 from trials.results import read_responses
 from trials.simulated_participants import simulate_run

@@ -8,7 +8,6 @@ import io
 import json
 import re
 import shutil
-import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -16,11 +15,13 @@ import matplotlib.image as mpimg
 import pytest
 from scipy.stats import fisher_exact
 
-from synthetic_study import Behaviour, design, run_all, write_run
+from tests.support.scripts import load_script
+from tests.support.synthetic_study import Behaviour, design, run_all, write_run
 from trials.cli import main
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from screenshot_report import find_browser, screenshot  # noqa: E402
+pytestmark = pytest.mark.slow  # whole study folders synthesised and reported
+
+screenshot_report = load_script("screenshot_report")
 
 CONTROLLER_NAMES = ("navigan", "lattice", "sbpl")
 DATA_URI = re.compile(r"data:image/png;base64,[A-Za-z0-9+/=]+")
@@ -208,11 +209,11 @@ def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
     assert page.count("<table>") >= 5 and "A/B comparison (Table II)" in page
 
 
-@pytest.mark.skipif(find_browser() is None, reason="no Chromium installed (apt-get install chromium)")
+@pytest.mark.skipif(screenshot_report.find_browser() is None, reason="no Chromium installed (apt-get install chromium)")
 def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> None:
     assert main(["report", "--study", str(ab_study)]) == 0
     shot = tmp_path / "shot.png"
-    screenshot(ab_study / "report" / "report.html", shot, width=1200, height=8000)
+    screenshot_report.screenshot(ab_study / "report" / "report.html", shot, width=1200, height=8000)
     image = mpimg.imread(shot)
     assert image.shape[:2] == (8000, 1200)
     # The figures are drawn: plenty of saturated (coloured) pixels, which text and tables do not have.

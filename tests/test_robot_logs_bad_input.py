@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robot_logs.bag_writer import BagWriter
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import track_log
 from robot_logs.records import Scan
+from tests.support.bag_writer import BagWriter
 from trials.cli import main
 
 CUT = 1_500_000  # bytes kept of a truncated log
@@ -60,10 +60,11 @@ def test_a_damaged_log_is_refused_by_name(damaged: dict[str, Path], kind: str, c
 
 
 @pytest.mark.parametrize(("kind", "scans"), [("bag", 365), ("ros2", 490), ("mcap", 490), ("garbled", 1195)])
+@pytest.mark.slow
 def test_salvage_reads_what_can_be_read(damaged: dict[str, Path], kind: str, scans: int, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run(capsys, "inspect", damaged[kind], "--salvage")
     assert code == 0
-    assert next(l for l in out.splitlines() if l.startswith("/scan")).split()[2] == str(scans)
+    assert next(line for line in out.splitlines() if line.startswith("/scan")).split()[2] == str(scans)
     assert "warning: the log is damaged" in err
     table = track_log(damaged[kind], salvage=True)
     assert len(table) > 0

@@ -33,7 +33,8 @@ def write_run(path: Path) -> None:
         log.write("/robot/pose", "foxglove.PoseInFrame", pose_in_frame(1_500_000_000, "map", Pose2D(1.0, 2.0, 0.5)), 1_500_000_000)
         log.write("/plan", "foxglove.PosesInFrame", poses_in_frame(1_500_000_000, "map", np.array([[1.0, 2.0], [1.4, 2.1]])), 1_500_000_000)
         log.write("/tf", "foxglove.FrameTransform", frame_transform(1_500_000_000, "map", "base_link", Pose2D(1.0, 2.0, 0.5)), 1_500_000_000)
-        people = entity(1_500_000_000, "map", "pedestrians", spheres=[sphere(3.0, 1.0, 0.5, (1, 0, 0, 1))], lines=[line_strip(np.array([[0, 0], [1, 1]]), (0, 1, 0, 1))])
+        people = entity(1_500_000_000, "map", "pedestrians", spheres=[sphere(3.0, 1.0, 0.5, (1, 0, 0, 1))],
+                        lines=[line_strip(np.array([[0, 0], [1, 1]]), (0, 1, 0, 1))])
         log.write("/pedestrians", "foxglove.SceneUpdate", scene_update([people]), 1_500_000_000)
         log.write("/events", "navtrials.Event", {"kind": "goal_reached", "time": 12.4}, 2_000_000_000)
         log.write("/log", "foxglove.Log", log_line(2_000_000_000, "run finished"), 2_000_000_000)

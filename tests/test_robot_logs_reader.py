@@ -10,12 +10,12 @@ import pytest
 from mcap.writer import Writer as McapWriter
 from rosbags.rosbag1 import Reader as Ros1Reader
 
-from robot_logs.bag_writer import BagWriter
 from robot_logs.convert import to_scan
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import read_scans
 from robot_logs.reader import LogReader
 from robot_logs.topics import SCAN_TYPES, pick_topic
+from tests.support.bag_writer import BagWriter
 from trials.cli import main
 
 SCAN_COUNT = 1265
@@ -122,7 +122,7 @@ def test_inspect_reports_topics_rates_and_frames(stationary: dict[str, Path], ca
     out = capsys.readouterr().out
     assert "ROS2 bag (mcap storage)" in out
     assert "duration: 125.989 s by header stamps" in out
-    line = next(l for l in out.splitlines() if l.startswith("/scan"))
+    line = next(row for row in out.splitlines() if row.startswith("/scan"))
     assert line.split() == ["/scan", "sensor_msgs/msg/LaserScan", "1265", "10.03", "laser"]
 
 

@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 
 from robot_logs.detection import detect
-from robot_logs.evaluation import labelled_scans, score_detections
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.reader import LogReader
 from robot_logs.tracks import TrackTable
+from tests.support.evaluation import labelled_scans, score_detections
 from trials.cli import main
+
+pytestmark = pytest.mark.slow  # the real recordings tracked end to end
 
 
 @pytest.fixture(scope="module")

@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robot_logs.bag_writer import BagWriter
-from robot_logs.crowd import walking_crowd
 from robot_logs.detection import detect, pair_legs
-from robot_logs.evaluation import clear_mot
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.log_tracking import track_log
 from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Transform
 from robot_logs.tracking import Tracker, TrackerConfig
+from tests.support.bag_writer import BagWriter
+from tests.support.crowd import walking_crowd
+from tests.support.evaluation import clear_mot
 
 
 def test_a_track_is_born_after_three_hits_and_dies_after_five_misses() -> None:

@@ -4,38 +4,22 @@ from __future__ import annotations
 
 import csv
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from mcap.reader import make_reader
-from run_studies import design_small_study
 
+from tests.support.blinding import NAMES, mcap_text
+from tests.support.run_studies import design_small_study
 from trials.cli import main
 
-NAMES = re.compile(rb"navigan|lattice|sbpl", re.IGNORECASE)
+pytestmark = pytest.mark.slow  # a blinded study run end to end in worker processes
 
 
 def trials(*args: str) -> subprocess.CompletedProcess:
     """The real command in its own process, workers included: everything it prints is captured."""
     return subprocess.run([sys.executable, "-m", "trials.cli", *args], capture_output=True, timeout=300)
-
-
-def mcap_text(path: Path) -> bytes:
-    """Everything an MCAP holds, decompressed: header, metadata, schemas, topics and every message."""
-    parts = []
-    with path.open("rb") as stream:
-        reader = make_reader(stream)
-        header = reader.get_header()
-        parts += [header.library.encode(), header.profile.encode()]
-        parts += [json.dumps(m.metadata).encode() + m.name.encode() for m in reader.iter_metadata()]
-        summary = reader.get_summary()
-        parts += [s.name.encode() + s.data for s in summary.schemas.values()]
-        parts += [c.topic.encode() + json.dumps(c.metadata).encode() for c in summary.channels.values()]
-        parts += [message.data for _, _, message in reader.iter_messages()]
-    return b"\n".join(parts)
 
 
 @pytest.fixture(scope="module")

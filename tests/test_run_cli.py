@@ -11,12 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from run_studies import design_small_study
 
 from robot_logs.foxglove_log import FoxgloveReader
+from tests.support.run_studies import design_small_study
 from trials.cli import main
 from trials.outcomes import COLUMNS
 from trials.runner import run_seed
+
+pytestmark = pytest.mark.slow  # studies run end to end through `trials run`
 
 CONTRACT_COLUMNS = [
     "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m", "min_distance_m",

@@ -18,15 +18,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_run_blind import NAMES, mcap_text
 
-from robot_logs.bag_writer import BagWriter
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
-from robot_logs.records import Odometry, Transform
-from trials.cli import main
 from robot_logs.physical import STEP_S
+from robot_logs.records import Odometry, Transform
+from tests.support.bag_writer import BagWriter
+from tests.support.blinding import NAMES, mcap_text
+from trials.cli import main
+
+pytestmark = pytest.mark.slow  # logged trials: bags tracked and studies run end to end
 
 SPEC = """
 [study]

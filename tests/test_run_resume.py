@@ -17,6 +17,8 @@ from trials.cli import main
 from trials.runner import clean_partials
 from trials.study import StudyFolder
 
+pytestmark = pytest.mark.slow  # runs killed and resumed in their own processes
+
 RUNS = 12
 
 

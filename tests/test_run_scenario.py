@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from run_studies import Straight
 
+from tests.support.run_studies import Straight
 from trials.errors import StudyError
 from trials.scenario import Settings, build_scenario, settings_from_row
 from trials.sim.closed_loop import NoSink, SimConfig, simulate

@@ -1,6 +1,6 @@
 """The `trials` console command: one subcommand per module of `trials.commands`.
 
-User mistakes (the package error types below) print `error: ...` on one line and exit 2.
+User mistakes (`trials.errors.USER_ERRORS`, every package's error type) print `error: ...` on one line and exit 2.
 """
 
 from __future__ import annotations
@@ -10,17 +10,10 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from analysis.errors import AnalysisError
-from designs.errors import DesignError
-from navigan.errors import NaviganError
-from robot_logs.errors import LogError
-from trials.errors import StudyError
+from trials.errors import USER_ERRORS
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
 COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report")
-
-#: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)
 
 EXIT_USAGE = 2
 

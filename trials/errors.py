@@ -1,5 +1,15 @@
-"""The one exception type of the trials package."""
+"""The trials package's exception type, and the one list of every package's user-error types."""
+
+from analysis.errors import AnalysisError
+from designs.errors import DesignError
+from navigan.errors import NaviganError
+from robot_logs.errors import LogError
 
 
 class StudyError(ValueError):
     """A study folder or command request that cannot be served; the message says what and where."""
+
+
+#: Exception types that mean "the user asked for something wrong", never a bug: the CLI prints them
+#: as one `error:` line with exit code 2, and `trials run` reports them from its workers without a traceback.
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)

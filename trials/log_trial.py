@@ -22,17 +22,17 @@ from typing import Any
 
 import numpy as np
 
+from analysis.records import RunMetrics
 from robot_logs.convert import to_odometry
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import LogTracking, result_rows
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from robot_logs.reader import LogReader
 from robot_logs.records import seconds, stamp_text
 from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
-from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from trials.controllers.base import Controller, Observation, Plan
-from analysis.records import RunMetrics
 from trials.outcomes import measure
 from trials.run_log import RunLog
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT

@@ -45,7 +45,7 @@ def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[f
     axes.add_patch(plt.Circle(goal, GOAL_TOLERANCE_M, color="green", alpha=0.25, label=f"goal ({GOAL_TOLERANCE_M:g} m)"))
     if cone is not None:
         axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
-    for t, name, detail in run.events:
+    for t, name, _detail in run.events:
         if name == "collision":
             k = int(np.searchsorted(run.time, t))
             axes.plot(*run.pose[min(k, len(run.pose) - 1), :2], marker="x", color="red", markersize=12, mew=3, label="collision")

@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from robot_logs.errors import LogError
-from robot_logs.foxglove_log import (FoxgloveReader, FoxgloveWriter, color, cylinder, entity, frame_transform, pose,
-                                     poses_in_frame, scene_update, text)
+from robot_logs.foxglove_log import FoxgloveReader, FoxgloveWriter, color, cylinder, entity, frame_transform, pose, poses_in_frame, scene_update, text
 from robot_logs.frames import Pose2D
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S
 from trials.controllers.base import Plan

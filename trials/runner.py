@@ -23,20 +23,17 @@ import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from designs.errors import DesignError
-from navigan.errors import NaviganError
-from robot_logs.errors import LogError
+from analysis.records import RunMetrics
 from trials.atomic import write_files, write_text
 from trials.controllers.base import Controller
-from trials.errors import StudyError
+from trials.errors import USER_ERRORS, StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
-from analysis.records import RunMetrics
 from trials.outcomes import columns, measure, metric_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
@@ -50,7 +47,6 @@ CONTROLLER_LEVELS = (NAVIGAN_R, LATTICE)
 DEFAULT_CONTROLLER = NAVIGAN_R
 SEALED_RUNS = f"{SEALED}/runs"
 PERCEPTIONS = ("positions", "lidar")
-USER_ERRORS = (StudyError, NaviganError, LogError, DesignError)
 LOCK = ".lock"
 
 
@@ -104,7 +100,7 @@ def run_seed(study_seed: int, code: str) -> int:
 
 def utc_stamp(blind: bool) -> str:
     """Now as ISO 8601 UTC; to the minute in a blinded study, whose run times differ by controller."""
-    now = datetime.now(timezone.utc).replace(microsecond=0)
+    now = datetime.now(UTC).replace(microsecond=0)
     return (now.replace(second=0) if blind else now).isoformat()
 
 

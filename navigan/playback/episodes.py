@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_logs.physical import STEP_S, T_OBS, T_PRED
 from navigan.data import Recording, read_recording
 from navigan.errors import NaviganError
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 GOAL_STEPS = 3 * T_PRED
 CUTOFF_STEPS = 5 * T_PRED

@@ -34,7 +34,13 @@ from navigan.playback.metrics import Scoring, score_episode
 from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
-    COLUMNS, SceneCount, Table, csv_text, document, episodes_csv, summarize,
+    COLUMNS,
+    SceneCount,
+    Table,
+    csv_text,
+    document,
+    episodes_csv,
+    summarize,
 )
 
 MODELS: tuple[str, ...] = tuple(COLUMNS)

@@ -15,10 +15,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from robot_logs.physical import STEP_S
 from navigan.playback.episodes import GOAL_RADIUS, Episodes
 from navigan.playback.metrics import DISCOMFORT_DISTANCE, step_distances
-
+from robot_logs.physical import STEP_S
 
 #: Fig. 4 shows the footprints of the agents that come this close (m) to either walked path.
 NEAR = 2.0

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_logs.physical import STEP_S
 from navigan.playback.episodes import GOAL_RADIUS
+from robot_logs.physical import STEP_S
 
 #: Closer than this (m) is uncomfortable: C fails and the step's reward is -0.1 + d / 2.
 DISCOMFORT_DISTANCE = 0.2

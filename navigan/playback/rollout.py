@@ -23,12 +23,12 @@ import numpy as np
 import torch
 
 from navigan import checkpoint as ckpt
-from robot_logs.physical import STEP_S, T_OBS, T_PRED
 from navigan.data import fill_tracks
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes
 from navigan.shield import shielded_steps
+from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 
 def subgoal_speeds(episodes: Episodes, speed: float | str | None) -> np.ndarray | None:

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from robot_logs.physical import STEP_S
 from navigan.playback.episodes import RECORDED
 from navigan.playback.paper import PAPER_COLUMNS, PaperTable
 from navigan.shield import HORIZON
+from robot_logs.physical import STEP_S
 
 #: Model name -> Table I column, in the paper's order.
 COLUMNS: dict[str, str] = {

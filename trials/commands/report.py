@@ -28,7 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="open the sealed key (checked against design.json's commitment) and name the controllers; "
         "the time is recorded in report/unblinding.json",
     )
-    parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table (default: the study's rubric.toml if any, else the documented defaults)")
+    parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
+                        "(default: the study's rubric.toml if any, else the documented defaults)")
     parser.set_defaults(handler=run)
 
 

@@ -25,7 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("participant", nargs="?", metavar="PARTICIPANT", help="the participant's name or id")
     parser.add_argument("answer", nargs="?", metavar="yes|no", help="judged socially compliant?")
     action = parser.add_mutually_exclusive_group()
-    action.add_argument("--import", dest="import_file", type=Path, metavar="FILE", help="add every row of a CSV with columns run_code, participant, compliant (and optionally source, recorded_utc, seed)")
+    action.add_argument("--import", dest="import_file", type=Path, metavar="FILE",
+                        help="add every row of a CSV with columns run_code, participant, compliant (and optionally source, recorded_utc, seed)")
     action.add_argument("--simulate", action="store_true", help="simulate judgments of every finished run that has none")
     parser.add_argument("--participants", type=int, metavar="N", help="with --simulate: judgments per run (default: one per pedestrian of the run)")
     parser.add_argument("--seed", type=int, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
@@ -68,7 +69,8 @@ def _record_one(folder: StudyFolder, code: str, participant: str, answer: str, p
     check_run_codes([code], plan_codes, finished, "a judgment")
     earlier = [r for r in read_responses(folder.path(RESPONSES)) if r.run_code == code and r.participant == participant and r.source == HUMAN]
     append_responses(folder, [Response(code, participant, compliant, HUMAN, utc_now())])
-    print(f"Recorded: {participant} judged run {code} {'socially compliant' if compliant else 'not socially compliant'}" + ("; this replaces their earlier judgment." if earlier else "."))
+    judged = "socially compliant" if compliant else "not socially compliant"
+    print(f"Recorded: {participant} judged run {code} {judged}" + ("; this replaces their earlier judgment." if earlier else "."))
     return 0
 
 
@@ -88,7 +90,8 @@ def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: li
     fresh = [r for r in new if (r.run_code, r.participant, r.compliant, r.source) not in known]
     if fresh:
         append_responses(folder, fresh)
-    print(f"Imported {len(fresh)} judgment(s) from {path}" + (f"; {len(new) - len(fresh)} already recorded were skipped" if len(fresh) < len(new) else "") + ".")
+    skipped = f"; {len(new) - len(fresh)} already recorded were skipped" if len(fresh) < len(new) else ""
+    print(f"Imported {len(fresh)} judgment(s) from {path}{skipped}.")
     return 0
 
 

@@ -21,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("score", nargs="?", metavar="1|2|3", help="the score")
     parser.add_argument("--by", metavar="NAME", help="the evaluator (default: your login name)")
     parser.add_argument("--note", default="", metavar="TEXT", help="a remark kept with the score")
-    parser.add_argument("--import", dest="import_file", type=Path, metavar="FILE", help="add every row of a CSV with columns run_code, score (and optionally scorer, note, recorded_utc)")
+    parser.add_argument("--import", dest="import_file", type=Path, metavar="FILE",
+                        help="add every row of a CSV with columns run_code, score (and optionally scorer, note, recorded_utc)")
     parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=run)
 
@@ -60,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     fresh = [s for s in new if (s.run_code, s.score, s.scorer, s.note) not in known]
     if fresh:
         append_scores(folder, fresh)
-    print(f"Imported {len(fresh)} score(s) from {args.import_file}" + (f"; {len(new) - len(fresh)} already recorded were skipped" if len(fresh) < len(new) else "") + ".")
+    skipped = f"; {len(new) - len(fresh)} already recorded were skipped" if len(fresh) < len(new) else ""
+    print(f"Imported {len(fresh)} score(s) from {args.import_file}{skipped}.")
     return 0
 
 

@@ -37,10 +37,6 @@ class Observation:
     pedestrian_ids: tuple[int, ...]
     pedestrian_history: np.ndarray
 
-    def pedestrian_positions(self) -> np.ndarray:
-        """(N, 2) the newest position of every tracked pedestrian."""
-        return self.pedestrian_history[:, -1, :]
-
 
 @dataclass(frozen=True)
 class Plan:

@@ -17,9 +17,9 @@ import numpy as np
 
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
+from robot_logs.physical import STEP_S, T_OBS
 from robot_logs.pipeline import PersonTracker
 from robot_logs.tracks import TrackRow, TrackTable, history_at
-from robot_logs.physical import STEP_S, T_OBS
 from trials.sim.pedestrians import Crowd
 from trials.sim.robot import RobotState
 

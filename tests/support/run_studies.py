@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from trials.cli import main
 from robot_logs.physical import STEP_S, T_PRED
+from trials.cli import main
 from trials.controllers.base import Observation, Plan
 
 SMALL_SPEC = """

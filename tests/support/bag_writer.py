@@ -1,7 +1,7 @@
 """Writing scans, odometry, tf and labelled points as ROS1 or ROS2 bags (via rosbags).
 
-Used to export simulated sensor data for ROS tools, and by the tests to build logs with known
-content (moving robots, bad scans) in every format robot_logs reads.
+The tests build logs with known content (moving robots, bad scans) with it, in every format
+robot_logs reads.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 - Detection against labels (e.g. hand-labelled legs): one-to-one matches within a distance
   (Hungarian), giving recall, precision and the mean position error.
 - Tracking against true trajectories: CLEAR-MOT (MOTA, MOTP, id switches) through
-  `motmetrics`, a development dependency.
+  `motmetrics`, a development dependency (which is why this lives with the tests).
 """
 
 from __future__ import annotations
@@ -117,6 +117,7 @@ def clear_mot(
         hypotheses = np.array([[s.x, s.y] for s in states]).reshape(-1, 2)
         squared = motmetrics.distances.norm2squared_matrix(people, hypotheses, max_d2=max_distance**2)
         accumulator.update(list(range(len(people))), [s.track_id for s in states], np.sqrt(squared))
-    names = {"mota": "mota", "motp": "motp", "num_switches": "id_switches", "num_false_positives": "false_positives", "num_misses": "misses", "num_objects": "objects"}
+    names = {"mota": "mota", "motp": "motp", "num_switches": "id_switches", "num_false_positives": "false_positives",
+             "num_misses": "misses", "num_objects": "objects"}
     row = motmetrics.metrics.create().compute(accumulator, metrics=list(names), name="run").iloc[0]
     return {names[key]: float(row[key]) for key in names}
