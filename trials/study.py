@@ -1,6 +1,6 @@
 """The study folder: where each file lives, reading the plan back, and the sealed key.
 
-Layout (see DESIGN.md): study.toml, plan.csv, design.json, correlation_map.png,
+Layout (see docs/architecture.md): study.toml, plan.csv, design.json, correlation_map.png,
 sealed/allocation.json, runs/<code>.mcap, outcomes.csv, scores.csv, responses.csv, report/.
 Files a new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
