@@ -12,10 +12,7 @@ from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
 from trials.atomic import write_files
-from trials.study import ALLOCATION, CORRELATION_MAP, DESIGN, PLAN, SEALED, SPEC, StudyFolder, utc_now
-
-#: Where a blinded spec that names the real levels is kept, out of the public files.
-SEALED_SPEC = f"{SEALED}/spec.toml"
+from trials.study import ALLOCATION, CORRELATION_MAP, DESIGN, PLAN, SEALED_SPEC, SPEC, StudyFolder, utc_now
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None) -> list[Path]:
@@ -36,7 +33,7 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     public = {
         folder.path(SPEC): spec_to_toml(plan.spec).encode(),
         folder.path(PLAN): table.getvalue().encode(),
-        folder.path(DESIGN): (json.dumps(design_record(plan, created), indent=1) + "\n").encode(),
+        folder.path(DESIGN): (json.dumps(design_record(plan, created, ALLOCATION), indent=1) + "\n").encode(),
         folder.path(CORRELATION_MAP): figure,
     }
     secret: dict[Path, bytes] = {}

@@ -31,9 +31,10 @@ from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
+from robot_logs.run_log import REPLAY_METADATA
 from trials.controllers.base import Controller, Observation, Plan
 from analysis.records import RunMetrics
-from trials.outcomes import measure
+from trials.metrics import measure
 from trials.run_log import RunLog
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
 from trials.sim.follower import WaypointFollower
@@ -365,7 +366,7 @@ def play(scene: LoggedScene, controller: Controller, log: RunLog, limits: RobotL
         positions[k, [column[i] for i in p.ids]] = p.position
     outcome = measure(status, time, poses, velocities, positions, limits, PEDESTRIAN_RADIUS_M)
     replay = Replay(status, outcome, comparisons)
-    log.add_metadata("replay", replay.summary())
+    log.add_metadata(REPLAY_METADATA, replay.summary())
     return replay
 
 

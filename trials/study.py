@@ -1,9 +1,10 @@
-"""The study folder: where each file lives, reading the plan back, and the sealed key.
+"""The study folder: the name of every file in it, reading the plan back, and the sealed key.
 
-Layout (see DESIGN.md): study.toml, plan.csv, design.json, correlation_map.png,
-sealed/allocation.json, runs/<code>.mcap, outcomes.csv, scores.csv, responses.csv, report/.
-Files a new design replaces are moved to superseded/<UTC time>/ (sealed ones to
-sealed/superseded/<UTC time>/), never deleted.
+This module is the one place that names the study's files (docs/study_folder.md); each file's
+content has its own module (`trials.outcomes`, `trials.scores`, `trials.responses`,
+`trials.design_files`, `trials.study_data`, `trials.runner`, `robot_logs.run_log`). Files a new
+design replaces are moved to superseded/<UTC time>/ (sealed ones to sealed/superseded/<UTC time>/),
+never deleted.
 """
 
 from __future__ import annotations
@@ -24,13 +25,30 @@ SPEC = "study.toml"
 PLAN = "plan.csv"
 DESIGN = "design.json"
 CORRELATION_MAP = "correlation_map.png"
+#: The researcher's own thresholds for the report's rubric, if the study has any.
+RUBRIC = "rubric.toml"
 SEALED = "sealed"
-ALLOCATION = "sealed/allocation.json"
+ALLOCATION = f"{SEALED}/allocation.json"
+#: A blinded study's spec as the researcher wrote it, naming the real levels.
+SEALED_SPEC = f"{SEALED}/spec.toml"
+#: A blinded study's controller records per run (`sealed_run`), kept out of the public logs.
+SEALED_RUNS = f"{SEALED}/runs"
 RUNS = "runs"
+#: Held by the one `trials run` working on the study.
+RUN_LOCK = f"{RUNS}/.lock"
+RUN_LOG_SUFFIX = ".mcap"
+#: The picture of a run beside its log (`trials log show`).
+RUN_FIGURE_SUFFIX = ".png"
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
 REPORT = "report"
+REPORT_MARKDOWN = f"{REPORT}/report.md"
+REPORT_HTML = f"{REPORT}/report.html"
+REPORT_RECORD = f"{REPORT}/report.json"
+REPORT_FIGURES = f"{REPORT}/figures"
+#: When the sealed key of the design was opened, every time.
+UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 
 #: What a new design replaces: the design itself and every result of the old plan.
@@ -51,13 +69,29 @@ class StudyFolder:
     def path(self, name: str) -> Path:
         return self.root / name
 
+    def run_log(self, code: str) -> Path:
+        """runs/<code>.mcap, the log of a run."""
+        return self.path(RUNS) / f"{code}{RUN_LOG_SUFFIX}"
+
+    def run_figure(self, code: str) -> Path:
+        """runs/<code>.png, the picture of a run."""
+        return self.run_log(code).with_suffix(RUN_FIGURE_SUFFIX)
+
+    def sealed_run(self, code: str) -> Path:
+        """sealed/runs/<code>.json, a blinded run's controller records."""
+        return self.path(SEALED_RUNS) / f"{code}.json"
+
+    def sealed_failure(self, code: str) -> Path:
+        """sealed/runs/<code>.error.txt, what went wrong in a blinded run (it may name the controller)."""
+        return self.path(SEALED_RUNS) / f"{code}.error.txt"
+
     def has_plan(self) -> bool:
         return self.path(PLAN).exists() or self.path(DESIGN).exists()
 
     def require_plan(self) -> None:
         """Raise StudyError unless a design has been made here."""
         if not self.path(PLAN).exists() or not self.path(DESIGN).exists():
-            raise StudyError(f"no plan in {self.root.resolve()} (plan.csv and design.json): run `trials design` first")
+            raise StudyError(f"no plan in {self.root.resolve()} ({PLAN} and {DESIGN}): run `trials design` first")
 
     def read_design(self) -> dict[str, Any]:
         """design.json as a dict."""
