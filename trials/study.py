@@ -1,10 +1,11 @@
-"""The study folder: the name of every file in it, reading the plan back, and the sealed key.
+"""The study folder: the name of every file in it, and the design's files (plan.csv, design.json,
+the sealed key) written and read back.
 
-This module is the one place that names the study's files (docs/study_folder.md); each file's
-content has its own module (`trials.outcomes`, `trials.scores`, `trials.responses`,
-`trials.design_files`, `trials.study_data`, `trials.runner`, `robot_logs.run_log`). Files a new
-design replaces are moved to superseded/<UTC time>/ (sealed ones to sealed/superseded/<UTC time>/),
-never deleted.
+This module is the one place that names the study's files (docs/study_folder.md). The content of
+the others has its own module each: study.toml `designs.spec`, outcomes.csv `trials.outcomes`,
+scores.csv `trials.scores`, responses.csv `trials.responses`, runs/<code>.mcap `robot_logs.run_log`,
+report/unblinding.json `trials.study_data`. Files a new design replaces are moved to
+superseded/<UTC time>/ (sealed ones to sealed/superseded/<UTC time>/), never deleted.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -19,6 +21,7 @@ from typing import Any
 
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
+from trials.csv_table import table_text
 from trials.errors import StudyError
 
 SPEC = "study.toml"
@@ -58,6 +61,16 @@ PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORE
 def utc_now() -> str:
     """The current time as ISO 8601 UTC, to the second."""
     return datetime.now(timezone.utc).replace(microsecond=0).isoformat()
+
+
+def plan_content(header: Sequence[str], rows: Iterable[Sequence[str]]) -> bytes:
+    """plan.csv as `StudyFolder.read_plan` reads it back."""
+    return table_text(header, rows).encode()
+
+
+def json_content(record: Mapping[str, Any]) -> bytes:
+    """design.json or the sealed key as `StudyFolder.read_design` and `read_sealed` read them back."""
+    return (json.dumps(record, indent=1) + "\n").encode()
 
 
 @dataclass(frozen=True)
