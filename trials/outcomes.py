@@ -91,7 +91,8 @@ class Outcomes:
         write_text(self.path, outcomes_text(self.rows, self.blind))
 
     def remove(self, codes: Sequence[str]) -> None:
-        self.rows = [row for row in self.rows if row.run_code not in set(codes)]
+        gone = set(codes)
+        self.rows = [row for row in self.rows if row.run_code not in gone]
         write_text(self.path, outcomes_text(self.rows, self.blind))
 
 
