@@ -50,7 +50,7 @@ ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
 
 def stamp_ns(time: float) -> int:
     """A run time (s) as a log time (ns)."""
-    return int(round(time * 1e9))
+    return round(time * 1e9)
 
 
 def rounded(values: Any) -> list[float]:
