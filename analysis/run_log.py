@@ -10,11 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_logs.physical import (
-    PEDESTRIAN_RADIUS_M,
-    ROBOT_HALF_LENGTH_M,
-    ROBOT_HALF_WIDTH_M,
-)
+from robot_logs.physical import PEDESTRIAN_RADIUS_M, ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M
 from robot_logs.run_log import LoggedRun
 
 ROBOT_HALF_SIZE = (ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M)

@@ -2,10 +2,12 @@
 the sealed key) written and read back.
 
 This module is the one place that names the study's files (docs/study_folder.md). The content of
-the others has its own module each: study.toml `designs.spec`, outcomes.csv `trials.outcomes`,
-scores.csv `trials.scores`, responses.csv `trials.responses`, runs/<code>.mcap `robot_logs.run_log`,
-report/unblinding.json `trials.study_data`. Files a new design replaces are moved to
-superseded/<UTC time>/ (sealed ones to sealed/superseded/<UTC time>/), never deleted.
+each other file has one module: study.toml `designs.spec`, rubric.toml `analysis.scoring`,
+outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
+runs/<code>.mcap `robot_logs.run_log`, runs/.lock and sealed/runs/ `trials.runner`,
+report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
+new design replaces are moved to superseded/<UTC time>/ (sealed ones to
+sealed/superseded/<UTC time>/), never deleted.
 """
 
 from __future__ import annotations
