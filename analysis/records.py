@@ -1,6 +1,7 @@
 """Records of a study's results as the report reads them: outcome rows, human scores, judgments, runs.
 
-The columns follow docs/study_folder.md; `trials.results` reads and writes the CSV files.
+The columns follow docs/study_folder.md: each CSV's columns are its record's fields, and one module of
+`trials` reads and writes each file (`trials.outcomes`, `trials.scores`, `trials.responses`).
 """
 
 from __future__ import annotations
@@ -17,12 +18,23 @@ SIMULATED = "simulated"
 
 
 @dataclass(frozen=True)
+class RunKey:
+    """Which run an outcome is, how it ended ("goal", "collision", "timeout"), its seed and perception."""
+
+    run_code: str
+    status: str
+    seed: int
+    perception: str
+
+
+@dataclass(frozen=True)
 class RunMetrics:
     """A run's metrics, as `trials run` measures them (units in the names; None where a metric has
-    no value: no minimum gap without pedestrians, no irregularity without moving)."""
+    no value: no time to goal without arriving, no minimum gap without pedestrians, no irregularity
+    without moving)."""
 
-    status: str
     duration_s: float
+    time_to_goal_s: float | None
     path_length_m: float
     min_distance_m: float | None
     time_within_0_5m_s: float
@@ -35,20 +47,14 @@ class RunMetrics:
     backing_up_s: float
     stopped_s: float
 
-    @property
-    def time_to_goal_s(self) -> float | None:
-        return self.duration_s if self.status == "goal" else None
-
 
 @dataclass(frozen=True)
-class Outcome(RunMetrics):
-    """One row of outcomes.csv: a finished run's metrics with what identifies the run."""
+class Outcome(RunMetrics, RunKey):
+    """One row of outcomes.csv. Its fields are the file's columns in order: `RunKey`'s, then
+    `RunMetrics`', then the controller (None, and no column, in a blinded study) and the finish time."""
 
-    run_code: str
-    seed: int
-    perception: str
+    controller: str | None = field(default=None, kw_only=True)
     finished_utc: str
-    controller: str | None = None
 
 
 @dataclass(frozen=True)

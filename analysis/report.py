@@ -20,12 +20,13 @@ from analysis.intervals import wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.records import SIMULATED, Response, StudyData
-from analysis.run_log import RunLog, read_run_log
+from analysis.run_log import RunLog
 from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
 from analysis.scoring import Rubric
 from analysis.study_fits import fit_judgments, fit_metrics
 from designs.factors import CategoricalFactor, FixedFactor
 from robot_logs.errors import LogError
+from robot_logs.run_log import read_run
 
 FORMAT = "navtrials.report/1"
 PEDESTRIANS = "Pedestrians"
@@ -112,7 +113,7 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
             logs[run.code] = None
             continue
         try:
-            logs[run.code] = read_run_log(run.log)
+            logs[run.code] = RunLog.of(read_run(run.log))
         except LogError as exc:
             logs[run.code] = None
             notes.append(f"Run {run.code}: its log cannot be read ({exc}); it is scored from its outcome row only.")

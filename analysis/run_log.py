@@ -1,23 +1,17 @@
-"""A finished run's MCAP log (runs/<code>.mcap) as arrays: the robot's state, each pedestrian's path, events.
+"""A finished run's log as the report scores it: the robot's state, each pedestrian's own path, the events.
 
-Topics as in docs/study_folder.md: /robot/state (t, x, y, theta, v, w), /pedestrians/state
-(t, ids, x, y: true positions) and /events (t, event, detail).
+`robot_logs.run_log` owns the log's format and reads it (`read_run`); `RunLog.of` rearranges what
+it read per pedestrian.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from robot_logs.errors import LogError
-from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.physical import PEDESTRIAN_RADIUS_M, ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M
-
-ROBOT_TOPIC = "/robot/state"
-PEDESTRIAN_TOPIC = "/pedestrians/state"
-EVENT_TOPIC = "/events"
+from robot_logs.run_log import LoggedRun
 
 ROBOT_HALF_SIZE = (ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M)
 
@@ -30,6 +24,16 @@ class RunLog:
     pedestrians: dict[str, np.ndarray]
     events: list[tuple[float, str, str]]
     metadata: dict[str, str]
+
+    @classmethod
+    def of(cls, run: LoggedRun) -> RunLog:
+        """The report's view of a run read by `read_run`: each pedestrian's samples while present."""
+        tracks = {}
+        for n, ident in enumerate(run.ids):
+            present = np.isfinite(run.pedestrians[:, n]).all(axis=1)
+            tracks[str(ident)] = np.column_stack([run.time[present], run.pedestrians[present, n]])
+        robot = np.column_stack([run.time, run.pose, run.velocity])
+        return cls(robot, dict(sorted(tracks.items())), list(run.events), dict(run.metadata))
 
     def pedestrian_at_robot_times(self, ident: str) -> tuple[np.ndarray, np.ndarray]:
         """Mask of robot samples within the pedestrian's logged span, and its (n, 2) positions there."""
@@ -57,33 +61,3 @@ def footprint_gap(
     left = np.abs(-sin * dx + cos * dy) - half_size[1]
     outside = np.hypot(np.maximum(forward, 0.0), np.maximum(left, 0.0))
     return np.maximum(outside - radius, 0.0)
-
-
-def read_run_log(path: Path) -> RunLog:
-    """Read a run log; LogError when it is missing, damaged or lacks the robot's state."""
-    reader = FoxgloveReader(path)
-    robot: list[list[float]] = []
-    tracks: dict[str, list[list[float]]] = {}
-    events: list[tuple[float, str, str]] = []
-    try:
-        for message in reader.messages([ROBOT_TOPIC, PEDESTRIAN_TOPIC, EVENT_TOPIC]):
-            data = message.data
-            if message.topic == ROBOT_TOPIC:
-                robot.append([float(data[key]) for key in ("t", "x", "y", "theta", "v", "w")])
-            elif message.topic == PEDESTRIAN_TOPIC:
-                for ident, x, y in zip(data["ids"], data["x"], data["y"]):
-                    tracks.setdefault(str(ident), []).append([float(data["t"]), float(x), float(y)])
-            else:
-                events.append((float(data["t"]), str(data["event"]), str(data.get("detail", ""))))
-    except KeyError as exc:
-        raise LogError(f"{path}: a message lacks field {exc} of the run-log contract (docs/study_folder.md)") from None
-    except (TypeError, ValueError) as exc:
-        raise LogError(f"{path}: a message breaks the run-log contract (docs/study_folder.md): {exc}") from None
-    if not robot:
-        raise LogError(f"{path}: no {ROBOT_TOPIC} messages")
-    return RunLog(
-        robot=np.asarray(robot),
-        pedestrians={ident: np.asarray(rows) for ident, rows in sorted(tracks.items())},
-        events=events,
-        metadata=reader.metadata.get("run", {}),
-    )

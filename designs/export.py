@@ -26,8 +26,8 @@ def plan_table(plan: StudyPlan) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def design_record(plan: StudyPlan, created: str) -> dict[str, Any]:
-    """The content of design.json."""
+def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
+    """The content of design.json; `key` is where the study keeps its sealed key (recorded when blinded)."""
     d = plan.diagnostics
     record: dict[str, Any] = {
         "format": FORMAT,
@@ -84,7 +84,7 @@ def design_record(plan: StudyPlan, created: str) -> dict[str, Any]:
             "factor": plan.sealed.factor,
             "arms": sorted(plan.sealed.arms),
             "commitment": {"algorithm": "sha256(salt + newline + key json)", "digest": plan.sealed.commitment()},
-            "key": "sealed/allocation.json",
+            "key": key,
         }
     return record
 

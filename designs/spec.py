@@ -93,7 +93,7 @@ def read_spec(path: Path) -> StudySpec:
     return spec_from_dict(data, source=path.name)
 
 
-def spec_from_dict(data: dict[str, Any], source: str = "study.toml") -> StudySpec:
+def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     """Validate the parsed TOML tables of a spec."""
     study = _table(data, "study", source)
     unknown = set(data) - {"study", "factors"}

@@ -14,7 +14,7 @@ from analysis.run_log import RunLog
 from analysis.scoring import AutoScore, Rubric, hesitations, read_rubric, score_run
 
 CLEAN = Outcome(
-    run_code="AAAAA", status="goal", seed=1, perception="positions", duration_s=12.0,
+    run_code="AAAAA", status="goal", seed=1, perception="positions", duration_s=12.0, time_to_goal_s=12.0,
     path_length_m=10.0, min_distance_m=1.1, time_within_0_5m_s=0.0, time_within_1_2m_s=1.5, collisions=0,
     max_deceleration_mps2=0.8, max_jerk_mps3=2.0, path_irregularity_rad_per_m=0.05, turn_in_place_s=0.0,
     backing_up_s=0.0, stopped_s=0.0, finished_utc="2026-01-01T00:00:00+00:00",

@@ -11,7 +11,7 @@ import pytest
 from analysis.records import SIMULATED
 from tests.support.synthetic_study import design, run_all
 from trials.cli import main
-from trials.results import read_responses
+from trials.responses import read_responses
 from trials.simulated_participants import simulate_run
 from trials.study import StudyFolder
 

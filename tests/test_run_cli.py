@@ -15,16 +15,10 @@ import pytest
 from robot_logs.foxglove_log import FoxgloveReader
 from tests.support.run_studies import design_small_study
 from trials.cli import main
-from trials.outcomes import COLUMNS
+from trials.outcomes import columns
 from trials.runner import run_seed
 
 pytestmark = pytest.mark.slow  # studies run end to end through `trials run`
-
-CONTRACT_COLUMNS = [
-    "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m", "min_distance_m",
-    "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2", "max_jerk_mps3",
-    "path_irregularity_rad_per_m", "turn_in_place_s", "backing_up_s", "stopped_s", "controller", "finished_utc",
-]
 TOPICS = {
     "/tf": "foxglove.FrameTransform", "/scene": "foxglove.SceneUpdate", "/robot/state": "navtrials.RobotState",
     "/pedestrians/state": "navtrials.Pedestrians", "/perception/pedestrians": "navtrials.Pedestrians",
@@ -70,7 +64,7 @@ def study(template, tmp_path) -> Path:
 def test_every_row_runs_once_in_plan_order(finished):
     study, printed = finished
     table = rows(study)
-    assert list(table[0]) == CONTRACT_COLUMNS == list(COLUMNS)
+    assert list(table[0]) == list(columns(blind=False))
     assert [r["run_code"] for r in table] == [r["run_code"] for r in plan(study)]
     for row, planned in zip(table, plan(study)):
         assert row["status"] in ("goal", "collision", "timeout")
@@ -219,7 +213,7 @@ def test_bad_input_is_one_line_exit_2_and_runs_nothing(study, tmp_path, capsys, 
         (tmp_path / "bad.pt").write_bytes(b"\x00 not torch")
         args = ["--weights", str(tmp_path / "bad.pt")]
     elif change == "blind columns":
-        (study / "outcomes.csv").write_text(",".join(c for c in CONTRACT_COLUMNS if c != "controller") + "\n")
+        (study / "outcomes.csv").write_text(",".join(columns(blind=True)) + "\n")
     args = [a.replace("first", plan(study)[0]["run_code"]) if study.joinpath("plan.csv").exists() else a for a in args]
     with pytest.raises(SystemExit) if message.startswith("argument") else _no_raise() as caught:
         code = main(["run", "--study", str(study), *args])

@@ -1,10 +1,8 @@
-"""Write a built plan into the study folder: public files and the sealed key, all at once."""
+"""Write a built plan into the study folder: public files and the sealed key, all at once (their
+content from `trials.study`, `designs.spec` and the correlation figure)."""
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 from pathlib import Path
 
 from analysis.figures import correlation_map_png
@@ -12,10 +10,18 @@ from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
 from trials.atomic import write_files
-from trials.study import ALLOCATION, CORRELATION_MAP, DESIGN, PLAN, SEALED, SPEC, StudyFolder, utc_now
-
-#: Where a blinded spec that names the real levels is kept, out of the public files.
-SEALED_SPEC = f"{SEALED}/spec.toml"
+from trials.study import (
+    ALLOCATION,
+    CORRELATION_MAP,
+    DESIGN,
+    PLAN,
+    SEALED_SPEC,
+    SPEC,
+    StudyFolder,
+    json_content,
+    plan_content,
+    utc_now,
+)
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None) -> list[Path]:
@@ -25,24 +31,19 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     it is kept under sealed/. Returns the public files written.
     """
     created = utc_now()
-    header, rows = plan_table(plan)
-    table = io.StringIO()
-    writer = csv.writer(table, lineterminator="\n")
-    writer.writerow(header)
-    writer.writerows(rows)
     d = plan.diagnostics
     # The figure first: it does not need the cvxpy bound, which may still be solving.
     figure = correlation_map_png(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns")
     public = {
         folder.path(SPEC): spec_to_toml(plan.spec).encode(),
-        folder.path(PLAN): table.getvalue().encode(),
-        folder.path(DESIGN): (json.dumps(design_record(plan, created), indent=1) + "\n").encode(),
+        folder.path(PLAN): plan_content(*plan_table(plan)),
+        folder.path(DESIGN): json_content(design_record(plan, created, ALLOCATION)),
         folder.path(CORRELATION_MAP): figure,
     }
     secret: dict[Path, bytes] = {}
     if plan.sealed is not None:
         key = {**plan.sealed.to_dict(), "created": created}
-        secret[folder.path(ALLOCATION)] = (json.dumps(key, indent=1) + "\n").encode()
+        secret[folder.path(ALLOCATION)] = json_content(key)
     if sealed_spec_text is not None:
         secret[folder.path(SEALED_SPEC)] = sealed_spec_text.encode()
     write_files({**public, **secret})

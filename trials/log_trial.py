@@ -29,11 +29,12 @@ from robot_logs.log_tracking import LogTracking, result_rows
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from robot_logs.reader import LogReader
 from robot_logs.records import seconds, stamp_text
+from robot_logs.run_log import REPLAY_METADATA
 from robot_logs.sources import TopicInfo
 from robot_logs.topics import ODOMETRY_TYPES, TopicNames, pick_topic
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
-from trials.outcomes import measure
+from trials.metrics import measure
 from trials.run_log import RunLog
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
 from trials.sim.follower import WaypointFollower
@@ -365,7 +366,7 @@ def play(scene: LoggedScene, controller: Controller, log: RunLog, limits: RobotL
         positions[k, [column[i] for i in p.ids]] = p.position
     outcome = measure(status, time, poses, velocities, positions, limits, PEDESTRIAN_RADIUS_M)
     replay = Replay(status, outcome, comparisons)
-    log.add_metadata("replay", replay.summary())
+    log.add_metadata(REPLAY_METADATA, replay.summary())
     return replay
 
 

@@ -1,118 +1,129 @@
-"""The metrics of a run (one `outcomes.csv` row), computed from its trace at the physics rate.
+"""outcomes.csv, one row per finished run: its columns (the fields of `analysis.records.Outcome`),
+its one reader and its one writer.
 
-The same function scores a run as it finishes and a run read back from its MCAP
-(`trials log show`), so the two always agree. Gaps are between the robot's footprint and each
-pedestrian's body disc; times count the physics steps at which a condition held.
+The runner appends a row as each run finishes; `trials report`, `score` and `respond` read the
+rows back. A blinded study's file has no controller column.
 """
 
 from __future__ import annotations
 
-import csv
-import io
+import math
+from collections.abc import Iterable, Sequence
 from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
-import numpy as np
-
-from analysis.records import RunMetrics
-from robot_logs.physical import INTIMATE_M, PEDESTRIAN_RADIUS_M, PERSONAL_M
-from trials.sim.robot import RobotLimits, footprint_gaps
-
-STILL_SPEED, TURNING_RATE = 0.05, 0.3
-#: Standing still during the first second (starting up) does not count as stopping.
-STARTUP_S = 1.0
-
-#: outcomes.csv columns in order; `controller` is left out when the study is blind.
-COLUMNS = (
-    "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m",
-    "min_distance_m", "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2",
-    "max_jerk_mps3", "path_irregularity_rad_per_m", "turn_in_place_s", "backing_up_s", "stopped_s",
-    "controller", "finished_utc",
+from analysis.records import Outcome, RunMetrics
+from trials.atomic import write_text
+from trials.csv_table import (
+    parse_rows,
+    read_table,
+    record_cells,
+    record_columns,
+    record_row,
+    table_text,
 )
+from trials.errors import StudyError
+from trials.study import OUTCOMES, PLAN, StudyFolder
+
+CONTROLLER = "controller"
+STATUSES = ("goal", "collision", "timeout")
 
 
 def columns(blind: bool) -> tuple[str, ...]:
     """The header of outcomes.csv for a blind or an open study."""
-    return tuple(c for c in COLUMNS if not (blind and c == "controller"))
+    return tuple(c for c in record_columns(Outcome) if not (blind and c == CONTROLLER))
 
 
-def metric_cells(metrics: RunMetrics) -> dict[str, str]:
-    """The metric columns of an outcomes.csv row as text (3 decimals; empty for no value)."""
-    values = {f.name: getattr(metrics, f.name) for f in fields(RunMetrics)}
-    values["time_to_goal_s"] = metrics.time_to_goal_s
-    return {name: _text(value) for name, value in values.items()}
+def outcome_cells(record: Outcome | RunMetrics) -> dict[str, str]:
+    """An outcome's columns (or just its metrics') as outcomes.csv writes them (3 decimals; empty for no value)."""
+    return record_cells(record)
 
 
-def _text(value: object) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, float):
-        return f"{value:.3f}"
-    return str(value)
+def read_outcomes(path: Path, blind: bool | None = None) -> list[Outcome]:
+    """The rows of an outcomes.csv in the order runs finished ([] when there is none).
 
-
-def measure(status: str, time: np.ndarray, pose: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
-            limits: RobotLimits = RobotLimits(), pedestrian_radius: float = PEDESTRIAN_RADIUS_M) -> RunMetrics:
-    """Score a run.
-
-    Args:
-        status: how it ended ("goal", "collision", "timeout").
-        time: (K,) sample times (s); pose: (K, 3); velocity: (K, 2) linear and angular.
-        pedestrians: (K, N, 2) true pedestrian positions; NaN where a pedestrian is absent (a
-            logged person not tracked then).
+    With `blind` given, the header must be exactly that of a blinded or an open study.
     """
-    time, pose, velocity = np.asarray(time, float), np.asarray(pose, float), np.asarray(velocity, float)
-    dt = np.diff(time)
-    later = slice(1, None)
-    step = np.diff(pose[:, :2], axis=0)
-    path = float(np.hypot(step[:, 0], step[:, 1]).sum())
-    turned = float(np.abs((np.diff(pose[:, 2]) + np.pi) % (2.0 * np.pi) - np.pi).sum())
-    v, w = velocity[:, 0], velocity[:, 1]
-    acceleration = np.diff(v) / dt if len(dt) else np.zeros(0)
-    jerk = np.diff(acceleration) / dt[1:] if len(dt) > 1 else np.zeros(0)
-    n = pedestrians.shape[1] if pedestrians.ndim == 3 else 0
-    gaps = (np.array([_nearest(p, q, limits, pedestrian_radius) for p, q in zip(pose, pedestrians)]) if n
-            else np.full(len(time), np.inf))
-    nearest = gaps[later]
-    min_distance = max(float(gaps.min()), 0.0) if np.isfinite(gaps).any() else None
-    still = np.abs(v[later]) < STILL_SPEED
-    turning = np.abs(w[later]) > TURNING_RATE
-    return RunMetrics(
-        status=status,
-        duration_s=float(time[-1] - time[0]),
-        path_length_m=path,
-        min_distance_m=min_distance,
-        time_within_0_5m_s=float(dt[nearest < INTIMATE_M].sum()),
-        time_within_1_2m_s=float(dt[nearest < PERSONAL_M].sum()),
-        collisions=int(status == "collision"),
-        max_deceleration_mps2=float(max(0.0, -acceleration.min())) if len(acceleration) else 0.0,
-        max_jerk_mps3=float(np.abs(jerk).max()) if len(jerk) else 0.0,
-        path_irregularity_rad_per_m=turned / path if path > 1e-6 else None,
-        turn_in_place_s=float(dt[still & turning].sum()),
-        backing_up_s=float(dt[v[later] < -STILL_SPEED].sum()),
-        stopped_s=float(dt[still & ~turning & (time[later] > time[0] + STARTUP_S)].sum()),
-    )
+    table = read_table(path, [c for c in columns(blind=False) if c != CONTROLLER])
+    if blind is not None and table.header and table.header != columns(blind):
+        what = "a blinded" if blind else "an open"
+        raise StudyError(f"{path} has the columns {','.join(table.header)}, not those of {what} study ({','.join(columns(blind))})")
+    return parse_rows(path, table, _outcome)
 
 
-def _nearest(pose: np.ndarray, people: np.ndarray, limits: RobotLimits, radius: float) -> float:
-    """The smallest footprint gap to the pedestrians present (inf with nobody present)."""
-    present = people[np.isfinite(people).all(axis=1)]
-    return float(footprint_gaps(pose, present, limits, radius).min()) if len(present) else np.inf
+def outcomes_text(outcomes: Iterable[Outcome], blind: bool) -> str:
+    """The content of outcomes.csv: the header, then one line per run."""
+    header = columns(blind)
+    return table_text(header, (record_row(o, header) for o in outcomes))
 
 
-def read_outcomes(path: Path) -> tuple[tuple[str, ...], list[dict[str, str]]]:
-    """The header and rows of an outcomes.csv ((), [] when there is none)."""
-    if not path.exists():
-        return (), []
-    with path.open(newline="", encoding="utf-8") as handle:
-        reader = csv.DictReader(handle)
-        return tuple(reader.fieldnames or ()), list(reader)
+def finished_codes(folder: StudyFolder) -> list[str]:
+    """The run codes with a row in the study's outcomes.csv."""
+    return [o.run_code for o in read_outcomes(folder.path(OUTCOMES))]
 
 
-def outcomes_text(header: tuple[str, ...], rows: list[dict[str, str]]) -> str:
-    """outcomes.csv content: the header, then one line per row."""
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=header, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return out.getvalue()
+def check_run_codes(codes: Iterable[str], plan_codes: Iterable[str], finished: Iterable[str], what: str) -> None:
+    """StudyError listing codes that are not in the plan, or whose runs have not finished."""
+    codes = list(dict.fromkeys(codes))
+    planned, done = set(plan_codes), set(finished)
+    unknown = [c for c in codes if c not in planned]
+    if unknown:
+        raise StudyError(f"{what} for unknown run code(s) {', '.join(unknown)}: not in {PLAN}")
+    pending = [c for c in codes if c not in done]
+    if pending:
+        raise StudyError(f"{what} for run(s) not finished yet: {', '.join(pending)} (no row in {OUTCOMES})")
+
+
+class Outcomes:
+    """A study's outcomes.csv while it runs: its checked rows, and atomic appends and removals."""
+
+    def __init__(self, folder: StudyFolder, blind: bool) -> None:
+        self.path, self.blind = folder.path(OUTCOMES), blind
+        self.rows = read_outcomes(self.path, blind)
+
+    @property
+    def finished(self) -> set[str]:
+        return {row.run_code for row in self.rows}
+
+    def append(self, outcome: Outcome) -> None:
+        self.rows.append(outcome)
+        write_text(self.path, outcomes_text(self.rows, self.blind))
+
+    def remove(self, codes: Sequence[str]) -> None:
+        gone = set(codes)
+        self.rows = [row for row in self.rows if row.run_code not in gone]
+        write_text(self.path, outcomes_text(self.rows, self.blind))
+
+
+def _outcome(row: dict[str, str]) -> Outcome:
+    """A row as its record, each cell checked against its field's type."""
+    values: dict[str, Any] = {}
+    for spec in fields(Outcome):
+        cell = row.get(spec.name, "")
+        kind = str(spec.type)
+        if spec.name == "status" and cell not in STATUSES:
+            raise ValueError(f"status must be one of {', '.join(STATUSES)}, got {cell!r}")
+        if kind.startswith("str"):
+            values[spec.name] = (cell or None) if "None" in kind else cell
+        elif cell == "" and "None" in kind:
+            values[spec.name] = None
+        else:
+            values[spec.name] = _number(cell, spec.name, whole=kind == "int")
+    return Outcome(**values)
+
+
+def _number(cell: str, column: str, whole: bool) -> int | float:
+    try:
+        value = float(cell)
+    except ValueError:
+        raise ValueError(f"{column} must be a number, got {cell!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{column} must be a finite number, got {cell!r}")
+    if not whole:
+        return value
+    if cell.lstrip("-").isdigit():
+        return int(cell)
+    if value.is_integer():
+        return int(value)
+    raise ValueError(f"{column} must be a whole number, got {cell!r}")

@@ -7,7 +7,7 @@ import io
 import numpy as np
 
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
-from trials.run_log import LoggedRun
+from robot_logs.run_log import LoggedRun
 from trials.sim.robot import RobotLimits
 
 #: Seconds between the robot outlines drawn along its path.

@@ -22,32 +22,31 @@ import json
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from analysis.records import RunMetrics
+from analysis.records import Outcome, RunMetrics
 from trials.atomic import write_files, write_text
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
-from trials.outcomes import columns, measure, metric_cells, outcomes_text, read_outcomes
+from trials.metrics import measure
+from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sim.perception import PositionNoise
-from trials.study import DESIGN, OUTCOMES, PLAN, RESPONSES, RUNS, SEALED, SUPERSEDED, StudyFolder, utc_now
+from trials.study import DESIGN, OUTCOMES, PLAN, RESPONSES, RUN_LOCK, RUNS, SEALED, SEALED_RUNS, SUPERSEDED, StudyFolder, utc_now
 
 NAVIGAN_R, LATTICE = "NaviGAN-R", "Lattice"
 #: The controller levels a plan may name, and the controller of a study without a Controller factor.
 CONTROLLER_LEVELS = (NAVIGAN_R, LATTICE)
 DEFAULT_CONTROLLER = NAVIGAN_R
-SEALED_RUNS = f"{SEALED}/runs"
 PERCEPTIONS = ("positions", "lidar")
-LOCK = ".lock"
 
 
 @dataclass(frozen=True)
@@ -74,11 +73,17 @@ class RunTask:
 
 @dataclass(frozen=True)
 class RunDone:
-    """A finished run as the parent sees it: its public outcome row (and a logged trial's `replay` summary)."""
+    """A finished run as the parent sees it: its public outcome (no controller when blind) and a
+    logged trial's `replay` summary."""
 
     code: str
-    row: dict[str, str]
+    outcome: Outcome
     replay: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def row(self) -> dict[str, str]:
+        """The outcome's cells as outcomes.csv holds them."""
+        return outcome_cells(self.outcome)
 
 
 @dataclass
@@ -157,9 +162,9 @@ class StudyRun:
 @contextmanager
 def study_lock(folder: StudyFolder) -> Iterator[None]:
     """Hold the study's run lock (one `trials run` per study at a time)."""
-    runs = folder.path(RUNS)
-    runs.mkdir(parents=True, exist_ok=True)
-    with (runs / LOCK).open("a+") as handle:
+    lock = folder.path(RUN_LOCK)
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    with lock.open("a+") as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -184,49 +189,24 @@ def clean_partials(folder: StudyFolder) -> list[Path]:
     return stale
 
 
-class Outcomes:
-    """outcomes.csv: its rows, checked header, and atomic appends and removals."""
-
-    def __init__(self, folder: StudyFolder, blind: bool) -> None:
-        self.path = folder.path(OUTCOMES)
-        self.header = columns(blind)
-        header, self.rows = read_outcomes(self.path)
-        if header and header != self.header:
-            what = "a blinded" if blind else "an open"
-            raise StudyError(f"{self.path} has the columns {','.join(header)}, not those of {what} study ({','.join(self.header)})")
-
-    @property
-    def finished(self) -> set[str]:
-        return {row["run_code"] for row in self.rows}
-
-    def append(self, row: dict[str, str]) -> None:
-        self.rows.append(row)
-        write_text(self.path, outcomes_text(self.header, self.rows))
-
-    def remove(self, codes: set[str]) -> None:
-        self.rows = [row for row in self.rows if row["run_code"] not in codes]
-        write_text(self.path, outcomes_text(self.header, self.rows))
-
-
 def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], stamp: str) -> Path:
     """Move finished runs aside for --rerun: their rows, logs (and PNGs) to superseded/<stamp>/, their
     sealed records to sealed/superseded/<stamp>/. Copies are made before the rows are removed, so an
     interruption never loses a run."""
     target = folder.path(SUPERSEDED) / stamp
     secret = folder.path(SEALED) / SUPERSEDED / stamp
-    moved_rows = [row for row in outcomes.rows if row["run_code"] in codes]
+    moved = [row for row in outcomes.rows if row.run_code in codes]
     old = target / OUTCOMES
-    _, earlier = read_outcomes(old)
-    files: dict[Path, bytes] = {old: outcomes_text(outcomes.header, earlier + moved_rows).encode()}
+    files: dict[Path, bytes] = {old: outcomes_text(read_outcomes(old, outcomes.blind) + moved, outcomes.blind).encode()}
     originals = []
     for code in codes:
-        for source, base in ((folder.path(RUNS) / f"{code}.mcap", target / RUNS), (folder.path(RUNS) / f"{code}.png", target / RUNS),
-                             (folder.path(SEALED_RUNS) / f"{code}.json", secret / RUNS)):
+        for source, base in ((folder.run_log(code), target / RUNS), (folder.run_figure(code), target / RUNS),
+                             (folder.sealed_run(code), secret / RUNS)):
             if source.exists():
                 files[base / source.name] = source.read_bytes()
                 originals.append(source)
     write_files(files)
-    outcomes.remove(set(codes))
+    outcomes.remove(codes)
     for source in originals:
         source.unlink()
     return target
@@ -286,7 +266,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                         summary.failed.append((code, message))
                         on_failed(code, message)
                         continue
-                    outcomes.append(answer.row)
+                    outcomes.append(answer.outcome)
                     summary.finished.append(answer)
                     on_done(answer)
         finally:
@@ -370,7 +350,7 @@ class TrialWorker:
                 raise
             import traceback
 
-            details = self.folder.path(SEALED_RUNS) / f"{task.code}.error.txt"
+            details = self.folder.sealed_failure(task.code)
             write_text(details, traceback.format_exc())
             raise RuntimeError(f"the run failed; what went wrong is in {details} (reading it may unblind)") from None
 
@@ -379,24 +359,24 @@ class TrialWorker:
         controller = self._controllers[level]
         seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(task.seed).spawn(4)]
         controller.reset(seeds[3])
-        path = self.folder.path(RUNS) / f"{task.code}.mcap"
+        path = self.folder.run_log(task.code)
         replay: dict[str, str] = {}
         if task.scene is None:
-            outcome, perception = self._simulate(task, level, arm, controller, seeds, path), self.options.perception
+            (status, metrics), perception = self._simulate(task, level, arm, controller, seeds, path), self.options.perception
         else:
             perception = "log"
             metadata = self._metadata(task, level, {"perception": perception, **self._factors(task), **task.scene.metadata()})
             with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind) as log:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
-            outcome, replay = played.outcome, played.summary()
-        row = {"run_code": task.code, "seed": str(task.seed), "perception": perception, **metric_cells(outcome),
-               "controller": level, "finished_utc": utc_stamp(self.blind)}
-        return RunDone(task.code, {name: row[name] for name in columns(self.blind)}, replay)
+            status, metrics, replay = played.status, played.outcome, played.summary()
+        outcome = Outcome(run_code=task.code, status=status, seed=task.seed, perception=perception, **asdict(metrics),
+                          controller=None if self.blind else level, finished_utc=utc_stamp(self.blind))
+        return RunDone(task.code, outcome, replay)
 
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
-                  path: Path) -> RunMetrics:
-        """Simulate a row in closed loop, writing its log; returns its outcome."""
+                  path: Path) -> tuple[str, RunMetrics]:
+        """Simulate a row in closed loop, writing its log; returns how it ended and its metrics."""
         from trials.scenario import build_scenario
         from trials.sim.closed_loop import SimConfig, simulate
         from trials.sim.perception import LidarPerception, PositionPerception
@@ -416,16 +396,16 @@ class TrialWorker:
             result = simulate(scenario, controller, perception, log, config, crowd_seed)
             self._seal(task, level, arm, log)
         trace = result.trace
-        return measure(result.status, np.array(trace.time), np.array(trace.pose), np.array(trace.velocity),
-                       np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
-                       config.limits, config.pedestrian_radius_m)
+        return result.status, measure(result.status, np.array(trace.time), np.array(trace.pose), np.array(trace.velocity),
+                                      np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
+                                      config.limits, config.pedestrian_radius_m)
 
     def _seal(self, task: RunTask, level: str, arm: str | None, log: RunLog) -> None:
         """Blinded studies: the run's controller records go to sealed/runs/<code>.json (before its log is renamed)."""
         if self.blind:
             record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
                       **self._controller_details(level), "steps": log.records}
-            write_text(self.folder.path(SEALED_RUNS) / f"{task.code}.json", json.dumps(jsonable(record)) + "\n")
+            write_text(self.folder.sealed_run(task.code), json.dumps(jsonable(record)) + "\n")
 
     def _controller_details(self, level: str) -> dict[str, str]:
         controller = self._controllers[level]

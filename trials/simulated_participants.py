@@ -10,10 +10,11 @@ from collections.abc import Iterable
 
 from analysis.participants import ParticipantModel, judge_run
 from analysis.records import SIMULATED, Response
-from analysis.run_log import read_run_log
+from analysis.run_log import RunLog
 from robot_logs.errors import LogError
-from trials.results import append_responses, read_responses
-from trials.study import RESPONSES, RUNS, StudyFolder, utc_now
+from robot_logs.run_log import read_run
+from trials.responses import append_responses, read_responses
+from trials.study import RESPONSES, StudyFolder, utc_now
 
 
 def simulate_runs(
@@ -30,7 +31,7 @@ def simulate_runs(
         if code in judged:
             continue
         try:
-            log = read_run_log(folder.path(RUNS) / f"{code}.mcap")
+            log = RunLog.of(read_run(folder.run_log(code)))
         except LogError as exc:
             skipped.append(f"{code} ({exc})")
             continue

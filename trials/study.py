@@ -1,8 +1,12 @@
-"""The study folder: where each file lives, reading the plan back, and the sealed key.
+"""The study folder: the name of every file in it, and the design's files (plan.csv, design.json,
+the sealed key) written and read back.
 
-Layout (see docs/architecture.md): study.toml, plan.csv, design.json, correlation_map.png,
-sealed/allocation.json, runs/<code>.mcap, outcomes.csv, scores.csv, responses.csv, report/.
-Files a new design replaces are moved to superseded/<UTC time>/ (sealed ones to
+This module is the one place that names the study's files (docs/study_folder.md, docs/architecture.md). The content of
+each other file has one module: study.toml `designs.spec`, rubric.toml `analysis.scoring`,
+outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
+runs/<code>.mcap `robot_logs.run_log`, runs/.lock and sealed/runs/ `trials.runner`,
+report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
+new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
 """
 
@@ -11,6 +15,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -18,19 +23,37 @@ from typing import Any
 
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
+from trials.csv_table import table_text
 from trials.errors import StudyError
 
 SPEC = "study.toml"
 PLAN = "plan.csv"
 DESIGN = "design.json"
 CORRELATION_MAP = "correlation_map.png"
+#: The researcher's own thresholds for the report's rubric, if the study has any.
+RUBRIC = "rubric.toml"
 SEALED = "sealed"
-ALLOCATION = "sealed/allocation.json"
+ALLOCATION = f"{SEALED}/allocation.json"
+#: A blinded study's spec as the researcher wrote it, naming the real levels.
+SEALED_SPEC = f"{SEALED}/spec.toml"
+#: A blinded study's controller records per run (`sealed_run`), kept out of the public logs.
+SEALED_RUNS = f"{SEALED}/runs"
 RUNS = "runs"
+#: Held by the one `trials run` working on the study.
+RUN_LOCK = f"{RUNS}/.lock"
+RUN_LOG_SUFFIX = ".mcap"
+#: The picture of a run beside its log (`trials log show`).
+RUN_FIGURE_SUFFIX = ".png"
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
 REPORT = "report"
+REPORT_MARKDOWN = f"{REPORT}/report.md"
+REPORT_HTML = f"{REPORT}/report.html"
+REPORT_RECORD = f"{REPORT}/report.json"
+REPORT_FIGURES = f"{REPORT}/figures"
+#: When the sealed key of the design was opened, every time.
+UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 
 #: What a new design replaces: the design itself and every result of the old plan.
@@ -42,6 +65,16 @@ def utc_now() -> str:
     return datetime.now(UTC).replace(microsecond=0).isoformat()
 
 
+def plan_content(header: Sequence[str], rows: Iterable[Sequence[str]]) -> bytes:
+    """plan.csv as `StudyFolder.read_plan` reads it back."""
+    return table_text(header, rows).encode()
+
+
+def json_content(record: Mapping[str, Any]) -> bytes:
+    """design.json or the sealed key as `StudyFolder.read_design` and `read_sealed` read them back."""
+    return (json.dumps(record, indent=1) + "\n").encode()
+
+
 @dataclass(frozen=True)
 class StudyFolder:
     """One study's folder (the current directory unless --study says otherwise)."""
@@ -51,13 +84,29 @@ class StudyFolder:
     def path(self, name: str) -> Path:
         return self.root / name
 
+    def run_log(self, code: str) -> Path:
+        """runs/<code>.mcap, the log of a run."""
+        return self.path(RUNS) / f"{code}{RUN_LOG_SUFFIX}"
+
+    def run_figure(self, code: str) -> Path:
+        """runs/<code>.png, the picture of a run."""
+        return self.run_log(code).with_suffix(RUN_FIGURE_SUFFIX)
+
+    def sealed_run(self, code: str) -> Path:
+        """sealed/runs/<code>.json, a blinded run's controller records."""
+        return self.path(SEALED_RUNS) / f"{code}.json"
+
+    def sealed_failure(self, code: str) -> Path:
+        """sealed/runs/<code>.error.txt, what went wrong in a blinded run (it may name the controller)."""
+        return self.path(SEALED_RUNS) / f"{code}.error.txt"
+
     def has_plan(self) -> bool:
         return self.path(PLAN).exists() or self.path(DESIGN).exists()
 
     def require_plan(self) -> None:
         """Raise StudyError unless a design has been made here."""
         if not self.path(PLAN).exists() or not self.path(DESIGN).exists():
-            raise StudyError(f"no plan in {self.root.resolve()} (plan.csv and design.json): run `trials design` first")
+            raise StudyError(f"no plan in {self.root.resolve()} ({PLAN} and {DESIGN}): run `trials design` first")
 
     def read_design(self) -> dict[str, Any]:
         """design.json as a dict."""

@@ -14,10 +14,19 @@ from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
 from designs.model import parse_model
 from designs.spec import read_spec
 from trials.errors import StudyError
-from trials.results import read_outcomes, read_responses, read_scores
-from trials.study import REPORT, RESPONSES, RUNS, SCORES, SPEC, StudyFolder
+from trials.outcomes import read_outcomes
+from trials.responses import read_responses
+from trials.scores import read_scores
+from trials.study import (
+    OUTCOMES,
+    PLAN,
+    RESPONSES,
+    SCORES,
+    SPEC,
+    UNBLINDING,
+    StudyFolder,
+)
 
-UNBLINDING = f"{REPORT}/unblinding.json"
 UNBLINDING_FORMAT = "navtrials.unblinding/1"
 #: The controller of a run when the study has no controller factor (docs/study_folder.md).
 DEFAULT_CONTROLLER = "NaviGAN-R"
@@ -34,24 +43,24 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
     codes = [row["run_code"] for row in plan]
     notes: list[str] = []
 
-    outcomes = read_outcomes(folder)
-    _no_unknown_codes([o.run_code for o in outcomes], codes, "outcomes.csv has rows")
+    outcomes = read_outcomes(folder.path(OUTCOMES))
+    _no_unknown_codes([o.run_code for o in outcomes], codes, f"{OUTCOMES} has rows")
     latest = {}
     for outcome in outcomes:
         if outcome.run_code in latest:
-            notes.append(f"outcomes.csv holds run {outcome.run_code} twice; the later row (finished {outcome.finished_utc}) is used.")
+            notes.append(f"{OUTCOMES} holds run {outcome.run_code} twice; the later row (finished {outcome.finished_utc}) is used.")
         latest[outcome.run_code] = outcome
     scores: list[HumanScore] = read_scores(folder.path(SCORES))
-    _no_unknown_codes([s.run_code for s in scores], codes, "scores.csv has scores")
+    _no_unknown_codes([s.run_code for s in scores], codes, f"{SCORES} has scores")
     responses: list[Response] = read_responses(folder.path(RESPONSES))
-    _no_unknown_codes([r.run_code for r in responses], codes, "responses.csv has judgments")
+    _no_unknown_codes([r.run_code for r in responses], codes, f"{RESPONSES} has judgments")
 
     blinding = _blinding(folder, design, spec_factor_names=[f.name for f in spec.factors], unblind=unblind, now=now, notes=notes)
     runs = []
     for row in plan:
         code = row["run_code"]
         outcome = latest.get(code)
-        log = folder.path(RUNS) / f"{code}.mcap"
+        log = folder.run_log(code)
         if blinding.factor is not None:
             arm = blinding.labels[row[blinding.factor]]
         else:
@@ -60,7 +69,8 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
         runs.append(StudyRun(int(row["order"]), code, values, arm, outcome, log if log.exists() else None))
     for run in runs:
         if run.finished and run.log is None:
-            notes.append(f"Run {run.code} has an outcome row but no log runs/{run.code}.mcap; it is scored from its outcome row only.")
+            notes.append(f"Run {run.code} has an outcome row but no log {folder.run_log(run.code).relative_to(folder.root)}; "
+                         "it is scored from its outcome row only.")
     correlation = design.get("diagnostics", {}).get("correlation_map", {})
     return StudyData(
         root=folder.root,
@@ -79,7 +89,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
 def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:
     unknown = list(dict.fromkeys(c for c in found if c not in set(codes)))
     if unknown:
-        raise StudyError(f"{what} for unknown run code(s) {', '.join(unknown)}: not in plan.csv")
+        raise StudyError(f"{what} for unknown run code(s) {', '.join(unknown)}: not in {PLAN}")
 
 
 def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: list[str], unblind: bool, now: str, notes: list[str]) -> Blinding:

@@ -16,15 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from analysis.run_log import footprint_gap
+from robot_logs import run_log as fmt
 from robot_logs.foxglove_log import FoxgloveWriter
 from trials.cli import main
-from trials.study import StudyFolder
+from trials.outcomes import columns
+from trials.study import OUTCOMES, RUNS, StudyFolder
 
-OUTCOME_COLUMNS = [
-    "run_code", "status", "seed", "perception", "duration_s", "time_to_goal_s", "path_length_m", "min_distance_m",
-    "time_within_0_5m_s", "time_within_1_2m_s", "collisions", "max_deceleration_mps2", "max_jerk_mps3",
-    "path_irregularity_rad_per_m", "turn_in_place_s", "backing_up_s", "stopped_s", "controller", "finished_utc",
-]
 DT = 0.1
 GOAL_X = 10.0
 
@@ -146,24 +143,23 @@ def write_run(folder: StudyFolder, row: dict[str, str], behaviour: Behaviour, se
     metadata = {"run_code": code, "study": folder.root.name, "seed": str(seed), "perception": "positions", **factors}
     if controller:
         metadata["controller"] = controller
-    folder.path("runs").mkdir(exist_ok=True)
-    with FoxgloveWriter(folder.path("runs") / f"{code}.mcap", {"run": metadata}) as log:
-        log.write("/events", "navtrials.Event", {"t": 0.0, "event": "start", "detail": ""}, 0)
+    folder.path(RUNS).mkdir(exist_ok=True)
+    with FoxgloveWriter(folder.run_log(code), {fmt.RUN_METADATA: metadata}) as log:
+        log.write(*fmt.EVENTS, {"t": 0.0, "event": "start", "detail": ""}, 0)
         ids = list(peds)
         for i, (t, x, y, theta, v, w) in enumerate(robot):
             stamp = int(round(t * 1e9))
-            log.write("/robot/state", "navtrials.RobotState", {"t": t, "x": x, "y": y, "theta": theta, "v": v, "w": w, "v_cmd": v, "w_cmd": w}, stamp)
+            log.write(*fmt.ROBOT_STATE, {"t": t, "x": x, "y": y, "theta": theta, "v": v, "w": w, "v_cmd": v, "w_cmd": w}, stamp)
             positions = [peds[k][i] for k in ids]
-            log.write("/pedestrians/state", "navtrials.Pedestrians", {
+            log.write(*fmt.PEDESTRIANS, {
                 "t": t, "ids": [int(k) for k in ids], "x": [float(p[0]) for p in positions], "y": [float(p[1]) for p in positions],
                 "vx": [0.0] * len(ids), "vy": [0.0] * len(ids)}, stamp)
-        log.write("/events", "navtrials.Event", {"t": float(robot[-1, 0]), "event": status, "detail": ""}, int(round(robot[-1, 0] * 1e9)))
+        log.write(*fmt.EVENTS, {"t": float(robot[-1, 0]), "event": status, "detail": ""}, int(round(robot[-1, 0] * 1e9)))
     outcome = _outcome(code, seed, robot, peds, status, controller)
-    columns = OUTCOME_COLUMNS if controller else [c for c in OUTCOME_COLUMNS if c != "controller"]
-    path = folder.path("outcomes.csv")
+    path = folder.path(OUTCOMES)
     new = not path.exists()
     with path.open("a", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, columns, extrasaction="ignore", lineterminator="\n")
+        writer = csv.DictWriter(handle, columns(blind=not controller), extrasaction="ignore", lineterminator="\n")
         if new:
             writer.writeheader()
         writer.writerow(outcome)

@@ -38,7 +38,13 @@ def run(args: argparse.Namespace) -> int:
     from designs.plan import build_plan
     from designs.spec import read_spec
     from trials.errors import StudyError
-    from trials.study import ALLOCATION, PUBLIC_STUDY_FILES, SPEC, StudyFolder
+    from trials.study import (
+        ALLOCATION,
+        PUBLIC_STUDY_FILES,
+        SEALED_SPEC,
+        SPEC,
+        StudyFolder,
+    )
 
     folder = StudyFolder(args.study)
     own_spec = folder.path(SPEC)
@@ -62,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
 
     plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
     # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
-    from trials.design_files import SEALED_SPEC, write_design
+    from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None

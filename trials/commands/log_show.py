@@ -19,19 +19,26 @@ def register(group: argparse._SubParsersAction) -> None:
 
 
 def show(args: argparse.Namespace) -> int:
+    from robot_logs.run_log import read_run
     from trials.atomic import write_files
     from trials.errors import StudyError
-    from trials.outcomes import measure, metric_cells
+    from trials.metrics import measure
+    from trials.outcomes import outcome_cells
     from trials.run_figure import run_png
-    from trials.run_log import read_run
     from trials.scenario import CONE, GOAL
-    from trials.study import RUNS
+    from trials.study import (
+        OUTCOMES,
+        RUN_FIGURE_SUFFIX,
+        RUN_LOG_SUFFIX,
+        RUNS,
+        StudyFolder,
+    )
 
     path = Path(args.run)
-    if path.suffix != ".mcap":
-        path = args.study / RUNS / f"{args.run}.mcap"
+    if path.suffix != RUN_LOG_SUFFIX:
+        path = StudyFolder(args.study).run_log(args.run)
         if not path.exists():
-            raise StudyError(f"no log of run {args.run} in {(args.study / RUNS).resolve()} (has it finished? see outcomes.csv)")
+            raise StudyError(f"no log of run {args.run} in {(args.study / RUNS).resolve()} (has it finished? see {OUTCOMES})")
     run = read_run(path)
     meta = dict(run.metadata)
     code = meta.pop("run_code", path.stem)
@@ -58,8 +65,8 @@ def show(args: argparse.Namespace) -> int:
         figures = {k: v or "-" for k, v in run.replay.items()}
         lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
                      f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
-    lines.extend(f"  {name:<30} {value or '-'}" for name, value in metric_cells(outcome).items() if name not in ("status", "duration_s"))
-    picture = path.with_suffix(".png")
+    lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome_cells(outcome).items() if name != "duration_s")
+    picture = path.with_suffix(RUN_FIGURE_SUFFIX)
     write_files({picture: run_png(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE)})
     lines.append(f"trajectories: {picture}")
     print("\n".join(lines))

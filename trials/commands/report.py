@@ -5,9 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-#: The study's own rubric thresholds, if it has any.
-RUBRIC = "rubric.toml"
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
@@ -40,25 +37,35 @@ def run(args: argparse.Namespace) -> int:
     from analysis.scoring import Rubric, read_rubric
     from trials.atomic import write_files
     from trials.errors import StudyError
-    from trials.study import REPORT, StudyFolder, utc_now
-    from trials.study_data import UNBLINDING, load_study, unblinding_record
+    from trials.study import (
+        OUTCOMES,
+        REPORT,
+        REPORT_FIGURES,
+        REPORT_HTML,
+        REPORT_MARKDOWN,
+        REPORT_RECORD,
+        RUBRIC,
+        UNBLINDING,
+        StudyFolder,
+        utc_now,
+    )
+    from trials.study_data import load_study, unblinding_record
 
     folder = StudyFolder(args.study)
     now = utc_now()
     data = load_study(folder, args.unblind, now)
     if not data.finished:
-        raise StudyError(f"no finished runs in {folder.path('outcomes.csv')} yet: nothing to report (run `trials run` first)")
+        raise StudyError(f"no finished runs in {folder.path(OUTCOMES)} yet: nothing to report (run `trials run` first)")
     rubric_file = args.rubric or (folder.path(RUBRIC) if folder.path(RUBRIC).exists() else None)
     rubric = read_rubric(rubric_file) if rubric_file is not None else Rubric()
     source = f"from {rubric_file}" if rubric_file is not None else "the documented defaults"
     report = build_report(data, rubric, source, now)
 
-    out = folder.path(REPORT)
-    figures = out / "figures"
+    out, figures = folder.path(REPORT), folder.path(REPORT_FIGURES)
     files = {
-        out / "report.md": report.markdown().encode(),
-        out / "report.html": report.html().encode(),
-        out / "report.json": (json.dumps(report.record, indent=1) + "\n").encode(),
+        folder.path(REPORT_MARKDOWN): report.markdown().encode(),
+        folder.path(REPORT_HTML): report.html().encode(),
+        folder.path(REPORT_RECORD): (json.dumps(report.record, indent=1) + "\n").encode(),
         **{figures / figure.name: figure.png for figure in report.figures},
     }
     if data.blinding.revealed:

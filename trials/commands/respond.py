@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from trials.errors import StudyError
-    from trials.results import read_outcomes
+    from trials.outcomes import finished_codes
     from trials.study import StudyFolder
 
     folder = StudyFolder(args.study)
@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     if (args.participants is not None or args.seed is not None) and not args.simulate:
         raise StudyError("--participants and --seed go with --simulate")
     plan_codes = [row["run_code"] for row in folder.read_plan()]
-    finished = [o.run_code for o in read_outcomes(folder)]
+    finished = finished_codes(folder)
     if args.simulate:
         return _simulate(folder, finished, args.participants, args.seed)
     if args.import_file is not None:
@@ -59,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
 def _record_one(folder: StudyFolder, code: str, participant: str, answer: str, plan_codes: list[str], finished: list[str]) -> int:
     from analysis.records import HUMAN, Response
     from trials.errors import StudyError
-    from trials.results import append_responses, check_run_codes, parse_answer, read_responses
+    from trials.outcomes import check_run_codes
+    from trials.responses import append_responses, parse_answer, read_responses
     from trials.study import RESPONSES, utc_now
 
     try:
@@ -78,7 +79,8 @@ def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: li
     from dataclasses import replace
 
     from trials.errors import StudyError
-    from trials.results import append_responses, check_run_codes, read_responses
+    from trials.outcomes import check_run_codes
+    from trials.responses import append_responses, read_responses
     from trials.study import RESPONSES, utc_now
 
     if not path.is_file():
@@ -100,17 +102,18 @@ def _simulate(folder: StudyFolder, finished: list[str], participants: int | None
 
     from trials.errors import StudyError
     from trials.simulated_participants import simulate_runs
+    from trials.study import OUTCOMES, RESPONSES
 
     if participants is not None and participants < 1:
         raise StudyError(f"--participants must be at least 1, got {participants}")
     if seed is not None and seed < 0:
         raise StudyError(f"--seed must be >= 0, got {seed}")
     if not finished:
-        raise StudyError("no finished runs in outcomes.csv to simulate judgments of: run `trials run` first")
+        raise StudyError(f"no finished runs in {OUTCOMES} to simulate judgments of: run `trials run` first")
     seed = secrets.randbits(31) if seed is None else seed
     responses, skipped = simulate_runs(folder, finished, seed, participants)
     runs = len({r.run_code for r in responses})
-    print(f"Simulated {len(responses)} judgment(s) of {runs} run(s) with seed {seed} (source=simulated in responses.csv).")
+    print(f"Simulated {len(responses)} judgment(s) of {runs} run(s) with seed {seed} (source=simulated in {RESPONSES}).")
     if len(responses) == 0 and not skipped:
         print("Every finished run already has judgments.")
     for entry in skipped:

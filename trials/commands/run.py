@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.runner import RunDone, RunOptions, StudyRun, run_study
     from trials.sim.perception import PositionNoise
     from trials.simulated_participants import simulate_run
-    from trials.study import StudyFolder
+    from trials.study import OUTCOMES, StudyFolder
 
     if not args.noise >= 0:
         raise StudyError(f"--noise must be 0 or more metres, got {args.noise}")
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     statuses = [run.row["status"] for run in summary.finished]
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in ("goal", "collision", "timeout") if s in statuses)
     print(f"{len(summary.finished)} runs finished{f' ({counts})' if counts else ''}; {summary.done} of {len(study.codes)} "
-          f"plan rows are done (outcomes in {study.folder.path('outcomes.csv')})")
+          f"plan rows are done (outcomes in {study.folder.path(OUTCOMES)})")
     if summary.failed:
         print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
         return 1

@@ -32,7 +32,8 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.records import HumanScore
     from trials.errors import StudyError
-    from trials.results import append_scores, check_run_codes, parse_score, read_outcomes, read_scores
+    from trials.outcomes import check_run_codes, finished_codes
+    from trials.scores import append_scores, parse_score, read_scores
     from trials.study import SCORES, StudyFolder, utc_now
 
     folder = StudyFolder(args.study)
@@ -41,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if args.import_file is None and not (args.run_code and args.score):
         raise StudyError("give a run code and a score 1, 2 or 3 (e.g. `trials score NGAC3 3`), or --import FILE")
     plan_codes = [row["run_code"] for row in folder.read_plan()]
-    finished = [o.run_code for o in read_outcomes(folder)]
+    finished = finished_codes(folder)
     scorer = args.by or _login()
     now = utc_now()
     if args.import_file is None:

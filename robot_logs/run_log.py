@@ -1,0 +1,168 @@
+"""The run-log format (`runs/<code>.mcap` of a study): its topics, schemas, metadata records, the
+layout of its own messages, and the one reader of it (`read_run`).
+
+`trials` writes these logs (simulated and logged trials) and `analysis` reads them back for the
+report; both take the format from here, so it has one owner. docs/study_folder.md describes it.
+Times are the run's own seconds (log times count from 0); values are rounded to 0.1 mm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from robot_logs.errors import LogError
+from robot_logs.foxglove_log import FoxgloveReader
+
+#: The fixed frame of every run log's 3-D scene.
+FRAME = "map"
+#: Metadata records: the run's settings, and a logged trial's plans against the log.
+RUN_METADATA = "run"
+REPLAY_METADATA = "replay"
+
+
+class Topic(NamedTuple):
+    """A channel of the run log: its name and schema (`FoxgloveWriter.write(*topic, message, stamp)`)."""
+
+    name: str
+    schema: str
+
+
+TRANSFORM = Topic("/tf", "foxglove.FrameTransform")
+SCENE = Topic("/scene", "foxglove.SceneUpdate")
+ROBOT_STATE = Topic("/robot/state", "navtrials.RobotState")
+PEDESTRIANS = Topic("/pedestrians/state", "navtrials.Pedestrians")
+PERCEIVED = Topic("/perception/pedestrians", "navtrials.Pedestrians")
+PLAN = Topic("/controller/plan", "navtrials.Plan")
+PLAN_POSES = Topic("/controller/plan_poses", "foxglove.PosesInFrame")
+CONTROLLER_RECORD = Topic("/controller/record", "navtrials.ControllerRecord")
+COMPARISON = Topic("/replay/comparison", "navtrials.ReplayComparison")
+RECORDED_POSES = Topic("/replay/recorded_poses", "foxglove.PosesInFrame")
+EVENTS = Topic("/events", "navtrials.Event")
+
+#: The fields of a /robot/state message the reader uses, in the order of `LoggedRun`'s arrays.
+ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
+
+
+def stamp_ns(time: float) -> int:
+    """A run time (s) as a log time (ns)."""
+    return round(time * 1e9)
+
+
+def rounded(values: Any) -> list[float]:
+    """Values flattened to a list, rounded as the log stores them."""
+    return [round(float(v), 4) for v in np.asarray(values).ravel()]
+
+
+def robot_state(time: float, pose: tuple[float, float, float], velocity: tuple[float, float],
+                command: tuple[float, float]) -> dict[str, float]:
+    """/robot/state: the robot's pose (m, rad), velocity (m/s, rad/s) and the commanded velocity."""
+    (x, y, theta), (v, w), (v_cmd, w_cmd) = pose, velocity, command
+    return {"t": round(time, 4), "x": round(x, 4), "y": round(y, 4), "theta": round(theta, 4),
+            "v": round(v, 4), "w": round(w, 4), "v_cmd": round(v_cmd, 4), "w_cmd": round(w_cmd, 4)}
+
+
+def pedestrians(time: float, ids: tuple[int, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any]:
+    """/pedestrians/state and /perception/pedestrians: ids with their (N, 2) positions and velocities."""
+    positions, velocities = np.asarray(positions).reshape(-1, 2), np.asarray(velocities).reshape(-1, 2)
+    return {"t": round(time, 4), "ids": [int(i) for i in ids], "x": rounded(positions[:, 0]), "y": rounded(positions[:, 1]),
+            "vx": rounded(velocities[:, 0]), "vy": rounded(velocities[:, 1])}
+
+
+def plan(time: float, waypoints: np.ndarray) -> dict[str, Any]:
+    """/controller/plan: the way-points a controller planned, (M, 2)."""
+    return {"t": round(time, 4), "waypoints": [rounded(p) for p in np.asarray(waypoints, dtype=float).reshape(-1, 2)]}
+
+
+def controller_record(time: float, record: Any) -> dict[str, Any]:
+    """/controller/record (or a blinded run's sealed steps): a controller's own record of a plan, as JSON."""
+    return {"t": round(time, 4), "record": record}
+
+
+def comparison(time: float, recorded: np.ndarray, figures: Mapping[str, Any]) -> dict[str, Any]:
+    """/replay/comparison: a logged trial's plan against the recorded positions at the way-points' times."""
+    return {"t": round(time, 4), "recorded": [rounded(p) for p in np.asarray(recorded, dtype=float).reshape(-1, 2)], **figures}
+
+
+def event(time: float, name: str, detail: str) -> dict[str, Any]:
+    """/events: "start", then how the run ended ("goal", "collision", "timeout")."""
+    return {"t": round(time, 4), "event": name, "detail": detail}
+
+
+@dataclass(frozen=True)
+class LoggedRun:
+    """A run read back from its MCAP: metadata, the physics-rate trace and the events.
+
+    Attributes:
+        metadata: the `run` metadata record.
+        time: (K,) s; pose: (K, 3); velocity: (K, 2) linear, angular.
+        ids: pedestrian ids; pedestrians: (K, N, 2) their true positions (NaN while a pedestrian
+            is absent, e.g. a logged trial's person not tracked then).
+        events: (t, event, detail) in time order.
+        plans: number of planning steps.
+        replay: a logged trial's `replay` metadata record (its plans against the log); empty otherwise.
+    """
+
+    metadata: dict[str, str]
+    time: np.ndarray
+    pose: np.ndarray
+    velocity: np.ndarray
+    ids: tuple[int, ...]
+    pedestrians: np.ndarray
+    events: list[tuple[float, str, str]]
+    plans: int
+    replay: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def status(self) -> str | None:
+        """How the run ended (the last event), None if the log has no ending."""
+        endings = [name for _, name, _ in self.events if name != "start"]
+        return endings[-1] if endings else None
+
+
+def read_run(path: Path) -> LoggedRun:
+    """Read a run log.
+
+    Raises:
+        LogError: missing, damaged, not a run log (no `run` metadata or no robot states), a message
+            without a field of the format, or pedestrian states that do not pair with robot states.
+    """
+    reader = FoxgloveReader(path)
+    if RUN_METADATA not in reader.metadata or ROBOT_STATE.name not in reader.topics:
+        raise LogError(f"{path} is not a trials run log (no `{RUN_METADATA}` metadata or {ROBOT_STATE.name} topic)")
+    robot: list[list[float]] = []
+    people: list[tuple[list[int], list[float], list[float]]] = []
+    events: list[tuple[float, str, str]] = []
+    plans = 0
+    topic = ""
+    try:
+        for message in reader.messages([ROBOT_STATE.name, PEDESTRIANS.name, EVENTS.name, PLAN.name]):
+            data, topic = message.data, message.topic
+            if topic == ROBOT_STATE.name:
+                robot.append([float(data[k]) for k in ROBOT_FIELDS])
+            elif topic == PEDESTRIANS.name:
+                people.append(([int(i) for i in data["ids"]], [float(x) for x in data["x"]], [float(y) for y in data["y"]]))
+            elif topic == EVENTS.name:
+                events.append((float(data["t"]), str(data["event"]), str(data["detail"])))
+            else:
+                plans += 1
+    except KeyError as exc:
+        raise LogError(f"{path}: a {topic} message lacks field {exc} of the run-log format (docs/study_folder.md)") from None
+    except (TypeError, ValueError) as exc:
+        raise LogError(f"{path}: a {topic} message breaks the run-log format (docs/study_folder.md): {exc}") from None
+    if not robot:
+        raise LogError(f"{path}: no {ROBOT_STATE.name} messages")
+    if len(people) != len(robot):
+        raise LogError(f"{path}: pedestrian states do not match the robot states one to one")
+    ids = tuple(dict.fromkeys(i for present, _, _ in people for i in present))
+    column = {i: n for n, i in enumerate(ids)}
+    positions = np.full((len(robot), len(ids), 2), np.nan)
+    for k, (present, x, y) in enumerate(people):
+        positions[k, [column[i] for i in present]] = np.column_stack([x, y]).reshape(-1, 2)
+    table = np.array(robot, dtype=float).reshape(-1, len(ROBOT_FIELDS))
+    return LoggedRun(reader.metadata[RUN_METADATA], table[:, 0], table[:, 1:4], table[:, 4:6], ids, positions, events, plans,
+                     reader.metadata.get(REPLAY_METADATA, {}))

@@ -1,0 +1,103 @@
+"""How the study's CSV files are read and written: columns from a record dataclass, cells as text,
+line-numbered rows, and atomic appends.
+
+Each file has its own module (`trials.outcomes`, `trials.scores`, `trials.responses`) that uses
+these; a bad file is a StudyError naming the file and line.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any, TypeVar
+
+from trials.atomic import write_text
+from trials.errors import StudyError
+
+Row = TypeVar("Row")
+
+
+def record_columns(record_type: type) -> tuple[str, ...]:
+    """A file's columns: the fields of its record dataclass, in order."""
+    return tuple(f.name for f in fields(record_type))
+
+
+def cell(value: Any) -> str:
+    """A value as the study's CSV files write it: empty for None, yes / no for a bool, 3 decimals for a float."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    return str(value)
+
+
+def record_cells(record: Any) -> dict[str, str]:
+    """A record's fields as cells, by column name."""
+    return {f.name: cell(getattr(record, f.name)) for f in fields(record)}
+
+
+def record_row(record: Any, header: Sequence[str]) -> list[str]:
+    """A record's cells in the order of `header` (a subset of its fields)."""
+    cells = record_cells(record)
+    return [cells[c] for c in header]
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV file's header and its rows with their line numbers (stripped cells)."""
+
+    header: tuple[str, ...]
+    rows: list[tuple[int, dict[str, str]]]
+
+
+def read_table(path: Path, required: Sequence[str]) -> Table:
+    """A CSV file with a header (an empty table when there is no file); StudyError when a required column is missing."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        return Table((), [])
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    reader = csv.DictReader(io.StringIO(text))
+    header = tuple(reader.fieldnames or ())
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise StudyError(f"{path}: missing column(s) {', '.join(missing)} (expected {', '.join(required)})")
+    return Table(header, [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None}) for row in reader])
+
+
+def parse_rows(path: Path, table: Table, parse: Callable[[dict[str, str]], Row]) -> list[Row]:
+    """Parse each row with `parse(row)`; a ValueError from it becomes a StudyError naming the line."""
+    records = []
+    for line, row in table.rows:
+        try:
+            records.append(parse(row))
+        except ValueError as exc:
+            raise StudyError(f"line {line} of {path.name}: {exc}") from None
+    return records
+
+
+def table_text(header: Sequence[str], rows: Iterable[Sequence[str]], with_header: bool = True) -> str:
+    """CSV text: the header line (unless left out), then one line per row."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    if with_header:
+        writer.writerow(header)
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+def append_rows(path: Path, header: Sequence[str], rows: Iterable[Sequence[str]]) -> None:
+    """Add rows to a CSV file (creating it with `header`), rewriting it atomically."""
+    existing = path.read_text(encoding="utf-8") if path.exists() else ""
+    if existing:
+        found = next(csv.reader(io.StringIO(existing)), [])
+        if tuple(found) != tuple(header):
+            raise StudyError(f"{path} has columns {', '.join(found)}; expected {', '.join(header)}")
+    separator = "" if not existing or existing.endswith("\n") else "\n"
+    write_text(path, existing + separator + table_text(header, rows, with_header=not existing))

@@ -1,0 +1,43 @@
+"""scores.csv, evaluators' 1-2-3 scores of runs: its columns (the fields of `analysis.records.HumanScore`),
+its one reader (also of files for `trials score --import`) and its one writer (appends)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from analysis.records import HumanScore
+from trials.csv_table import (
+    append_rows,
+    parse_rows,
+    read_table,
+    record_columns,
+    record_row,
+)
+from trials.study import SCORES, StudyFolder
+
+SCORES_ALLOWED = (1, 2, 3)
+#: What a file of scores must have; scorer, note and recorded_utc may be absent.
+REQUIRED = ("run_code", "score")
+
+
+def parse_score(cell: str) -> int:
+    """A 1-2-3 score from text; ValueError otherwise."""
+    if cell.strip() not in {str(s) for s in SCORES_ALLOWED}:
+        raise ValueError(f"score must be 1, 2 or 3, got {cell!r}")
+    return int(cell)
+
+
+def read_scores(path: Path) -> list[HumanScore]:
+    """Human scores from a scores.csv-shaped file, in file order ([] when there is none)."""
+    return parse_rows(path, read_table(path, REQUIRED), _score)
+
+
+def append_scores(folder: StudyFolder, scores: Sequence[HumanScore]) -> None:
+    """Add scores to the study's scores.csv."""
+    header = record_columns(HumanScore)
+    append_rows(folder.path(SCORES), header, (record_row(s, header) for s in scores))
+
+
+def _score(row: dict[str, str]) -> HumanScore:
+    return HumanScore(row["run_code"], parse_score(row["score"]), row.get("scorer", ""), row.get("note", ""), row.get("recorded_utc", ""))
