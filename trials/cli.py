@@ -15,12 +15,13 @@ from designs.errors import DesignError
 from navigan.errors import NaviganError
 from robot_logs.errors import LogError
 from trials.errors import StudyError
+from trials.lattice.errors import LatticeError
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
 COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report")
 
 #: Exception types that mean "the user asked for something wrong", never a bug.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError, LatticeError)
 
 EXIT_USAGE = 2
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from trials.controllers.lattice.grid import PaddedGrid
-from trials.controllers.lattice.heap import pop_min, push_or_update
+from trials.lattice.grid import PaddedGrid
+from trials.lattice.heap import pop_min, push_or_update
 
 INFINITE_COST = 1_000_000_000
 #: (dx, dy) of the 16 moves; moves 8..15 pass through the two cells listed in KNIGHT_CELLS.

@@ -13,13 +13,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from trials.controllers.lattice.actions import ActionTable, build_actions
-from trials.controllers.lattice.environment import Environment, cell_to_cont, heading_to_cont
-from trials.controllers.lattice.footprint import Polygon, footprint_cells
-from trials.controllers.lattice.grid import PaddedGrid, pad_grid
-from trials.controllers.lattice.heuristic import grid_heuristic
-from trials.controllers.lattice.primitives import PrimitiveSet
-from trials.controllers.lattice.search import AraStar, Iteration, Tables, Thresholds, edge_cost
+from trials.lattice.actions import ActionTable, build_actions
+from trials.lattice.environment import Environment, cell_to_cont, heading_to_cont
+from trials.lattice.footprint import Polygon, footprint_cells
+from trials.lattice.grid import PaddedGrid, pad_grid
+from trials.lattice.heuristic import grid_heuristic
+from trials.lattice.primitives import PrimitiveSet
+from trials.lattice.search import AraStar, Iteration, Tables, Thresholds, edge_cost
 
 State = tuple[int, int, int]
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from trials.controllers.lattice.heap import heapify, new_heap, pop_min, push_or_update
-from trials.controllers.lattice.heuristic import INFINITE_COST
+from trials.lattice.heap import heapify, new_heap, pop_min, push_or_update
+from trials.lattice.heuristic import INFINITE_COST
 
 #: Kernel outcomes (SBPL's ImprovePath codes).
 NO_SOLUTION, SOLVED, UNFINISHED = 0, 1, 2
