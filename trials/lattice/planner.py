@@ -135,8 +135,8 @@ class LatticePlanner:
         hcell = grid_heuristic(self.grid, goal[:2], start[:2], env.cell_size, env.cost_inscribed_thresh,
                                env.nominal_vel)
         t_heuristic = time.perf_counter() - t0
-        found = self.search.search(self.grid.values, self.grid.clear2, hcell, self._state_id(start),
-                                   self._state_id(goal), eps, eps_step, final_eps, deadline=t0 + budget)
+        found = self.search.search(self.grid, hcell, self._state_id(start), self._state_id(goal), eps, eps_step,
+                                   final_eps, deadline=t0 + budget)
         states = [(*self.grid.xy(s // n), s % n) for s in found.states]
         actions, poses, times = self._trace(states)
         bound = "no bound yet" if math.isinf(found.eps) else f"within eps {found.eps:g} of optimal"
@@ -161,9 +161,7 @@ class LatticePlanner:
             dx, dy, heading = self.actions.end.reshape(-1, 3)[action]
             if (source[0] + dx, source[1] + dy, heading) != tuple(target):
                 continue
-            cost = edge_cost(self.grid.values, self.grid.clear2, cell, action, t.end_offset, t.cost, t.centre,
-                             t.centre_ptr, t.swept, t.swept_ptr, t.reach2, th.obsthresh, th.inscribed,
-                             th.circumscribed, t.use_footprint)
+            cost = edge_cost(self.grid, cell, action, t, th)
             if cost >= 0 and (best[1] < 0 or cost < best[1]):
                 best = (action % t.per_heading, int(cost))
         return best

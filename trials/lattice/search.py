@@ -5,8 +5,10 @@ a weighted A* with priority g + int(eps * h) that expands every state at most on
 after they were closed wait in INCONS and re-enter OPEN when eps drops by `eps_step`, so later
 iterations reuse the earlier search. Each finished iteration's path costs at most eps times the
 optimum. The compiled kernel runs a bounded number of expansions per call, so the Python driver
-checks the clock between calls and no search outlives its budget. The edge rule is SBPL's
-GetActionCost; the bookkeeping follows SBPL's ARAPlanner, so epsilon-1 costs equal SBPL's.
+checks the clock between calls and no search outlives its budget; it takes its arrays grouped in
+named tuples (the grid, the action tables, the thresholds, the per-state labels and the heap). The
+edge rule is SBPL's GetActionCost; the bookkeeping follows SBPL's ARAPlanner, so epsilon-1 costs
+equal SBPL's.
 """
 
 from __future__ import annotations
@@ -14,11 +16,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from trials.lattice.heap import heapify, new_heap, pop_min, push_or_update
+from trials.lattice.compiled import inlined_kernel, kernel
+from trials.lattice.grid import PaddedGrid
+from trials.lattice.heap import Heap, heapify, new_heap, pop_min, push_or_update
 from trials.lattice.heuristic import INFINITE_COST
 
 #: Kernel outcomes (SBPL's ImprovePath codes).
@@ -27,8 +31,7 @@ EPS_TOLERANCE = 1e-6
 CHUNK_EXPANSIONS = 1024
 
 
-@dataclass(frozen=True)
-class Tables:
+class Tables(NamedTuple):
     """The action tables with cell offsets flattened for one padded-grid row width (see `actions`)."""
 
     end_offset: np.ndarray   # (N*A,) flat-index offset of the end cell
@@ -44,85 +47,102 @@ class Tables:
     use_footprint: bool
 
 
-@dataclass(frozen=True)
-class Thresholds:
+class Thresholds(NamedTuple):
+    """Cell values from which a cell is an obstacle, the robot's centre cannot stand on it, and the
+    footprint must be checked (SBPL's obsthresh, inscribed and possibly-circumscribed thresholds)."""
+
     obsthresh: int
     inscribed: int
     circumscribed: int
 
 
-@njit(cache=True)
-def edge_cost(values, clear2, cell, action, end_offset, cost, centre, centre_ptr, swept, swept_ptr, reach2,
-              obsthresh, inscribed, circumscribed, use_footprint):
+class Labels(NamedTuple):
+    """ARA*'s per-state arrays, kept from search to search; a state's entries are valid once `seen`
+    holds the current call's number. INCONS lists the states improved after they were closed."""
+
+    g: np.ndarray          # int64 cost from the start
+    v: np.ndarray          # int64 cost when last expanded
+    pred: np.ndarray       # int32 predecessor on the best path, -1 for none
+    closed: np.ndarray     # int32 the iteration that last expanded it
+    seen: np.ndarray       # int32 the call that last reset it
+    incons: np.ndarray     # int32 INCONS, n_incons[0] states
+    n_incons: np.ndarray   # int64 [count]
+    in_incons: np.ndarray  # int8 per state: 1 while in INCONS
+
+
+@kernel
+def edge_cost(grid, cell, action, tables, thresholds):
     """The cost of `action` (flat heading*A+a) from a valid source `cell`, or -1 when it collides."""
-    end_value = values[cell + end_offset[action]]
+    values = grid.values
+    obsthresh, inscribed = thresholds.obsthresh, thresholds.inscribed
+    end_value = values[cell + tables.end_offset[action]]
     if end_value >= obsthresh or end_value >= inscribed:
         return -1
     highest = 0
+    centre, centre_ptr = tables.centre, tables.centre_ptr
     for k in range(centre_ptr[action], centre_ptr[action + 1]):
         highest = max(highest, values[cell + centre[k]])
         if highest >= inscribed:
             return -1
-    if use_footprint and highest >= circumscribed and clear2[cell] <= reach2[action]:
+    if tables.use_footprint and highest >= thresholds.circumscribed and grid.clear2[cell] <= tables.reach2[action]:
+        swept, swept_ptr = tables.swept, tables.swept_ptr
         for k in range(swept_ptr[action], swept_ptr[action + 1]):
             if values[cell + swept[k]] >= obsthresh:
                 return -1
     highest = max(highest, values[cell], end_value)
-    return cost[action] * (highest + 1)
+    return tables.cost[action] * (highest + 1)
 
 
-@njit(cache=True, inline="always")
-def _touch(state, call, g, v, pred, closed, seen):
-    if seen[state] != call:
-        seen[state] = call
-        g[state] = INFINITE_COST
-        v[state] = INFINITE_COST
-        pred[state] = -1
-        closed[state] = 0
+@inlined_kernel
+def _touch(labels, state, call):
+    if labels.seen[state] != call:
+        labels.seen[state] = call
+        labels.g[state] = INFINITE_COST
+        labels.v[state] = INFINITE_COST
+        labels.pred[state] = -1
+        labels.closed[state] = 0
 
 
-@njit(cache=True)
-def improve_path(values, clear2, num_thetas, per_heading, end_offset, end_heading, cost, centre, centre_ptr,
-                 swept, swept_ptr, reach2, obsthresh, inscribed, circumscribed, use_footprint, hcell, eps,
-                 iteration, call, goal, g, v, pred, closed, seen, keys, items, pos, size, incons, n_incons,
-                 in_incons, max_expansions, best):
-    """Expand states until the goal's cost is within `eps` (SOLVED), OPEN runs dry (NO_SOLUTION) or
-    `max_expansions` are spent (UNFINISHED). `best` keeps [state, h, g] of the expanded state nearest
-    the goal by heuristic, for partial paths. Returns (outcome, expansions)."""
-    _touch(goal, call, g, v, pred, closed, seen)
+@kernel
+def improve_path(grid, tables, thresholds, hcell, labels, heap, eps, iteration, call, goal, max_expansions, best):
+    """Expand states until the goal's cost is within `eps` (SOLVED), OPEN (`heap`) runs dry
+    (NO_SOLUTION) or `max_expansions` are spent (UNFINISHED). `best` keeps [state, h, g] of the
+    expanded state nearest the goal by heuristic, for partial paths. Returns (outcome, expansions)."""
+    values, num_thetas, per_heading = grid.values, tables.num_thetas, tables.per_heading
+    g, v, keys, size = labels.g, labels.v, heap.keys, heap.size
+    _touch(labels, goal, call)
     expansions = 0
     while size[0] > 0 and keys[1] < INFINITE_COST and g[goal] > keys[1]:
         if expansions >= max_expansions:
             return UNFINISHED, expansions
-        state = pop_min(keys, items, pos, size)
+        state = pop_min(heap)
         v[state] = g[state]
-        closed[state] = iteration
+        labels.closed[state] = iteration
         expansions += 1
         cell = state // num_thetas
         h = hcell[cell]
         if h < best[1] or (h == best[1] and g[state] < best[2]):
             best[0], best[1], best[2] = state, h, g[state]
-        if state == goal or values[cell] >= obsthresh:  # the goal absorbs; an invalid cell has no moves
+        if state == goal or values[cell] >= thresholds.obsthresh:  # the goal absorbs; an invalid cell has no moves
             continue
         first = (state - cell * num_thetas) * per_heading
         for action in range(first, first + per_heading):
-            step = edge_cost(values, clear2, cell, action, end_offset, cost, centre, centre_ptr, swept, swept_ptr,
-                             reach2, obsthresh, inscribed, circumscribed, use_footprint)
+            step = edge_cost(grid, cell, action, tables, thresholds)
             if step < 0:
                 continue
-            nxt_cell = cell + end_offset[action]
-            nxt = nxt_cell * num_thetas + end_heading[action]
-            _touch(nxt, call, g, v, pred, closed, seen)
+            nxt_cell = cell + tables.end_offset[action]
+            nxt = nxt_cell * num_thetas + tables.end_heading[action]
+            _touch(labels, nxt, call)
             new = v[state] + step
             if g[nxt] > new:
                 g[nxt] = new
-                pred[nxt] = state
-                if closed[nxt] != iteration:
-                    push_or_update(keys, items, pos, size, nxt, new + np.int64(eps * hcell[nxt_cell]))
-                elif in_incons[nxt] == 0:
-                    in_incons[nxt] = 1
-                    incons[n_incons[0]] = nxt
-                    n_incons[0] += 1
+                labels.pred[nxt] = state
+                if labels.closed[nxt] != iteration:
+                    push_or_update(heap, nxt, new + np.int64(eps * hcell[nxt_cell]))
+                elif labels.in_incons[nxt] == 0:
+                    labels.in_incons[nxt] = 1
+                    labels.incons[labels.n_incons[0]] = nxt
+                    labels.n_incons[0] += 1
     if g[goal] == INFINITE_COST and size[0] == 0:
         return NO_SOLUTION, expansions
     if size[0] > 0 and g[goal] > keys[1]:
@@ -132,28 +152,29 @@ def improve_path(values, clear2, num_thetas, per_heading, end_offset, end_headin
     return SOLVED, expansions
 
 
-@njit(cache=True)
-def new_iteration(num_thetas, hcell, eps, g, keys, items, pos, size, incons, n_incons, in_incons):
+@kernel
+def new_iteration(labels, heap, hcell, num_thetas, eps):
     """Move INCONS into OPEN and re-key OPEN for the new eps."""
-    for i in range(n_incons[0]):
-        state = incons[i]
-        in_incons[state] = 0
-        push_or_update(keys, items, pos, size, state, 0)
-    n_incons[0] = 0
-    for slot in range(1, size[0] + 1):
-        state = items[slot]
-        keys[slot] = g[state] + np.int64(eps * hcell[state // num_thetas])
-    heapify(keys, items, pos, size)
+    for i in range(labels.n_incons[0]):
+        state = labels.incons[i]
+        labels.in_incons[state] = 0
+        push_or_update(heap, state, 0)
+    labels.n_incons[0] = 0
+    for slot in range(1, heap.size[0] + 1):
+        state = heap.items[slot]
+        heap.keys[slot] = labels.g[state] + np.int64(eps * hcell[state // num_thetas])
+    heapify(heap)
 
 
-@njit(cache=True)
-def clear_open(items, pos, size, incons, n_incons, in_incons):
-    for slot in range(1, size[0] + 1):
-        pos[items[slot]] = 0
-    size[0] = 0
-    for i in range(n_incons[0]):
-        in_incons[incons[i]] = 0
-    n_incons[0] = 0
+@kernel
+def clear_open(labels, heap):
+    """Empty OPEN and INCONS."""
+    for slot in range(1, heap.size[0] + 1):
+        heap.pos[heap.items[slot]] = 0
+    heap.size[0] = 0
+    for i in range(labels.n_incons[0]):
+        labels.in_incons[labels.incons[i]] = 0
+    labels.n_incons[0] = 0
 
 
 @dataclass(frozen=True)
@@ -190,29 +211,27 @@ class AraStar:
     def __init__(self, num_cells: int, tables: Tables, thresholds: Thresholds) -> None:
         self.tables, self.thresholds = tables, thresholds
         n = num_cells * tables.num_thetas
-        self.g, self.v, self.pred = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int32)
-        self.closed, self.seen = np.zeros(n, np.int32), np.zeros(n, np.int32)
-        self.keys, self.items, self.pos, self.size = new_heap(n)
-        self.incons, self.n_incons, self.in_incons = np.empty(n, np.int32), np.zeros(1, np.int64), np.zeros(n, np.int8)
+        self.labels = Labels(g=np.empty(n, np.int64), v=np.empty(n, np.int64), pred=np.empty(n, np.int32),
+                             closed=np.zeros(n, np.int32), seen=np.zeros(n, np.int32), incons=np.empty(n, np.int32),
+                             n_incons=np.zeros(1, np.int64), in_incons=np.zeros(n, np.int8))
+        self.heap: Heap = new_heap(n)
         self.call = 0
 
-    def search(self, values: np.ndarray, clear2: np.ndarray, hcell: np.ndarray, start: int, goal: int,
-               eps: float = 3.0, eps_step: float = 0.2, final_eps: float = 1.0,
-               deadline: float = math.inf) -> SearchResult:
-        """ARA* from state `start` to state `goal` until eps reaches `final_eps` or `time.perf_counter()`
-        passes `deadline`."""
-        t, th = self.tables, self.thresholds
+    def search(self, grid: PaddedGrid, hcell: np.ndarray, start: int, goal: int, eps: float = 3.0,
+               eps_step: float = 0.2, final_eps: float = 1.0, deadline: float = math.inf) -> SearchResult:
+        """ARA* from state `start` to state `goal` on `grid` until eps reaches `final_eps` or
+        `time.perf_counter()` passes `deadline`."""
+        labels, heap, nth = self.labels, self.heap, self.tables.num_thetas
         t0 = time.perf_counter()
         self.call += 1
-        clear_open(self.items, self.pos, self.size, self.incons, self.n_incons, self.in_incons)
+        clear_open(labels, heap)
         for state in (start, goal):
-            if self.seen[state] != self.call:
-                self.seen[state] = self.call
-                self.g[state] = self.v[state] = INFINITE_COST
-                self.pred[state], self.closed[state] = -1, 0
-        self.g[start] = 0
-        nth = t.num_thetas
-        push_or_update(self.keys, self.items, self.pos, self.size, start, np.int64(eps * hcell[start // nth]))
+            if labels.seen[state] != self.call:
+                labels.seen[state] = self.call
+                labels.g[state] = labels.v[state] = INFINITE_COST
+                labels.pred[state], labels.closed[state] = -1, 0
+        labels.g[start] = 0
+        push_or_update(heap, start, np.int64(eps * hcell[start // nth]))
         best = np.array([start, hcell[start // nth], 0], dtype=np.int64)
         iterations: list[Iteration] = []
         satisfied, iteration, expansions, outcome = math.inf, 0, 0, UNFINISHED
@@ -220,33 +239,29 @@ class AraStar:
             if iteration > 0:
                 if abs(satisfied - eps) < EPS_TOLERANCE:
                     eps = max(eps - eps_step, final_eps)
-                new_iteration(nth, hcell, eps, self.g, self.keys, self.items, self.pos, self.size,
-                              self.incons, self.n_incons, self.in_incons)
+                new_iteration(labels, heap, hcell, nth, eps)
             iteration += 1
             outcome = UNFINISHED
             while outcome == UNFINISHED and time.perf_counter() < deadline:
-                outcome, done = improve_path(
-                    values, clear2, nth, t.per_heading, t.end_offset, t.end_heading, t.cost, t.centre,
-                    t.centre_ptr, t.swept, t.swept_ptr, t.reach2, th.obsthresh, th.inscribed, th.circumscribed,
-                    t.use_footprint, hcell, eps, iteration, self.call, goal, self.g, self.v, self.pred,
-                    self.closed, self.seen, self.keys, self.items, self.pos, self.size, self.incons,
-                    self.n_incons, self.in_incons, CHUNK_EXPANSIONS, best)
+                outcome, done = improve_path(grid, self.tables, self.thresholds, hcell, labels, heap, eps, iteration,
+                                             self.call, goal, CHUNK_EXPANSIONS, best)
                 expansions += done
             if outcome != SOLVED:
                 break
             satisfied = eps
-            iterations.append(Iteration(eps, int(self.g[goal]), expansions, time.perf_counter() - t0))
+            iterations.append(Iteration(eps, int(labels.g[goal]), expansions, time.perf_counter() - t0))
         elapsed = time.perf_counter() - t0
-        if self.g[goal] < INFINITE_COST:
-            return SearchResult("solved", self.path_to(goal), int(self.g[goal]), satisfied, expansions, elapsed,
+        if labels.g[goal] < INFINITE_COST:
+            return SearchResult("solved", self.path_to(goal), int(labels.g[goal]), satisfied, expansions, elapsed,
                                 iterations)
         status = "no_path" if outcome == NO_SOLUTION else "partial"
         end = int(best[0])
-        return SearchResult(status, self.path_to(end), int(self.g[end]), math.inf, expansions, elapsed, iterations)
+        return SearchResult(status, self.path_to(end), int(labels.g[end]), math.inf, expansions, elapsed, iterations)
 
     def path_to(self, state: int) -> list[int]:
         """States from the start to `state` along the best predecessors."""
+        pred = self.labels.pred
         path = [int(state)]
-        while self.pred[path[-1]] >= 0:
-            path.append(int(self.pred[path[-1]]))
+        while pred[path[-1]] >= 0:
+            path.append(int(pred[path[-1]]))
         return path[::-1]
