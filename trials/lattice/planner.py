@@ -1,7 +1,7 @@
 """The lattice planner: environment, successor tables, heuristic and ARA* put together.
 
 Everything that depends only on the primitives, the footprint and the map size is built once;
-`set_grid` swaps in new cell values of the same size (the controller's replanning), and `plan`
+`set_grid` swaps in new cell values of the same size (the crowd planner's replanning), and `plan`
 runs one anytime search within a time budget.
 """
 
