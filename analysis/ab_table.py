@@ -14,7 +14,8 @@ from analysis.intervals import Proportion, exact_difference, wilson
 from analysis.records import HUMAN, Response
 
 #: Table II of the paper: % judged socially compliant among runs with >= 2, 4, 6 pedestrians.
-#: The paper's SBPL planner is this toolkit's lattice planner.
+#: Keyed by the controller names that study files hold (trials/controllers/registry.py); the paper's
+#: SBPL planner is this toolkit's lattice planner, and PAPER_NAMES gives the paper's own labels.
 PAPER_TABLE_II = {"Lattice": {2: 67.0, 4: 64.0, 6: 58.0}, "NaviGAN-R": {2: 67.0, 4: 75.0, 6: 75.0}}
 PAPER_NAMES = {"Lattice": "SBPL", "NaviGAN-R": "NaviGAN-R"}
 

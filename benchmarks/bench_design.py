@@ -17,8 +17,9 @@ import time
 
 from designs.plan import build_plan
 from designs.presets import ab, qualitative
+from trials.controllers.registry import NAMES as CONTROLLERS
 
-PRESETS = {"qualitative (--runs 27)": (qualitative(), ["--runs", "27"]), "A/B (--runs 18 --ab)": (ab(), ["--runs", "18", "--ab"])}
+PRESETS = {"qualitative (--runs 27)": (qualitative(), ["--runs", "27"]), "A/B (--runs 18 --ab)": (ab(CONTROLLERS), ["--runs", "18", "--ab"])}
 REPEATS = 5
 
 

@@ -20,10 +20,10 @@ import numpy as np
 
 from robot_logs.physical import STEP_S, T_OBS
 from trials.controllers.base import Observation
-from trials.controllers.lattice.controller import LatticeController
-from trials.controllers.lattice.environment import read_cfg
-from trials.controllers.lattice.planner import LatticePlanner, make_planner
-from trials.controllers.lattice.primitives import read_mprim
+from trials.controllers.lattice import LatticeController
+from trials.lattice.environment import read_cfg
+from trials.lattice.planner import LatticePlanner, make_planner
+from trials.lattice.primitives import read_mprim
 
 SBPL_DIR = Path(__file__).resolve().parents[1] / "tests" / "data" / "sbpl"
 RECTANGLE = [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)]
@@ -108,7 +108,8 @@ def main() -> None:
             controller.reset(0)
             plan = controller.plan(observation)
             calls.append(plan.record["plan_seconds"])
-        problem = controller.situation(observation)
+        problem = controller.planner.situation(observation.robot_pose, observation.goal,
+                                               observation.pedestrian_history)
         m = measure(problem.planner, args.runs, start=problem.start, goal=problem.target)
         print(row(f"{n_peds} pedestrians", setup, m, f"{statistics.median(calls):.3f} / {max(calls):.3f}"),
               flush=True)

@@ -7,8 +7,6 @@ from designs.spec import StudySpec
 
 PEDESTRIANS = DiscreteFactor("Pedestrians", (2.0, 4.0, 6.0))
 DIRECTION = CategoricalFactor("Direction", ("Parallel", "ParallelCrossing", "Crossing"))
-#: The controllers the A/B plan compares; the runner maps these names to controllers.
-CONTROLLERS = ("NaviGAN-R", "Lattice")
 
 
 def qualitative(runs: int = 27) -> StudySpec:
@@ -21,14 +19,15 @@ def qualitative(runs: int = 27) -> StudySpec:
     )
 
 
-def ab(runs: int = 18) -> StudySpec:
-    """The 18-run blinded A/B plan: NaviGAN-R against the lattice planner."""
+def ab(controllers: tuple[str, ...], runs: int = 18) -> StudySpec:
+    """The 18-run blinded A/B plan of `controllers` (the paper's: NaviGAN-R against the lattice planner;
+    the names come from the caller, which knows the controllers)."""
     return StudySpec(
         name="ab",
         factors=(
             PEDESTRIANS,
             DIRECTION,
-            CategoricalFactor("Controller", CONTROLLERS, blind=True),
+            CategoricalFactor("Controller", controllers, blind=True),
             FixedFactor("CrossingDistance", 2.0, "m"),
         ),
         model="main + interactions + Pedestrians^2",

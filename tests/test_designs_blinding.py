@@ -9,8 +9,8 @@ import pytest
 
 from designs.blinding import seal, verify
 from designs.errors import DesignError
-from designs.presets import CONTROLLERS
 from trials.cli import main
+from trials.controllers.registry import NAMES as CONTROLLERS
 from trials.errors import StudyError
 from trials.study import StudyFolder
 

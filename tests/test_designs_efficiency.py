@@ -16,6 +16,7 @@ from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
 from designs.model import parse_model
 from designs.plan import build_plan
 from designs.presets import ab, qualitative
+from trials.controllers.registry import NAMES as CONTROLLERS
 
 
 def _model(spec):
@@ -41,7 +42,7 @@ def test_qualitative_plan_reaches_the_proven_optimum_from_any_seed(seed):
 
 @pytest.mark.parametrize("seed", [0, 3, 42, 99991])
 def test_ab_plan_reaches_the_proven_optimum_from_any_seed(seed):
-    model = _model(ab())
+    model = _model(ab(CONTROLLERS))
     design = d_optimal(model, 18, seed=seed)
     assert model.p == 11
     assert _det(model, design.settings) == pytest.approx(106_420_469_760, rel=1e-9)
@@ -49,7 +50,7 @@ def test_ab_plan_reaches_the_proven_optimum_from_any_seed(seed):
 
 
 def test_cvxpy_bounds_of_the_presets():
-    for spec, bound in [(qualitative(), 80.2742), (ab(), 57.9620)]:
+    for spec, bound in [(qualitative(), 80.2742), (ab(CONTROLLERS), 57.9620)]:
         model = _model(spec)
         result = approximate_d_optimal(model.matrix(candidate_set(model)))
         assert result.d_efficiency == pytest.approx(bound, abs=1e-3)
@@ -57,7 +58,7 @@ def test_cvxpy_bounds_of_the_presets():
 
 
 def test_plan_reports_efficiency_relative_to_the_bound():
-    plan = build_plan(ab())
+    plan = build_plan(ab(CONTROLLERS))
     assert plan.d_efficiency_vs_bound == pytest.approx(100 * 55.8707 / 57.9620, abs=1e-3)
     assert plan.design.hits >= 1
 

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from trials.controllers.lattice.environment import cont_to_cell, heading_to_cont, min_angle_diff, read_cfg
-from trials.controllers.lattice.footprint import footprint_cells
-from trials.controllers.lattice.husky import husky_primitives
-from trials.controllers.lattice.planner import make_planner
+from trials.lattice.environment import cont_to_cell, heading_to_cont, min_angle_diff, read_cfg
+from trials.lattice.footprint import footprint_cells
+from trials.lattice.husky import husky_primitives
+from trials.lattice.planner import make_planner
 
 OBST, INSCRIBED = 10, 8
 RECT = [(-0.3, -0.16), (0.3, -0.16), (0.3, 0.16), (-0.3, 0.16)]

@@ -9,9 +9,10 @@ import pytest
 
 from robot_logs.physical import ROBOT_FOOTPRINT, STEP_S, T_OBS, T_PRED
 from trials.controllers.base import Observation
-from trials.controllers.lattice.controller import LatticeController, inscribed_radius
-from trials.controllers.lattice.costmap import INSCRIBED, LETHAL, Window, pedestrian_costmap, predicted_centres
-from trials.controllers.lattice.errors import LatticeError
+from trials.controllers.lattice import LatticeController
+from trials.lattice.costmap import INSCRIBED, LETHAL, Window, pedestrian_costmap, predicted_centres
+from trials.lattice.crowd import inscribed_radius
+from trials.lattice.errors import LatticeError
 
 GOAL = (10.0, 0.0)
 
@@ -38,7 +39,7 @@ def fresh(controller):
 
 def test_open_floor_drives_straight_at_nominal_speed(fresh):
     plan = fresh.plan(observe())
-    assert fresh.name == "lattice" and fresh.seed == 7
+    assert fresh.name == "Lattice" and fresh.seed == 7
     assert plan.waypoints.shape == (T_PRED, 2) and plan.step == STEP_S
     # the path starts at the centre of the robot's 0.1 m cell, (0.05, 0.05), and runs along +x at 1 m/s
     assert plan.waypoints[:, 0] == pytest.approx(0.05 + 0.4 * np.arange(1, T_PRED + 1), abs=1e-6)
@@ -162,6 +163,6 @@ def test_costmap_rings_and_predictions():
     # cell (10, 10) has its centre at (0.05, 0.05): lethal; (13, 10) at 0.35 m: inscribed; (16, 10) at 0.65: free
     assert (grid[10, 10], grid[10, 13], grid[10, 16]) == (LETHAL, INSCRIBED, 0)
     history = np.array([[[0.0, 0.0]] * (T_OBS - 1) + [[0.4, 0.0]], [[np.nan, np.nan]] * T_OBS])
-    assert predicted_centres(history, 0.8) == pytest.approx(np.array([[0.4, 0.0], [0.8, 0.0], [1.2, 0.0]]))
-    assert predicted_centres(history, 0.0).tolist() == [[0.4, 0.0]]
-    assert predicted_centres(np.zeros((0, T_OBS, 2)), 1.0).shape == (0, 2)
+    assert predicted_centres(history, 0.8, STEP_S) == pytest.approx(np.array([[0.4, 0.0], [0.8, 0.0], [1.2, 0.0]]))
+    assert predicted_centres(history, 0.0, STEP_S).tolist() == [[0.4, 0.0]]
+    assert predicted_centres(np.zeros((0, T_OBS, 2)), 1.0, STEP_S).shape == (0, 2)

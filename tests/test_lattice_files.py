@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trials.controllers.lattice.actions import build_actions
-from trials.controllers.lattice.environment import read_cfg
-from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.husky import husky_primitives
-from trials.controllers.lattice.planner import make_planner
-from trials.controllers.lattice.primitives import read_mprim
-from trials.errors import StudyError
+from trials.cli import USER_ERRORS
+from trials.lattice.actions import build_actions
+from trials.lattice.environment import read_cfg
+from trials.lattice.errors import LatticeError
+from trials.lattice.husky import husky_primitives
+from trials.lattice.planner import make_planner
+from trials.lattice.primitives import read_mprim
 
 HEADER = """discretization(cells): 4 3
 obsthresh: 1
@@ -81,7 +81,7 @@ def test_malformed_cfg_names_file_line_and_expectation(tmp_path, text, where, ex
         read_cfg(path)
     assert str(err.value).startswith(f"bad.cfg, {where}: ")
     assert expected in str(err.value)
-    assert isinstance(err.value, StudyError)  # the CLI's user-error family
+    assert isinstance(err.value, USER_ERRORS)  # the CLI's user-error family
 
 
 def test_missing_file_is_a_lattice_error(tmp_path):
@@ -131,7 +131,7 @@ def test_primitives_must_fit_the_environment(tmp_path):
 
 
 def _open_planner(width=30, height=20, polygon=()):
-    from trials.controllers.lattice.environment import Environment
+    from trials.lattice.environment import Environment
     env = Environment(grid=np.zeros((height, width), np.uint8), cell_size=0.1, obsthresh=1,
                       cost_inscribed_thresh=1, cost_possibly_circumscribed_thresh=0,
                       time_to_turn_45=0.8, start=(0.55, 1.05, 0.0), goal=(2.55, 1.05, 0.0))

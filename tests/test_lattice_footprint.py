@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from trials.controllers.lattice.environment import Environment
-from trials.controllers.lattice.footprint import footprint_cells, motion_cells
-from trials.controllers.lattice.planner import make_planner
-from trials.controllers.lattice.primitives import MotionPrimitive, PrimitiveSet
+from trials.lattice.environment import Environment
+from trials.lattice.footprint import footprint_cells, motion_cells
+from trials.lattice.planner import make_planner
+from trials.lattice.primitives import MotionPrimitive, PrimitiveSet
 
 SQUARE = [(-0.16, -0.16), (0.16, -0.16), (0.16, 0.16), (-0.16, 0.16)]  # 0.32 m square
 

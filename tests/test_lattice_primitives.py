@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from robot_logs.physical import ROBOT_FOOTPRINT
-from trials.controllers.lattice.actions import action_seconds, base_cost, build_actions, centre_cells
-from trials.controllers.lattice.environment import Environment, heading_to_cont, read_cfg
-from trials.controllers.lattice.husky import husky_primitives
-from trials.controllers.lattice.primitives import end_mismatch, read_mprim
+from trials.lattice.actions import action_seconds, base_cost, build_actions, centre_cells
+from trials.lattice.environment import Environment, heading_to_cont, read_cfg
+from trials.lattice.husky import husky_primitives
+from trials.lattice.primitives import end_mismatch, read_mprim
 
 
 @pytest.mark.parametrize("name, resolution, per_heading", [

@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from trials.controllers.lattice.environment import read_cfg
-from trials.controllers.lattice.planner import make_planner
-from trials.controllers.lattice.primitives import read_mprim
+from trials.lattice.environment import read_cfg
+from trials.lattice.planner import make_planner
+from trials.lattice.primitives import read_mprim
 
 #: The 1.0 x 0.7 m rectangle the pedestrian problems were solved with (samples README).
 RECTANGLE = [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)]

@@ -9,7 +9,7 @@ import pytest
 
 from navigan.errors import NaviganError
 from trials.controllers.base import Observation
-from trials.controllers.lattice.controller import LatticeController
+from trials.controllers.lattice import LatticeController
 from trials.controllers.navigan_r import REACH_M, NaviganRController
 from trials.scenario import Scenario, Settings, Walker
 from trials.sim.closed_loop import NoSink, SimConfig, simulate
@@ -109,7 +109,7 @@ def test_navigan_r_plan_and_record(navigan):
     plan = navigan.plan(observation(3.0))
     assert plan.waypoints.shape == (12, 2) and plan.step == 0.4
     record = plan.record
-    assert record["controller"] == "navigan-r" and record["plan_seconds"] > 0
+    assert record["controller"] == "NaviGAN-R" and record["plan_seconds"] > 0
     np.testing.assert_allclose(plan.waypoints, np.array(record["intention"]) + np.array(record["forces"]), atol=1e-4)
     assert record["subgoal"] == pytest.approx([REACH_M, 0.0])  # 4.8 m toward the goal, whatever its distance
     assert plan.waypoints[-1, 0] > 3.0  # heading for the goal

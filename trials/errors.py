@@ -4,6 +4,7 @@ from analysis.errors import AnalysisError
 from designs.errors import DesignError
 from navigan.errors import NaviganError
 from robot_logs.errors import LogError
+from trials.lattice.errors import LatticeError
 
 
 class StudyError(ValueError):
@@ -12,4 +13,4 @@ class StudyError(ValueError):
 
 #: Exception types that mean "the user asked for something wrong", never a bug: the CLI prints them
 #: as one `error:` line with exit code 2, and `trials run` reports them from its workers without a traceback.
-USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError)
+USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError, LatticeError)

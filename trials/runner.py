@@ -31,6 +31,7 @@ import numpy as np
 
 from analysis.records import Outcome, RunMetrics
 from trials.atomic import write_files, write_text
+from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
@@ -42,10 +43,6 @@ from trials.scenario import CONTROLLER, settings_from_row
 from trials.sim.perception import PositionNoise
 from trials.study import DESIGN, OUTCOMES, PLAN, RESPONSES, RUN_LOCK, RUNS, SEALED, SEALED_RUNS, SUPERSEDED, StudyFolder, utc_now
 
-NAVIGAN_R, LATTICE = "NaviGAN-R", "Lattice"
-#: The controller levels a plan may name, and the controller of a study without a Controller factor.
-CONTROLLER_LEVELS = (NAVIGAN_R, LATTICE)
-DEFAULT_CONTROLLER = NAVIGAN_R
 PERCEPTIONS = ("positions", "lidar")
 
 
@@ -135,7 +132,7 @@ class StudyRun:
         if blind_flag and not blinding:
             raise StudyError(f"--blind: the study in {folder.root} is not blinded (design.json has no sealed allocation); run it without --blind")
         plan = folder.read_plan()
-        arms = tuple(blinding["arms"]) if blinding else CONTROLLER_LEVELS
+        arms = tuple(blinding["arms"]) if blinding else registry.NAMES
         for line, row in enumerate(plan, start=2):
             where = f"{folder.path(PLAN)} line {line} (run {row.get('run_code', '?')})"
             if not (from_log or (row.get(LOG_COLUMN) or "").strip()):
@@ -147,7 +144,7 @@ class StudyRun:
         seed = design.get("seed")
         if not isinstance(seed, int):
             raise StudyError(f"{folder.path(DESIGN)}: no integer study seed to derive the run seeds from")
-        levels = () if blinding else tuple(dict.fromkeys(row.get(CONTROLLER, DEFAULT_CONTROLLER) for row in plan))
+        levels = () if blinding else tuple(dict.fromkeys(row.get(CONTROLLER, registry.DEFAULT) for row in plan))
         return cls(folder, str(design.get("study", "")), seed, bool(blinding), plan, levels)
 
     @property
@@ -312,19 +309,6 @@ def setup_worker(root: str, name: str, blind: bool, levels: tuple[str, ...], opt
     return TrialWorker(StudyFolder(Path(root)), name, blind, levels, options)
 
 
-def build_controller(level: str, options: RunOptions) -> Any:
-    """The controller a plan level names, built once per worker."""
-    if level == NAVIGAN_R:
-        from trials.controllers.navigan_r import NaviganRController
-
-        return NaviganRController(options.weights)
-    if level == LATTICE:
-        from trials.controllers.lattice.controller import LatticeController
-
-        return LatticeController()
-    raise StudyError(f"no controller is called {level!r} (known: {', '.join(CONTROLLER_LEVELS)})")
-
-
 class TrialWorker:
     """Runs plan rows in one worker process with controllers built once."""
 
@@ -332,13 +316,14 @@ class TrialWorker:
         self.folder, self.name, self.blind, self.options = folder, name, blind, options
         self._arms: dict[str, str] = folder.read_sealed().arms if blind else {}
         wanted = tuple(dict.fromkeys(self._arms.values())) if blind else levels
-        self._controllers = {level: build_controller(level, options) for level in sorted(wanted)}
+        built = registry.ControllerOptions(weights=options.weights)
+        self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
         label = row.get(CONTROLLER)
         if self.blind:
             return self._arms[label], label
-        return label or DEFAULT_CONTROLLER, None
+        return label or registry.DEFAULT, None
 
     def __call__(self, task: RunTask) -> RunDone:
         """Run one row. In a blinded study a failure's details go to the sealed part (a traceback
@@ -404,12 +389,8 @@ class TrialWorker:
         """Blinded studies: the run's controller records go to sealed/runs/<code>.json (before its log is renamed)."""
         if self.blind:
             record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
-                      **self._controller_details(level), "steps": log.records}
+                      **self._controllers[level].details(), "steps": log.records}
             write_text(self.folder.sealed_run(task.code), json.dumps(jsonable(record)) + "\n")
-
-    def _controller_details(self, level: str) -> dict[str, str]:
-        controller = self._controllers[level]
-        return {"weights": str(controller.weights)} if level == NAVIGAN_R else {}
 
     @staticmethod
     def _factors(task: RunTask) -> dict[str, str]:
@@ -420,5 +401,5 @@ class TrialWorker:
         """The `run` metadata record: code, study and seed, the run's own entries, and (when open) the controller."""
         meta = {"run_code": task.code, "study": self.name, "seed": str(task.seed), **entries}
         if not self.blind:
-            meta.update(controller=level, **self._controller_details(level))
+            meta.update(controller=level, **self._controllers[level].details())
         return meta

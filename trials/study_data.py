@@ -13,6 +13,7 @@ from typing import Any
 from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
 from designs.model import parse_model
 from designs.spec import read_spec
+from trials.controllers import registry
 from trials.errors import StudyError
 from trials.outcomes import read_outcomes
 from trials.responses import read_responses
@@ -28,8 +29,6 @@ from trials.study import (
 )
 
 UNBLINDING_FORMAT = "navtrials.unblinding/1"
-#: The controller of a run when the study has no controller factor (docs/study_folder.md).
-DEFAULT_CONTROLLER = "NaviGAN-R"
 CONTROLLER_FACTOR = "Controller"
 
 
@@ -64,7 +63,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
         if blinding.factor is not None:
             arm = blinding.labels[row[blinding.factor]]
         else:
-            arm = (outcome.controller if outcome is not None and outcome.controller else None) or DEFAULT_CONTROLLER
+            arm = (outcome.controller if outcome is not None and outcome.controller else None) or registry.DEFAULT
         values = {f.name: row[f.name] for f in spec.factors}
         runs.append(StudyRun(int(row["order"]), code, values, arm, outcome, log if log.exists() else None))
     for run in runs:

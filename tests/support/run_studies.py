@@ -55,6 +55,9 @@ class Straight:
     def __init__(self, speed: float) -> None:
         self.speed = speed
 
+    def details(self) -> dict[str, str]:
+        return {}
+
     def reset(self, seed: int) -> None:
         pass
 

@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from designs.export import summary_lines
     from designs.plan import build_plan
     from designs.spec import read_spec
+    from trials.controllers import registry
     from trials.errors import StudyError
     from trials.study import (
         ALLOCATION,
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if spec_path is not None:
         spec = read_spec(spec_path)
     else:
-        spec = presets.ab() if args.ab else presets.qualitative()
+        spec = presets.ab(registry.NAMES) if args.ab else presets.qualitative()
     overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr}
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
 

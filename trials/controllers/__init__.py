@@ -1,1 +1,1 @@
-"""Robot controllers behind one interface: `Controller.plan(Observation) -> Plan`."""
+"""Robot controllers behind one interface, `Controller.plan(Observation) -> Plan`, found by name in `registry`."""

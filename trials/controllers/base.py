@@ -52,9 +52,12 @@ class Plan:
 
 
 class Controller(Protocol):
-    """A planner the runner can drive; `reset` starts a new run with its seed."""
+    """A planner the runner can drive; `reset` starts a new run with its seed, `details` is what a
+    run's metadata records about it besides its name (`trials.controllers.registry`)."""
 
     name: str
+
+    def details(self) -> dict[str, str]: ...
 
     def reset(self, seed: int) -> None: ...
 

@@ -21,6 +21,7 @@ import numpy as np
 from navigan.goals import toward
 from robot_logs.physical import STEP_S, T_PRED
 from trials.controllers.base import Observation, Plan
+from trials.controllers.registry import NAVIGAN_R
 
 #: A sub-goal one prediction horizon ahead at the Husky's 1 m/s.
 REACH_M = 1.0 * T_PRED * STEP_S
@@ -42,7 +43,7 @@ class NaviganRController:
         NaviganError: the weights cannot be read.
     """
 
-    name = "navigan-r"
+    name = NAVIGAN_R
 
     def __init__(self, weights: str | Path | None = None, reach_m: float = REACH_M) -> None:
         from navigan.planner import Planner
@@ -53,6 +54,9 @@ class NaviganRController:
     @property
     def weights(self) -> Path:
         return self.planner.path
+
+    def details(self) -> dict[str, str]:
+        return {"weights": str(self.weights)}
 
     def reset(self, seed: int) -> None:
         self.planner.reset(seed)

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from trials.controllers.lattice.environment import cell_to_cont, cont_to_cell, cont_to_heading, normalize_angle
-from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.tokens import Tokens
+from trials.lattice.environment import cell_to_cont, cont_to_cell, cont_to_heading, normalize_angle
+from trials.lattice.errors import LatticeError
+from trials.lattice.tokens import Tokens
 
 
 @dataclass(frozen=True)

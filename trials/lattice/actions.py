@@ -12,16 +12,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trials.controllers.lattice.environment import (
+from trials.lattice.environment import (
     Environment,
     cell_to_cont,
     cont_to_cell,
     heading_to_cont,
     min_angle_diff,
 )
-from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.footprint import Polygon, motion_cells
-from trials.controllers.lattice.primitives import MotionPrimitive, PrimitiveSet
+from trials.lattice.errors import LatticeError
+from trials.lattice.footprint import Polygon, motion_cells
+from trials.lattice.primitives import MotionPrimitive, PrimitiveSet
 
 COST_MULT_MTOMM = 1000  # SBPL's costs are milliseconds at nominal speed
 RESOLUTION_TOLERANCE = 1e-6

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import ndimage
 
-from trials.controllers.lattice.environment import cont_to_cell
+from trials.lattice.environment import cont_to_cell
 
 Polygon = Sequence[tuple[float, float]]
 

@@ -1,7 +1,5 @@
 """The one exception type of the lattice planner."""
 
-from trials.errors import StudyError
 
-
-class LatticeError(StudyError):
+class LatticeError(ValueError):
     """A malformed SBPL file or an impossible planning request; the message names the file, line or field."""

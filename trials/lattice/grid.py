@@ -6,7 +6,7 @@ cells hold a value above every threshold, so any action touching them is invalid
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -14,9 +14,9 @@ from scipy import ndimage
 OFF_MAP = 1 << 20  # above any cell value and threshold
 
 
-@dataclass(frozen=True)
-class PaddedGrid:
+class PaddedGrid(NamedTuple):
     """Cell values in a flat array of (height + 2 pad) rows of (width + 2 pad); cell (x, y) at `index(x, y)`.
+    A named tuple, so that the compiled search takes it as one argument.
 
     Attributes:
         values: int32 cell values, OFF_MAP on the border.

@@ -10,11 +10,13 @@ the lattice cost and stays consistent.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from trials.controllers.lattice.grid import PaddedGrid
-from trials.controllers.lattice.heap import pop_min, push_or_update
+from trials.lattice.grid import PaddedGrid
+from trials.lattice.heap import Heap, pop_min, push_or_update
 
 INFINITE_COST = 1_000_000_000
 #: (dx, dy) of the 16 moves; moves 8..15 pass through the two cells listed in KNIGHT_CELLS.
@@ -32,22 +34,30 @@ def move_lengths_mm(cell_size: float) -> np.ndarray:
     return np.array([diagonal if dx and dy else straight for dx, dy in MOVES[:8]] + [knight] * 8, dtype=np.int64)
 
 
+class Moves(NamedTuple):
+    """The 16 moves on one padded grid, as the compiled Dijkstra reads them."""
+
+    offsets: np.ndarray  # (16,) flat-index offset of each move
+    through: np.ndarray  # (8, 2) flat-index offsets of the two cells each knight move passes through
+    lengths: np.ndarray  # (16,) millimetres (`move_lengths_mm`)
+
+
 @njit(cache=True)
-def _dijkstra(values, source, target, block, moves, through, lengths, g):
+def _dijkstra(values, source, target, block, moves, g):
     """Costs from `source` into `g`; returns the bound given to cells it did not settle."""
     n = values.size
-    keys, items, pos, size = np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int32), np.zeros(n, np.int32), \
-        np.zeros(1, np.int64)
+    heap = Heap(np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int32), np.zeros(n, np.int32), np.zeros(1, np.int64))
     closed = np.zeros(n, np.bool_)
+    offsets, through, lengths = moves.offsets, moves.through, moves.lengths
     g[:] = INFINITE_COST
     g[source] = 0
-    push_or_update(keys, items, pos, size, source, 0)
-    while size[0] > 0 and g[target] > 0.5 * keys[1]:
-        cell = pop_min(keys, items, pos, size)
+    push_or_update(heap, source, 0)
+    while heap.size[0] > 0 and g[target] > 0.5 * heap.keys[1]:
+        cell = pop_min(heap)
         closed[cell] = True
         here = values[cell]
         for m in range(16):
-            nxt = cell + moves[m]
+            nxt = cell + offsets[m]
             if closed[nxt]:
                 continue
             cost = max(values[nxt], here)
@@ -58,19 +68,18 @@ def _dijkstra(values, source, target, block, moves, through, lengths, g):
             new = g[cell] + (cost + 1) * lengths[m]
             if new < g[nxt]:
                 g[nxt] = new
-                push_or_update(keys, items, pos, size, nxt, new)
-    return keys[1] if size[0] > 0 else INFINITE_COST
+                push_or_update(heap, nxt, new)
+    return heap.keys[1] if heap.size[0] > 0 else INFINITE_COST
 
 
 def grid_heuristic(grid: PaddedGrid, goal: tuple[int, int], start: tuple[int, int], cell_size: float,
                    inscribed: int, nominal_vel: float) -> np.ndarray:
     """The heuristic of every cell of the padded grid towards `goal` (cells), for a search from `start`."""
     row = grid.row
-    moves = grid.offsets(MOVES)
-    through = grid.offsets(KNIGHT_CELLS.reshape(-1, 2)).reshape(8, 2)
+    moves = Moves(grid.offsets(MOVES), grid.offsets(KNIGHT_CELLS.reshape(-1, 2)).reshape(8, 2),
+                  move_lengths_mm(cell_size))
     g = np.empty(grid.values.size, dtype=np.int64)
-    bound = _dijkstra(grid.values, grid.index(*goal), grid.index(*start), inscribed, moves, through,
-                      move_lengths_mm(cell_size), g)
+    bound = _dijkstra(grid.values, grid.index(*goal), grid.index(*start), inscribed, moves, g)
     h2d = np.minimum(g, bound)
     ys, xs = np.divmod(np.arange(grid.values.size, dtype=np.int64), row)
     dx, dy = xs - grid.pad - goal[0], ys - grid.pad - goal[1]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trials.controllers.lattice.errors import LatticeError
+from trials.lattice.errors import LatticeError
 
 
 class Tokens:

@@ -1,8 +1,8 @@
-"""The lattice planner as a trial controller: the A/B study's pure collision-avoidance baseline.
+"""Receding-horizon lattice planning among moving pedestrians, in arrays: pose, goal, tracks in, way-points out.
 
 Every step it draws the tracked pedestrians into a cost grid around the robot and the goal, plans
 from the robot's pose to the goal with ARA* within its time budget, and returns way-points one step
-apart along the path, timed at the robot's nominal speed. It never raises during a run: when the
+apart along the path, timed at the robot's nominal speed. It never raises while planning: when the
 robot already stands too close to someone it first retries without the comfort margin, then holds
 still; when the goal is covered or out of reach it aims at the nearest cell it can reach; when no
 path is found in time it follows the best partial path. The record says which.
@@ -18,10 +18,8 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from robot_logs.physical import ROBOT_FOOTPRINT, ROBOT_SPEED_M_S, STEP_S, T_PRED
-from trials.controllers.base import Observation, Plan
-from trials.controllers.lattice.actions import build_actions
-from trials.controllers.lattice.costmap import (
+from trials.lattice.actions import build_actions
+from trials.lattice.costmap import (
     CIRCUMSCRIBED_THRESH,
     FREE,
     INSCRIBED_THRESH,
@@ -30,12 +28,12 @@ from trials.controllers.lattice.costmap import (
     pedestrian_costmap,
     predicted_centres,
 )
-from trials.controllers.lattice.environment import Environment, cont_to_cell, cont_to_heading
-from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.footprint import Polygon
-from trials.controllers.lattice.husky import HUSKY_TURN_45_S, husky_primitives
-from trials.controllers.lattice.planner import LatticePlanner, PlanResult, State
-from trials.controllers.lattice.primitives import PrimitiveSet
+from trials.lattice.environment import Environment, cont_to_cell, cont_to_heading
+from trials.lattice.errors import LatticeError
+from trials.lattice.footprint import Polygon
+from trials.lattice.husky import HUSKY_TURN_45_S, husky_primitives
+from trials.lattice.planner import LatticePlanner, PlanResult, State
+from trials.lattice.primitives import PrimitiveSet
 
 #: Time kept back from the budget for the way-points and the record.
 RESERVE_S = 0.02
@@ -71,33 +69,43 @@ class Situation:
     target: State | None = None
 
 
-class LatticeController:
-    """SBPL-like lattice planning among pedestrians (the `Controller` protocol).
+@dataclass(frozen=True)
+class CrowdPlan:
+    """One step's answer: `waypoints` (horizon_steps, 2) in the world frame, one every `step_s` ahead
+    (all at the robot's position when it holds), and `record`, what the step did, ready for JSON."""
+
+    waypoints: np.ndarray
+    record: dict[str, Any]
+
+
+class CrowdPlanner:
+    """SBPL-like lattice planning among pedestrians, replanned every step from the robot's pose.
 
     Args:
+        footprint: the robot's outline, robot frame (m; fewer than two points: a point robot).
+        speed: the robot's nominal speed (m/s).
+        step_s: seconds between way-points, and between a track's positions.
+        horizon_steps: way-points returned, one every `step_s`.
         cell_size: grid resolution in metres (0.1 or 0.05).
         pedestrian_radius: a pedestrian's body radius (m).
         comfort_margin: clearance (m) the footprint keeps from a pedestrian's body.
         predict_s: also block each pedestrian's constant-velocity prediction this far ahead (s); 0: now only.
         budget_s: wall-clock budget of one `plan` call (s), everything included.
         eps, eps_step: ARA*'s initial suboptimality bound and its decrement per iteration.
-        horizon_steps: way-points returned, one every STEP_S.
         window_margin: metres of grid around the robot and the goal.
         goal_tolerance: within this distance (m) of the goal the robot holds.
-        footprint: the robot's outline, robot frame (default: the Husky's 0.99 x 0.67 m).
         primitives: the motion primitives (default: `husky_primitives(cell_size)`).
-        speed, turn_45_s: nominal speed (m/s) and time to turn 45 degrees in place (s).
+        turn_45_s: time to turn 45 degrees in place (s).
     """
 
-    name = "lattice"
-
-    def __init__(self, cell_size: float = 0.1, pedestrian_radius: float = 0.3, comfort_margin: float = 0.2,
+    def __init__(self, *, footprint: Polygon, speed: float, step_s: float, horizon_steps: int,
+                 cell_size: float = 0.1, pedestrian_radius: float = 0.3, comfort_margin: float = 0.2,
                  predict_s: float = 0.0, budget_s: float = 0.25, eps: float = 3.0, eps_step: float = 0.2,
-                 horizon_steps: int = T_PRED, window_margin: float = 4.0, goal_tolerance: float = 0.3,
-                 footprint: Polygon = ROBOT_FOOTPRINT, primitives: PrimitiveSet | None = None,
-                 speed: float = ROBOT_SPEED_M_S, turn_45_s: float = HUSKY_TURN_45_S) -> None:
+                 window_margin: float = 4.0, goal_tolerance: float = 0.3, primitives: PrimitiveSet | None = None,
+                 turn_45_s: float = HUSKY_TURN_45_S) -> None:
         for option, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
-                              ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps), ("eps_step", eps_step)):
+                              ("step_s", step_s), ("turn_45_s", turn_45_s), ("horizon_steps", horizon_steps),
+                              ("eps_step", eps_step)):
             if not value > 0:
                 raise LatticeError(f"lattice controller: {option} must be positive, got {value}")
         for option, value in (("pedestrian_radius", pedestrian_radius), ("comfort_margin", comfort_margin),
@@ -110,17 +118,17 @@ class LatticeController:
         self.cell_size, self.pedestrian_radius, self.comfort_margin = cell_size, pedestrian_radius, comfort_margin
         self.predict_s, self.budget_s, self.eps, self.eps_step = predict_s, budget_s, eps, eps_step
         self.horizon_steps, self.window_margin, self.goal_tolerance = int(horizon_steps), window_margin, goal_tolerance
+        self.step_s = step_s
         prims = primitives if primitives is not None else husky_primitives(cell_size)
         self._template = Environment(np.zeros((1, 1), np.uint8), cell_size, prims.num_angles, OBSTHRESH,
                                      INSCRIBED_THRESH, CIRCUMSCRIBED_THRESH, speed, turn_45_s)
         self.actions = build_actions(prims, self._template, footprint)
         self.inscribed = inscribed_radius(self.actions.polygon)
-        self.reset(0)
+        self.reset()
         self._warm_up()
 
-    def reset(self, seed: int) -> None:
+    def reset(self) -> None:
         """Start a new run: forget the grid window and the goal heading."""
-        self.seed = seed
         self._window: Window | None = None
         self._planner: LatticePlanner | None = None
         self._goal: np.ndarray | None = None
@@ -171,23 +179,24 @@ class LatticeController:
                 return candidate
         return None
 
-    def _hold(self, robot: np.ndarray, record: dict[str, Any]) -> Plan:
-        return Plan(np.repeat(np.asarray(robot[:2], np.float64)[None, :], self.horizon_steps, axis=0),
-                    STEP_S, {**record, "holding": True})
+    def _hold(self, robot: np.ndarray, record: dict[str, Any]) -> CrowdPlan:
+        return CrowdPlan(np.repeat(np.asarray(robot[:2], np.float64)[None, :], self.horizon_steps, axis=0),
+                         {**record, "holding": True})
 
-    def situation(self, observation: Observation) -> Situation:
-        """The grid, start and target for one observation, or the reason the robot must hold."""
-        pose = np.asarray(observation.robot_pose, dtype=np.float64)
-        goal = np.asarray(observation.goal, dtype=np.float64)[:2]
-        record: dict[str, Any] = {"controller": self.name, "status": "", "holding": False,
-                                  "pedestrians": len(observation.pedestrian_ids)}
+    def situation(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray) -> Situation:
+        """The grid, start and target for the robot's `pose` (x, y, heading), its `goal` (x, y) and the
+        pedestrians' tracks `pedestrian_history` ((N, T, 2), oldest first, NaN before a track was seen),
+        or the reason the robot must hold."""
+        pose = np.asarray(pose, dtype=np.float64)
+        goal = np.asarray(goal, dtype=np.float64)[:2]
+        record: dict[str, Any] = {"status": "", "holding": False, "pedestrians": len(pedestrian_history)}
         if not (np.isfinite(pose).all() and np.isfinite(goal).all()):
             return Situation(np.nan_to_num(pose), record, "bad_observation", "robot pose or goal is not finite")
         if np.hypot(*(goal - pose[:2])) <= self.goal_tolerance:
             return Situation(pose, record, "at_goal", "within the goal tolerance")
         planner, window = self._planner_for(pose[:2], goal)
         start = self._state(window, pose)
-        centres = predicted_centres(observation.pedestrian_history, self.predict_s)
+        centres = predicted_centres(pedestrian_history, self.predict_s, self.step_s)
         for margin in dict.fromkeys((self.comfort_margin, 0.0)):
             planner.set_grid(pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed))
             collision = planner.collision(start)
@@ -204,10 +213,11 @@ class LatticeController:
         record["target"] = window.to_world(planner.env.to_pose(target)[:2]).tolist()
         return Situation(pose, record, planner=planner, window=window, start=start, target=target)
 
-    def plan(self, observation: Observation) -> Plan:
-        """Way-points for the next `horizon_steps` steps (held in place when no move is possible)."""
+    def plan(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray) -> CrowdPlan:
+        """Way-points for the next `horizon_steps` steps (held in place when no move is possible); the
+        arguments as for `situation`."""
         t0 = time.perf_counter()
-        situation = self.situation(observation)
+        situation = self.situation(pose, goal, pedestrian_history)
         record = situation.record
         if situation.hold is not None:
             return self._hold(situation.pose, {**record, "status": situation.hold, "message": situation.message,
@@ -217,10 +227,10 @@ class LatticeController:
         record.update(self._search_record(result))
         if len(result.states) < 2:
             return self._hold(situation.pose, {**record, "plan_seconds": time.perf_counter() - t0})
-        ahead = STEP_S * np.arange(1, self.horizon_steps + 1)
+        ahead = self.step_s * np.arange(1, self.horizon_steps + 1)
         local = np.column_stack([np.interp(ahead, result.times, result.poses[:, i]) for i in (0, 1)])
         record["plan_seconds"] = time.perf_counter() - t0
-        return Plan(situation.window.to_world(local), STEP_S, record)
+        return CrowdPlan(situation.window.to_world(local), record)
 
     @staticmethod
     def _search_record(result: PlanResult) -> dict[str, Any]:

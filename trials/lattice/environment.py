@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trials.controllers.lattice.tokens import Tokens
+from trials.lattice.tokens import Tokens
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_NUM_THETAS = 16

@@ -1,4 +1,4 @@
-"""Pedestrians to a cost grid: the lattice controller's only picture of the world.
+"""Pedestrians to a cost grid: the crowd planner's only picture of the world.
 
 Each pedestrian is a disc of its body radius plus a comfort margin that the robot's footprint must
 not touch (LETHAL); the disc grown by the robot's inscribed radius is where the robot's centre cannot
@@ -11,8 +11,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from robot_logs.physical import STEP_S
 
 FREE, INSCRIBED, LETHAL = 0, 1, 2
 #: The thresholds that give these values their meaning in the planner (obstacle, inscribed, always
@@ -50,10 +48,10 @@ class Window:
         return border <= x < width - border and border <= y < height - border
 
 
-def predicted_centres(history: np.ndarray, horizon_s: float, step: float = STEP_S) -> np.ndarray:
+def predicted_centres(history: np.ndarray, horizon_s: float, step: float) -> np.ndarray:
     """(k, 2) the pedestrians' newest positions and, up to `horizon_s` ahead, their constant-velocity
     predictions every `step` seconds (velocity from the two newest positions). `history` is
-    (N, T, 2), oldest first, NaN before a track was seen."""
+    (N, T, 2), positions `step` seconds apart, oldest first, NaN before a track was seen."""
     centres = []
     for track in np.asarray(history, dtype=np.float64):
         if not np.isfinite(track[-1]).all():

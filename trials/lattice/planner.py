@@ -1,7 +1,7 @@
 """The lattice planner: environment, successor tables, heuristic and ARA* put together.
 
 Everything that depends only on the primitives, the footprint and the map size is built once;
-`set_grid` swaps in new cell values of the same size (the controller's replanning), and `plan`
+`set_grid` swaps in new cell values of the same size (the crowd planner's replanning), and `plan`
 runs one anytime search within a time budget.
 """
 
@@ -13,13 +13,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from trials.controllers.lattice.actions import ActionTable, build_actions
-from trials.controllers.lattice.environment import Environment, cell_to_cont, heading_to_cont
-from trials.controllers.lattice.footprint import Polygon, footprint_cells
-from trials.controllers.lattice.grid import PaddedGrid, pad_grid
-from trials.controllers.lattice.heuristic import grid_heuristic
-from trials.controllers.lattice.primitives import PrimitiveSet
-from trials.controllers.lattice.search import AraStar, Iteration, Tables, Thresholds, edge_cost
+from trials.lattice.actions import ActionTable, build_actions
+from trials.lattice.environment import Environment, cell_to_cont, heading_to_cont
+from trials.lattice.footprint import Polygon, footprint_cells
+from trials.lattice.grid import PaddedGrid, pad_grid
+from trials.lattice.heuristic import grid_heuristic
+from trials.lattice.primitives import PrimitiveSet
+from trials.lattice.search import AraStar, Iteration, Tables, Thresholds, edge_cost
 
 State = tuple[int, int, int]
 
@@ -135,8 +135,8 @@ class LatticePlanner:
         hcell = grid_heuristic(self.grid, goal[:2], start[:2], env.cell_size, env.cost_inscribed_thresh,
                                env.nominal_vel)
         t_heuristic = time.perf_counter() - t0
-        found = self.search.search(self.grid.values, self.grid.clear2, hcell, self._state_id(start),
-                                   self._state_id(goal), eps, eps_step, final_eps, deadline=t0 + budget)
+        found = self.search.search(self.grid, hcell, self._state_id(start), self._state_id(goal), eps, eps_step,
+                                   final_eps, deadline=t0 + budget)
         states = [(*self.grid.xy(s // n), s % n) for s in found.states]
         actions, poses, times = self._trace(states)
         bound = "no bound yet" if math.isinf(found.eps) else f"within eps {found.eps:g} of optimal"
@@ -161,9 +161,7 @@ class LatticePlanner:
             dx, dy, heading = self.actions.end.reshape(-1, 3)[action]
             if (source[0] + dx, source[1] + dy, heading) != tuple(target):
                 continue
-            cost = edge_cost(self.grid.values, self.grid.clear2, cell, action, t.end_offset, t.cost, t.centre,
-                             t.centre_ptr, t.swept, t.swept_ptr, t.reach2, th.obsthresh, th.inscribed,
-                             th.circumscribed, t.use_footprint)
+            cost = edge_cost(self.grid, cell, action, t, th)
             if cost >= 0 and (best[1] < 0 or cost < best[1]):
                 best = (action % t.per_heading, int(cost))
         return best

@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from trials.controllers.lattice.environment import heading_to_cont, normalize_angle
-from trials.controllers.lattice.errors import LatticeError
-from trials.controllers.lattice.primitives import MotionPrimitive, PrimitiveSet, check_uniform, end_mismatch
+from trials.lattice.environment import heading_to_cont, normalize_angle
+from trials.lattice.errors import LatticeError
+from trials.lattice.primitives import MotionPrimitive, PrimitiveSet, check_uniform, end_mismatch
 
 HUSKY_TURN_45_S = 0.8        # s to turn 45 degrees in place (about 1 rad/s)
 NUM_ANGLES = 16
