@@ -1,10 +1,11 @@
 """`LogReader`: one reader over ROS1 bags, ROS2 bags (sqlite3 or MCAP storage) and MCAP files.
 
 Which file is which is told by its first bytes (a folder with metadata.yaml is a ROS2 bag).
-ROS1 bags and ROS2 bags open through rosbags' AnyReader, plain MCAP files through the `mcap`
-library. A damaged file raises `LogError` naming it; with `salvage=True` what can be read is
-read instead (undecodable messages and damaged MCAP chunks are skipped, a truncated file is
-read up to the cut) and `damage` says what was met.
+ROS1 bags and sqlite3 storage open through rosbags, MCAP files (plain or a bag's storage)
+through the `mcap` library (`robot_logs.sources`); only the topics asked for are read, and their
+messages are decoded by `robot_logs.decoding`. A damaged file raises `LogError` naming it; with
+`salvage=True` what can be read is read instead (undecodable messages and damaged MCAP chunks
+are skipped, a truncated file is read up to the cut) and `damage` says what was met.
 
 Timestamps: robot_logs times everything by the messages' header stamps (acquisition time, the
 clock tf lookups use). Record times, which can differ from header stamps by seconds or years
@@ -13,12 +14,18 @@ clock tf lookups use). Record times, which can differ from header stamps by seco
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Collection, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
+from robot_logs.bag_metadata import read_bag_metadata
+from robot_logs.decoding import MessageDecoder, Undecodable
 from robot_logs.errors import LogError
-from robot_logs.sources import BagWalkSource, McapSource, Message, RosbagsSource, TopicInfo
+from robot_logs.sources import BagWalkSource, McapSource, Ros1Source, Rosbag2Source, TopicInfo
+
+Source = Ros1Source | Rosbag2Source | McapSource | BagWalkSource
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -57,6 +64,16 @@ def detect_format(path: Path) -> str:
     )
 
 
+@dataclass(frozen=True)
+class Message:
+    """One decoded message: topic, type, record time (ns, the logger's clock) and the message object."""
+
+    topic: str
+    msgtype: str
+    record_ns: int
+    data: object
+
+
 class LogReader:
     """Topics and decoded messages of one log file, whatever its format.
 
@@ -75,14 +92,17 @@ class LogReader:
         self.salvage = salvage
         self.kind = detect_format(self.path)
         self.damage: str | None = None
-        self._source: RosbagsSource | McapSource | BagWalkSource | None = None
+        #: Messages skipped by `messages(..., skip_undecodable=True)`, per topic, and why.
+        self.undecoded: Counter[str] = Counter()
+        self.undecoded_why: dict[str, str] = {}
+        self._source: Source | None = None
+        self._decoder = MessageDecoder()
 
     @property
     def format(self) -> str:
         """The format in words, e.g. 'ROS2 bag (mcap storage)'."""
         if self.kind == "ros2":
-            storage = "mcap" if any(self.path.glob("*.mcap")) else "sqlite3"
-            return f"ROS2 bag ({storage} storage)"
+            return f"ROS2 bag ({read_bag_metadata(self.path).storage} storage)"
         return FORMATS[self.kind]
 
     def _damaged(self, detail: str) -> LogError:
@@ -91,18 +111,30 @@ class LogReader:
             "pass --salvage to read what can be read"
         )
 
+    def _make_source(self) -> Source:
+        if self.kind == "ros1":
+            return Ros1Source(self.path)
+        if self.kind == "mcap":
+            return McapSource([self.path], salvage=self.salvage)
+        if self.kind == "sqlite":
+            return Rosbag2Source([self.path])
+        bag = read_bag_metadata(self.path)
+        if bag.compression == "file":
+            raise LogError(f"{self.path}: its storage files are zstd-compressed as whole files; decompress them first (e.g. zstd -d)")
+        if bag.storage == "mcap":
+            return McapSource(bag.files, bag.distro, salvage=self.salvage)
+        if bag.storage == "sqlite3":
+            return Rosbag2Source(bag.files, bag.distro, compressed=bag.compression == "message")
+        raise LogError(f"{self.path}: storage {bag.storage!r} in metadata.yaml; robot_logs reads 'sqlite3' and 'mcap'")
+
     def open(self) -> None:
         """Open the file (or its salvageable part).
 
         Raises:
             LogError: the file is damaged and salvage is off, or nothing could be salvaged.
         """
-        storage = [self.path] if self.kind == "mcap" else sorted(self.path.glob("*.mcap")) if self.kind == "ros2" else []
         try:
-            if storage and (self.kind == "mcap" or self.salvage):
-                self._source = McapSource(storage, salvage=self.salvage)
-            else:
-                self._source = RosbagsSource(self.path, salvage=self.salvage)
+            self._source = self._make_source()
         except LogError:
             raise
         except Exception as exc:  # rosbags, mcap, sqlite3 and decompressors each raise their own
@@ -111,6 +143,7 @@ class LogReader:
             if self.kind != "ros1":
                 raise LogError(f"{self.path} is damaged ({_describe(exc)}) and no part of it can be read") from None
             self._source = BagWalkSource(self.path)
+        self._decoder = MessageDecoder(self._source.distro)
         self.damage = getattr(self._source, "damage", None)
 
     def close(self) -> None:
@@ -128,33 +161,58 @@ class LogReader:
 
     @property
     def topics(self) -> list[TopicInfo]:
-        """Every topic with its type and message count, sorted by name."""
+        """Every topic with its type, message count and encoding, sorted by name."""
         if self._source is None:
             raise LogError(f"{self.path} is not open")
         return self._source.topics()
 
-    def messages(self, topics: Collection[str]) -> Iterator[Message]:
-        """Decoded messages of the given topics, in record-time order (file order when salvaging).
+    def messages(self, topics: Collection[str], *, skip_undecodable: bool = False) -> Iterator[Message]:
+        """Decoded messages of the given topics, in record-time order (file order when salvaging
+        or streaming an MCAP file without index).
+
+        Args:
+            topics: the topics to read; no other topic is read or decoded.
+            skip_undecodable: skip messages that cannot be decoded, counting them in `undecoded`
+                (with the reason in `undecoded_why`), instead of raising.
 
         Raises:
             LogError: damage met while reading (with salvage on, the damaged part is skipped
-                or reading stops there, and `damage` tells what was met).
+                or reading stops there, and `damage` tells what was met), or a message that
+                cannot be decoded (unknown type, another encoding) unless skipped.
         """
         if self._source is None:
             raise LogError(f"{self.path} is not open")
         if not topics:
             return
         try:
-            yield from self._source.messages(set(topics))
+            for raw in self._source.messages(set(topics)):
+                try:
+                    data = self._decoder.decode(raw.data, raw.mtype)
+                except Undecodable as exc:
+                    self._undecodable(raw.topic, exc, skip_undecodable)
+                    continue
+                yield Message(raw.topic, raw.mtype.name, raw.record_ns, data)
         except LogError:
             raise
         except Exception as exc:  # the format libraries' own errors mean damaged bytes
             if not self.salvage:
                 raise self._damaged(_describe(exc)) from None
-            self.damage = _describe(exc)
+            self.damage = self.damage or _describe(exc)
         self.damage = getattr(self._source, "damage", None) or self.damage
+
+    def _undecodable(self, topic: str, exc: Undecodable, skip: bool) -> None:
+        """Count a message that cannot be decoded, or refuse it (damage when it is one bad message)."""
+        if skip:
+            self.undecoded[topic] += 1
+            self.undecoded_why.setdefault(topic, str(exc))
+        elif exc.damaged and self.salvage:
+            self.damage = self.damage or f"undecodable message on {topic}: {exc}"
+        elif exc.damaged:
+            raise self._damaged(f"undecodable message on {topic}: {_describe(exc)}")
+        else:
+            raise LogError(f"topic {topic} of {self.path} cannot be decoded: {_describe(exc)}")
 
 
 def _describe(exc: Exception) -> str:
-    text = str(exc).strip() or type(exc).__name__
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return text if len(text) < 200 else text[:197] + "..."

@@ -1,11 +1,15 @@
-"""The message sources behind `LogReader`, one per way of opening a log.
+"""The raw message sources behind `LogReader`, one per way of opening a log.
 
-- `RosbagsSource`: ROS1 bags and ROS2 bags (sqlite3 or MCAP storage) through rosbags' AnyReader.
-- `McapSource`: plain MCAP files with ROS1 or ROS2 (CDR) messages through the `mcap` library;
-  with `salvage=True` it skips damaged chunks, or reads a truncated file up to the damage.
+- `Ros1Source`: ROS1 bags through rosbags' rosbag1 reader.
+- `Rosbag2Source`: ROS2 sqlite3 storage files (a bag folder's or a lone `.db3`) through rosbags,
+  each file read on its own, so a folder and its files give the same counts.
+- `McapSource`: MCAP files (plain, or a ROS2 bag folder's storage) through the `mcap` library, in
+  any valid layout: indexed files by their index, the others (no chunk index, no summary,
+  unchunked) by streaming; with `salvage=True` it skips damaged chunks, or reads a truncated
+  file up to the damage.
 - `BagWalkSource`: a ROS1 bag read record by record, for bags whose index is damaged.
 
-Each yields `Message`s with deserialised rosbags message objects, so one conversion serves all.
+Each yields `RawMessage`s: bytes with their `MessageType`; `robot_logs.decoding` decodes them.
 """
 
 from __future__ import annotations
@@ -15,123 +19,183 @@ from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, Schema
 from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
-from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore
+from rosbags.interfaces import Connection, MessageDefinitionFormat
+from rosbags.rosbag1 import Reader as Ros1Reader
+from rosbags.rosbag2 import Reader as Rosbag2Reader
 
-from robot_logs.decoding import MessageDecoder, ros2_type_name
-from robot_logs.errors import LogError
+from robot_logs.decoding import CDR, ROS1, MessageType, is_service, ros2_type_name
 from robot_logs.ros1_records import BagConnection, BagMessage, walk_bag
+
+
+class SourceDamaged(Exception):
+    """Bytes of a log that are not a complete, valid record; the text says where."""
 
 
 @dataclass(frozen=True)
 class TopicInfo:
-    """A topic of a log: its name, message type (ROS 2 spelling) and message count."""
+    """A topic of a log: its name, message type (ROS 2 spelling or schema name), message count and encoding."""
 
     name: str
     msgtype: str
     count: int
+    encoding: str = CDR
+
+    @property
+    def service(self) -> bool:
+        """True for a topic of recorded service events."""
+        return is_service(self.msgtype)
 
 
 @dataclass(frozen=True)
-class Message:
-    """One message: topic, type, record time (ns, the logger's clock) and the decoded object."""
+class RawMessage:
+    """One message as stored: topic, type, record time (ns, the logger's clock) and bytes."""
 
     topic: str
-    msgtype: str
+    mtype: MessageType
     record_ns: int
-    data: object
+    data: bytes | memoryview
 
 
-def _summarise(pairs: Collection[tuple[str, str]], counts: Counter[str]) -> list[TopicInfo]:
-    return [TopicInfo(topic, msgtype, counts[topic]) for topic, msgtype in sorted(set(pairs))]
+def _summarise(counts: Counter[tuple[str, MessageType]]) -> list[TopicInfo]:
+    totals: Counter[tuple[str, str, str]] = Counter()
+    for (topic, mtype), count in counts.items():
+        totals[topic, mtype.name, mtype.encoding] += count
+    return [TopicInfo(topic, name, count, encoding) for (topic, name, encoding), count in sorted(totals.items())]
 
 
-class RosbagsSource:
-    """ROS1 `.bag` files, ROS2 bag folders and `.db3` files via rosbags' AnyReader."""
+def _rosbags_type(connection: Connection, encoding: str) -> MessageType:
+    return MessageType(
+        connection.msgtype, encoding, connection.msgdef.data or "", connection.msgdef.format == MessageDefinitionFormat.IDL
+    )
 
-    def __init__(self, path: Path, salvage: bool = False) -> None:
-        self.salvage = salvage
-        self.damage: str | None = None
-        self._reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+
+class Ros1Source:
+    """A ROS1 `.bag` file through rosbags (its index must be intact)."""
+
+    distro = None
+
+    def __init__(self, path: Path) -> None:
+        self._reader = Ros1Reader(path)
         self._reader.open()
+        self._types = {c.id: _rosbags_type(c, ROS1) for c in self._reader.connections}
 
     def topics(self) -> list[TopicInfo]:
-        counts: Counter[str] = Counter()
+        counts: Counter[tuple[str, MessageType]] = Counter()
         for connection in self._reader.connections:
-            counts[connection.topic] += connection.msgcount
-        pairs = [(c.topic, c.msgtype) for c in self._reader.connections]
-        return _summarise(pairs, counts)
+            counts[connection.topic, self._types[connection.id]] += connection.msgcount
+        return _summarise(counts)
 
-    def messages(self, topics: Collection[str]) -> Iterator[Message]:
+    def messages(self, topics: Collection[str]) -> Iterator[RawMessage]:
         connections = [c for c in self._reader.connections if c.topic in topics]
+        if not connections:  # rosbags reads every connection when given none
+            return
         for connection, record_ns, raw in self._reader.messages(connections=connections):
-            try:
-                data = self._reader.deserialize(raw, connection.msgtype)
-            except Exception as exc:  # a garbled message: skipped when salvaging
-                self.damage = self.damage or f"undecodable message on {connection.topic}: {exc}"
-                if not self.salvage:
-                    raise
-                continue
-            yield Message(connection.topic, connection.msgtype, record_ns, data)
+            yield RawMessage(connection.topic, self._types[connection.id], record_ns, raw)
 
     def close(self) -> None:
         self._reader.close()
 
 
-_ROS_ENCODINGS = {("ros1msg", "ros1"): "msg", ("ros2msg", "cdr"): "msg", ("ros2idl", "cdr"): "idl"}
+class Rosbag2Source:
+    """ROS2 sqlite3 storage files (in bag order) through rosbags, each file opened on its own.
+
+    Args:
+        files: the `.db3` files.
+        distro: the bag's `ros_distro` from its metadata, if any.
+        compressed: messages are zstd-compressed one by one (metadata compression_mode 'message').
+    """
+
+    def __init__(self, files: list[Path], distro: str | None = None, compressed: bool = False) -> None:
+        self.distro = distro
+        self._decompress = zstandard.ZstdDecompressor().decompress if compressed else None
+        self._readers: list[Rosbag2Reader] = []
+        for path in files:
+            reader = Rosbag2Reader(path)
+            reader.open()
+            self._readers.append(reader)
+
+    def topics(self) -> list[TopicInfo]:
+        counts: Counter[tuple[str, MessageType]] = Counter()
+        for reader in self._readers:
+            for connection in reader.connections:
+                counts[connection.topic, _rosbags_type(connection, CDR)] += connection.msgcount
+        return _summarise(counts)
+
+    def messages(self, topics: Collection[str]) -> Iterator[RawMessage]:
+        for reader in self._readers:
+            connections = [c for c in reader.connections if c.topic in topics]
+            if not connections:  # rosbags reads every connection when given none
+                continue
+            types = {c.id: _rosbags_type(c, CDR) for c in connections}
+            for connection, record_ns, raw in reader.messages(connections=connections):
+                data = self._decompress(raw) if self._decompress else raw
+                yield RawMessage(connection.topic, types[connection.id], record_ns, data)
+
+    def close(self) -> None:
+        for reader in self._readers:
+            reader.close()
+
+
+def _mcap_type(channel: Channel, schema: Schema | None) -> MessageType:
+    """The `MessageType` of an MCAP channel: ROS types in ROS 2 spelling with their schema text."""
+    encoding = channel.message_encoding
+    if schema is None:
+        return MessageType("(no schema)", encoding)
+    name = ros2_type_name(schema.name) if encoding in (ROS1, CDR) else schema.name
+    definition = schema.data.decode(errors="replace") if schema.encoding in ("ros1msg", "ros2msg", "ros2idl") else ""
+    return MessageType(name, encoding, definition, schema.encoding == "ros2idl")
 
 
 class McapSource:
-    """Plain MCAP files (or a ROS2 bag's MCAP storage files) through the `mcap` library.
+    """MCAP files in order, in any valid layout (see the module docstring).
 
-    Messages encoded as ROS1 or CDR with embedded definitions are decoded; other encodings
-    (JSON, protobuf...) are listed by `topics()` but cannot be read as robot data. With
-    `salvage`, chunks that fail their CRC are skipped (`damage` says so), and a file without
-    a readable summary (truncated) is read in file order up to its first damaged record.
+    Args:
+        files: the MCAP files (one, or the storage files of a split ROS2 bag).
+        distro: the bag's `ros_distro` from its metadata, if any.
+        salvage: skip damaged chunks and read truncated files up to the cut instead of raising.
+
+    Raises:
+        SourceDamaged: a file without an index breaks off or holds a malformed record (salvage off).
     """
 
-    def __init__(self, files: list[Path], salvage: bool = False) -> None:
+    def __init__(self, files: list[Path], distro: str | None = None, salvage: bool = False) -> None:
         self.files = files
+        self.distro = distro
         self.salvage = salvage
         self.damage: str | None = None
-        self._decoder = MessageDecoder()
         self._schemas: dict[tuple[int, int], Schema] = {}
-        self._channels: dict[tuple[int, int], tuple[Channel, Schema | None]] = {}
-        self._counts: Counter[str] = Counter()
+        self._types: dict[tuple[int, int], tuple[str, MessageType]] = {}
+        self._counts: Counter[tuple[str, MessageType]] = Counter()
         self._summaries: dict[int, Summary] = {}
         for index, path in enumerate(files):
-            try:
-                self._read_summary(index, path)
-            except Exception:
-                if not salvage:
-                    raise
+            summary = _usable_summary(path)
+            if summary is None:
                 for _ in self._walk(index, path, topics=None):
                     pass
-
-    def _read_summary(self, index: int, path: Path) -> None:
-        with path.open("rb") as stream:
-            summary = SeekingReader(stream, validate_crcs=True).get_summary()
-        if summary is None or not summary.chunk_indexes:
-            raise LogError(f"{path} has no summary section (an unfinished recording); pass --salvage to read it in file order")
-        self._summaries[index] = summary
-        for channel in summary.channels.values():
-            schema = summary.schemas.get(channel.schema_id)
-            self._channels[index, channel.id] = (channel, schema)
-        stats = summary.statistics
-        for channel_id, count in (stats.channel_message_counts if stats else {}).items():
-            self._counts[summary.channels[channel_id].topic] += count
+                continue
+            self._summaries[index] = summary
+            for channel in summary.channels.values():
+                self._types[index, channel.id] = (channel.topic, _mcap_type(channel, summary.schemas.get(channel.schema_id)))
+                self._counts[self._types[index, channel.id]] += 0  # listed even without messages
+            assert summary.statistics is not None  # a usable summary has them
+            for channel_id, count in summary.statistics.channel_message_counts.items():
+                self._counts[self._types[index, channel_id]] += count
 
     def _note(self, path: Path, exc: Exception) -> None:
         self.damage = self.damage or f"{path.name}: {type(exc).__name__} {exc}".strip()
 
     def _walk(self, index: int, path: Path, topics: Collection[str] | None) -> Iterator[McapMessage]:
-        """Records in file order; a damaged record ends the walk (noted in `damage`)."""
+        """Records in file order (counting them when `topics` is None).
+
+        A damaged record ends the walk: noted in `damage` when salvaging, raised otherwise.
+        """
         counting = topics is None
         with path.open("rb") as stream:
             try:
@@ -139,14 +203,19 @@ class McapSource:
                     if isinstance(record, Schema):
                         self._schemas[index, record.id] = record
                     elif isinstance(record, Channel):
-                        self._channels[index, record.id] = (record, self._schemas.get((index, record.schema_id)))
-                    elif isinstance(record, McapMessage):
-                        channel = self._channels[index, record.channel_id][0]
+                        schema = self._schemas.get((index, record.schema_id))
+                        self._types[index, record.id] = (record.topic, _mcap_type(record, schema))
                         if counting:
-                            self._counts[channel.topic] += 1
-                        elif channel.topic in topics:
+                            self._counts[self._types[index, record.id]] += 0  # listed even without messages
+                    elif isinstance(record, McapMessage):
+                        known = self._types[index, record.channel_id]
+                        if counting:
+                            self._counts[known] += 1
+                        elif known[0] in topics:
                             yield record
             except Exception as exc:  # any malformed byte ends the readable part
+                if not self.salvage:
+                    raise SourceDamaged(f"{path.name}: {type(exc).__name__} {exc}".strip()) from None
                 self._note(path, exc)
 
     def _chunks(self, index: int, path: Path, topics: Collection[str]) -> Iterator[McapMessage]:
@@ -156,57 +225,13 @@ class McapSource:
         with path.open("rb") as stream:
             for chunk_index in sorted(summary.chunk_indexes, key=lambda c: c.message_start_time):
                 try:
-                    stream.seek(chunk_index.chunk_start_offset + 9)
+                    stream.seek(chunk_index.chunk_start_offset + 9)  # past the opcode and length
                     records = breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True)
                 except Exception as exc:  # a damaged chunk is skipped, the others still read
                     self._note(path, exc)
                     continue
                 found = [r for r in records if isinstance(r, McapMessage) and r.channel_id in wanted]
                 yield from sorted(found, key=lambda r: r.log_time)
-
-    def topics(self) -> list[TopicInfo]:
-        pairs = [(channel.topic, self._msgtype(channel, schema)) for channel, schema in self._channels.values()]
-        return _summarise(pairs, self._counts)
-
-    @staticmethod
-    def _msgtype(channel: Channel, schema: Schema | None) -> str:
-        if schema is None:
-            return f"(no schema, {channel.message_encoding})"
-        if (schema.encoding, channel.message_encoding) in _ROS_ENCODINGS:
-            return ros2_type_name(schema.name)
-        return schema.name
-
-    def _decode(self, index: int, record: McapMessage) -> Message:
-        channel, schema = self._channels[index, record.channel_id]
-        kind = _ROS_ENCODINGS.get((schema.encoding if schema else "", channel.message_encoding))
-        if kind is None or schema is None:
-            raise LogError(
-                f"topic {channel.topic} of {self.files[index]} is encoded as {channel.message_encoding!r}; "
-                "robot_logs reads ROS1 and ROS2 (CDR) messages"
-            )
-        self._decoder.add(schema.name, schema.data.decode(), kind)
-        data = self._decoder.decode(record.data, schema.name, channel.message_encoding)
-        return Message(channel.topic, ros2_type_name(schema.name), record.log_time, data)
-
-    def messages(self, topics: Collection[str]) -> Iterator[Message]:
-        for index, path in enumerate(self.files):
-            if index not in self._summaries:
-                records = self._walk(index, path, topics)
-            elif self.salvage:
-                records = self._chunks(index, path, topics)
-            else:
-                records = self._indexed(path, topics)
-            for record in records:
-                try:
-                    message = self._decode(index, record)
-                except LogError:
-                    raise
-                except Exception as exc:  # a garbled message: skipped when salvaging
-                    if not self.salvage:
-                        raise
-                    self._note(path, exc)
-                    continue
-                yield message
 
     @staticmethod
     def _indexed(path: Path, topics: Collection[str]) -> Iterator[McapMessage]:
@@ -215,49 +240,78 @@ class McapSource:
             for _, _, record in reader.iter_messages(topics=list(topics), log_time_order=True):
                 yield record
 
+    def topics(self) -> list[TopicInfo]:
+        return _summarise(self._counts)
+
+    def messages(self, topics: Collection[str]) -> Iterator[RawMessage]:
+        for index, path in enumerate(self.files):
+            if index not in self._summaries:
+                records = self._walk(index, path, topics)
+            elif self.salvage:
+                records = self._chunks(index, path, topics)
+            else:
+                records = self._indexed(path, topics)
+            for record in records:
+                topic, mtype = self._types[index, record.channel_id]
+                yield RawMessage(topic, mtype, record.log_time, record.data)
+
     def close(self) -> None:
         """Nothing stays open between calls."""
+
+
+def _usable_summary(path: Path) -> Summary | None:
+    """A file's summary if it indexes every message (chunk indexes, channels, statistics), else None.
+
+    Files without one are valid MCAP too (the summary and indexes are optional); they are
+    streamed. A damaged end also gives None: the stream then finds where the damage is.
+    """
+    try:
+        with path.open("rb") as stream:
+            summary = SeekingReader(stream, validate_crcs=True).get_summary()
+    except Exception:  # no footer, a cut or garbled summary: stream the file instead
+        return None
+    if summary is None or not summary.chunk_indexes or summary.statistics is None:
+        return None
+    stats = summary.statistics
+    if len(summary.chunk_indexes) != stats.chunk_count or any(c not in summary.channels for c in stats.channel_message_counts):
+        return None
+    return summary
 
 
 class BagWalkSource:
     """A ROS1 bag read record by record up to its first damaged byte (`damage` says where)."""
 
+    distro = None
+
     def __init__(self, path: Path) -> None:
         self.path = path
         self.damage: str | None = None
-        self._decoder = MessageDecoder()
-        self._connections: dict[int, BagConnection] = {}
-        self._counts: Counter[str] = Counter()
+        self._connections: dict[int, tuple[str, MessageType]] = {}
+        self._counts: Counter[tuple[str, MessageType]] = Counter()
         for item in self._walk():
             if isinstance(item, BagMessage):
-                self._counts[self._connections[item.conn_id].topic] += 1
+                self._counts[self._connections[item.conn_id]] += 1
 
     def _walk(self) -> Iterator[BagConnection | BagMessage]:
         with self.path.open("rb") as stream:
             try:
                 for item in walk_bag(stream):
                     if isinstance(item, BagConnection):
-                        self._connections[item.conn_id] = item
-                        self._decoder.add(item.msgtype, item.definition)
+                        self._connections[item.conn_id] = (item.topic, MessageType(ros2_type_name(item.msgtype), ROS1, item.definition))
+                        self._counts[self._connections[item.conn_id]] += 0  # listed even without messages
                     yield item
             except Exception as exc:  # any malformed byte ends the readable part
                 self.damage = f"{self.path.name}: {exc}"
 
     def topics(self) -> list[TopicInfo]:
-        pairs = [(c.topic, ros2_type_name(c.msgtype)) for c in self._connections.values()]
-        return _summarise(pairs, self._counts)
+        return _summarise(self._counts)
 
-    def messages(self, topics: Collection[str]) -> Iterator[Message]:
+    def messages(self, topics: Collection[str]) -> Iterator[RawMessage]:
         for item in self._walk():
             if isinstance(item, BagMessage):
-                connection = self._connections[item.conn_id]
-                if connection.topic in topics:
-                    try:
-                        data = self._decoder.decode(item.data, connection.msgtype, "ros1")
-                    except Exception as exc:  # a garbled message is skipped
-                        self.damage = self.damage or f"undecodable message on {connection.topic}: {exc}"
-                        continue
-                    yield Message(connection.topic, ros2_type_name(connection.msgtype), item.record_ns, data)
+                topic, mtype = self._connections[item.conn_id]
+                if topic in topics:
+                    yield RawMessage(topic, mtype, item.record_ns, item.data)
 
     def close(self) -> None:
         """Nothing stays open between calls."""
