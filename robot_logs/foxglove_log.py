@@ -21,7 +21,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_schemas import FOXGLOVE_SCHEMAS, open_schema
@@ -239,13 +239,17 @@ class FoxgloveReader:
     """Reads a JSON MCAP log written by `FoxgloveWriter` (or any JSON-encoded MCAP).
 
     Raises:
-        LogError: the file is missing, unfinished or damaged, or holds non-JSON channels.
+        LogError: the file is missing, not an MCAP file, unfinished or damaged; `messages`
+            refuses non-JSON channels.
     """
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise LogError(f"{self.path}: no such run log")
+        with self.path.open("rb") as stream:
+            if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+                raise LogError(f"{self.path} is not an MCAP file (a run log is an .mcap written by trials)")
         try:
             with self.path.open("rb") as stream:
                 reader = make_reader(stream)
@@ -256,9 +260,6 @@ class FoxgloveReader:
         if summary is None:
             raise LogError(f"{self.path} is damaged or unfinished (no summary section)")
         self._summary = summary
-        bad = [c.topic for c in summary.channels.values() if c.message_encoding != "json"]
-        if bad:
-            raise LogError(f"{self.path}: topics {', '.join(bad)} are not JSON-encoded")
 
     @property
     def topics(self) -> dict[str, str]:
@@ -268,7 +269,10 @@ class FoxgloveReader:
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
         """Messages in time order, all or those of the given topics."""
+        wanted = None if topics is None else list(topics)
+        bad = [c.topic for c in self._summary.channels.values() if c.message_encoding != "json" and (wanted is None or c.topic in wanted)]
+        if bad:
+            raise LogError(f"{self.path}: topics {', '.join(bad)} are not JSON-encoded")
         with self.path.open("rb") as stream:
-            wanted = None if topics is None else list(topics)
             for schema, channel, message in make_reader(stream).iter_messages(topics=wanted, log_time_order=True):
                 yield LoggedMessage(channel.topic, schema.name if schema else "", message.log_time, json.loads(message.data))

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
+from mcap.writer import MCAP0_MAGIC
+
 from robot_logs.bag_metadata import read_bag_metadata
 from robot_logs.decoding import MessageDecoder, Undecodable
 from robot_logs.errors import LogError
@@ -28,7 +30,6 @@ from robot_logs.sources import BagWalkSource, McapSource, Ros1Source, Rosbag2Sou
 Source = Ros1Source | Rosbag2Source | McapSource | BagWalkSource
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
 FORMATS = {
@@ -55,7 +56,7 @@ def detect_format(path: Path) -> str:
         head = stream.read(16)
     if not head:
         raise LogError(f"{path} is empty (0 bytes)")
-    for kind, magic in (("ros1", ROS1_MAGIC), ("mcap", MCAP_MAGIC), ("sqlite", SQLITE_MAGIC)):
+    for kind, magic in (("ros1", ROS1_MAGIC), ("mcap", MCAP0_MAGIC), ("sqlite", SQLITE_MAGIC)):
         if head.startswith(magic):
             return kind
     raise LogError(

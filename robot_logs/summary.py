@@ -1,4 +1,9 @@
-"""What a log holds, topic by topic: counts, rates, time spans and frames (`trials log inspect`)."""
+"""What a log holds, topic by topic: counts, rates, time spans and frames (`trials log inspect`).
+
+Every topic is read except recorded service events, which are listed with their counts only;
+messages that cannot be decoded (types no definition covers, protobuf...) are counted and
+skipped, never fatal.
+"""
 
 from __future__ import annotations
 
@@ -10,14 +15,26 @@ from robot_logs.frames import frame_name
 from robot_logs.reader import LogReader
 from robot_logs.records import seconds
 
+#: Rates are given only over at least this span (s): over a shorter one (a split bag's few
+#: messages stamped microseconds apart) a rate says more about the clock than the topic.
+MIN_RATE_SPAN_S = 0.1
+
 
 @dataclass
 class TopicSummary:
-    """One topic's figures; stamps are header stamps, `record_*` the logger's clock (ns)."""
+    """One topic's figures; stamps are header stamps, `record_*` the logger's clock (ns).
+
+    `count` is the messages read (for a service topic, which is not read, the log's count);
+    `undecoded` of them could not be decoded, for the reason `why`.
+    """
 
     name: str
     msgtype: str
+    encoding: str
+    service: bool = False
     count: int = 0
+    undecoded: int = 0
+    why: str | None = None
     first_stamp_ns: int | None = None
     last_stamp_ns: int | None = None
     first_record_ns: int | None = None
@@ -28,11 +45,13 @@ class TopicSummary:
 
     @property
     def rate_hz(self) -> float | None:
-        """Messages per second over the header-stamp span (record span if never stamped)."""
+        """Messages per second over the header-stamp span (record span if never stamped);
+        None with fewer than three decoded messages (two intervals) or a span under `MIN_RATE_SPAN_S`."""
         first, last = (self.first_stamp_ns, self.last_stamp_ns) if self.first_stamp_ns is not None else (self.first_record_ns, self.last_record_ns)
-        if self.count < 2 or first is None or last is None or last <= first:
+        decoded = self.count - self.undecoded
+        if decoded < 3 or first is None or last is None or seconds(last - first) < MIN_RATE_SPAN_S:
             return None
-        return (self.count - 1) / seconds(last - first)
+        return (decoded - 1) / seconds(last - first)
 
 
 @dataclass(frozen=True)
@@ -57,7 +76,7 @@ def _headers(msg: Any) -> list[tuple[Any, str]]:
     if hasattr(msg, "transforms"):
         return [(t.header, f"{frame_name(t.header.frame_id)}->{frame_name(t.child_frame_id)}") for t in msg.transforms]
     header = getattr(msg, "header", None)
-    if header is None:
+    if not hasattr(header, "stamp"):  # no header, or a JSON record
         return []
     child = getattr(msg, "child_frame_id", None)
     label = frame_name(header.frame_id) + (f"->{frame_name(child)}" if child else "")
@@ -65,9 +84,9 @@ def _headers(msg: Any) -> list[tuple[Any, str]]:
 
 
 def summarise(log: LogReader, progress: Callable[[int], None] | None = None) -> LogSummary:
-    """Read every message of an open log once and summarise it per topic."""
-    topics = {t.name: TopicSummary(t.name, t.msgtype) for t in log.topics}
-    for message in log.messages(set(topics)):
+    """Read every message of an open log once (services aside) and summarise it per topic."""
+    topics = {t.name: TopicSummary(t.name, t.msgtype, t.encoding, t.service, t.count if t.service else 0) for t in log.topics}
+    for message in log.messages({t.name for t in topics.values() if not t.service}, skip_undecodable=True):
         entry = topics[message.topic]
         entry.count += 1
         record = message.record_ns
@@ -86,4 +105,7 @@ def summarise(log: LogReader, progress: Callable[[int], None] | None = None) -> 
                 entry.header_minus_record_ns = stamp - record
         if progress is not None:
             progress(1)
+    for name, skipped in log.undecoded.items():
+        topics[name].count += skipped
+        topics[name].undecoded, topics[name].why = skipped, log.undecoded_why[name]
     return LogSummary(str(log.path), log.format, list(topics.values()), log.damage)

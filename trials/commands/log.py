@@ -79,7 +79,7 @@ def inspect(args: argparse.Namespace) -> int:
     from robot_logs.summary import summarise
 
     with LogReader(args.file, salvage=args.salvage) as log:
-        total = sum(t.count for t in log.topics)
+        total = sum(t.count for t in log.topics if not t.service)
         with tqdm(total=total, unit="msg", desc="reading", disable=None, leave=False) as bar:
             summary = summarise(log, bar.update)
     for line in summary_lines(summary):
@@ -102,11 +102,23 @@ def summary_lines(summary: LogSummary) -> list[str]:
     if starts:
         lines.append(f"first header stamp: {stamp_text(min(starts))}")
     lines.append("")
-    lines.append(f"{'topic':<32} {'type':<36} {'count':>7} {'rate Hz':>8}  frames")
+    lines.append(f"{'topic':<32} {'type':<36} {'encoding':<8} {'count':>7} {'rate Hz':>8}  frames")
     for t in summary.topics:
+        if t.service:
+            continue
         rate = f"{t.rate_hz:.2f}" if t.rate_hz is not None else "-"
         frames = ", ".join(sorted(t.frames)) or "-"
-        lines.append(f"{t.name:<32} {t.msgtype:<36} {t.count:>7} {rate:>8}  {frames}")
+        lines.append(f"{t.name:<32} {t.msgtype:<36} {t.encoding:<8} {t.count:>7} {rate:>8}  {frames}")
+    services = [t for t in summary.topics if t.service]
+    if services:
+        lines.append("")
+        lines.append("services (recorded service events, not decoded):")
+        lines.extend(f"  {t.name:<30} {t.msgtype:<36} {t.encoding:<8} {t.count:>7}" for t in services)
+    skipped = [t for t in summary.topics if t.undecoded]
+    if skipped:
+        lines.append("")
+        lines.append("not decoded (skipped):")
+        lines.extend(f"  {t.name}: {t.undecoded} of {t.count} messages ({t.why})" for t in skipped)
     notes = []
     for t in summary.topics:
         offset = t.header_minus_record_ns

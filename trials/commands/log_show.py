@@ -1,4 +1,4 @@
-"""`trials log show RUN_CODE`: a finished run's summary from its MCAP, and a PNG of its trajectories."""
+"""`trials log show RUN`: a finished run's summary from its MCAP (by run code or path), and a PNG of its trajectories."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ def register(group: argparse._SubParsersAction) -> None:
         description="Print a run's settings, seed, events and metrics, recomputed from runs/<code>.mcap, and "
         "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it.",
     )
-    parser.add_argument("run", metavar="RUN_CODE", help="a run code of the study (or the path of a run's .mcap)")
+    parser.add_argument("run", metavar="RUN", help="a run code of the study, or the path of a run's .mcap")
     parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=show)
 
@@ -35,7 +35,7 @@ def show(args: argparse.Namespace) -> int:
     )
 
     path = Path(args.run)
-    if path.suffix != RUN_LOG_SUFFIX:
+    if not path.is_file() and path.suffix != RUN_LOG_SUFFIX and len(path.parts) == 1:  # a run code
         path = StudyFolder(args.study).run_log(args.run)
         if not path.exists():
             raise StudyError(f"no log of run {args.run} in {(args.study / RUNS).resolve()} (has it finished? see {OUTCOMES})")
