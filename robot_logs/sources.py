@@ -14,8 +14,10 @@ Each yields `RawMessage`s: bytes with their `MessageType`; `robot_logs.decoding`
 
 from __future__ import annotations
 
+import sqlite3
 from collections import Counter
 from collections.abc import Collection, Iterator
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -113,7 +115,7 @@ class Rosbag2Source:
     """
 
     def __init__(self, files: list[Path], distro: str | None = None, compressed: bool = False) -> None:
-        self.distro = distro
+        self.distro = distro or (_sqlite_distro(files[0]) if files else None)
         self._decompress = zstandard.ZstdDecompressor().decompress if compressed else None
         self._readers: list[Rosbag2Reader] = []
         for path in files:
@@ -141,6 +143,16 @@ class Rosbag2Source:
     def close(self) -> None:
         for reader in self._readers:
             reader.close()
+
+
+def _sqlite_distro(path: Path) -> str | None:
+    """The ROS distribution a sqlite3 storage file records in its `schema` table (newer recorders), if any."""
+    with closing(sqlite3.connect(f"file:{path}?immutable=1", uri=True)) as database:
+        try:
+            row = database.execute("SELECT ros_distro FROM schema").fetchone()
+        except sqlite3.Error:  # older files have no schema table
+            return None
+    return str(row[0]) if row and row[0] else None
 
 
 def _mcap_type(channel: Channel, schema: Schema | None) -> MessageType:

@@ -35,18 +35,20 @@ class BagWriter:
     Args:
         path: a `.bag` file (ros1) or a folder to create (ros2-*).
         bag_format: "ros1", "ros2-sqlite3" or "ros2-mcap".
+        store: the ROS 2 type store whose definitions the messages follow (ros2-* only).
+        version: the rosbag2 metadata version (8 or 9, what rosbags writes).
     """
 
-    def __init__(self, path: str | Path, bag_format: BagFormat = "ros1") -> None:
+    def __init__(self, path: str | Path, bag_format: BagFormat = "ros1", store: Stores = Stores.ROS2_HUMBLE, version: int = 9) -> None:
         self.ros1 = bag_format == "ros1"
         if self.ros1:
             self.store = get_typestore(Stores.ROS1_NOETIC)
             self.store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", TF))
             self._writer: Any = Ros1Writer(Path(path))
         else:
-            self.store = get_typestore(Stores.ROS2_HUMBLE)
+            self.store = get_typestore(store)
             plugin = StoragePlugin.MCAP if bag_format == "ros2-mcap" else StoragePlugin.SQLITE3
-            self._writer = Ros2Writer(Path(path), version=9, storage_plugin=plugin)
+            self._writer = Ros2Writer(Path(path), version=version, storage_plugin=plugin)
         self._connections: dict[str, Any] = {}
 
     def __enter__(self) -> BagWriter:
@@ -82,6 +84,13 @@ class BagWriter:
             self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
         serialize = self.store.serialize_ros1 if self.ros1 else self.store.serialize_cdr
         self._writer.write(self._connections[topic], record_ns, serialize(message, msgtype))
+
+    def raw(self, topic: str, msgtype: str, data: bytes, record_ns: int, definition: str = "") -> None:
+        """Already serialised bytes of a type the store lacks, with the definition text the bag
+        stores for it ('' for none, as recorders write for types they cannot describe)."""
+        if topic not in self._connections:
+            self._connections[topic] = self._writer.add_connection(topic, msgtype, msgdef=definition, rihs01="RIHS01_" + "0" * 64)
+        self._writer.write(self._connections[topic], record_ns, data)
 
     def scan(self, scan: Scan, topic: str = "/scan", record_ns: int | None = None, angle_max: float | None = None) -> None:
         """A sensor_msgs/LaserScan (angle_max defaults to the one the beams imply)."""
