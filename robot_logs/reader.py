@@ -18,8 +18,10 @@ from collections import Counter
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from tempfile import TemporaryDirectory
 from types import TracebackType
 
+import zstandard
 from mcap.writer import MCAP0_MAGIC
 
 from robot_logs.bag_metadata import read_bag_metadata
@@ -97,6 +99,7 @@ class LogReader:
         self.undecoded: Counter[str] = Counter()
         self.undecoded_why: dict[str, str] = {}
         self._source: Source | None = None
+        self._scratch: TemporaryDirectory[str] | None = None
         self._decoder = MessageDecoder()
 
     @property
@@ -120,13 +123,24 @@ class LogReader:
         if self.kind == "sqlite":
             return Rosbag2Source([self.path])
         bag = read_bag_metadata(self.path)
-        if bag.compression == "file":
-            raise LogError(f"{self.path}: its storage files are zstd-compressed as whole files; decompress them first (e.g. zstd -d)")
+        files = self._decompressed(bag.files) if bag.compression == "file" else bag.files
+        per_message = bag.compression == "message"
         if bag.storage == "mcap":
-            return McapSource(bag.files, bag.distro, salvage=self.salvage)
+            return McapSource(files, bag.distro, salvage=self.salvage, compressed=per_message)
         if bag.storage == "sqlite3":
-            return Rosbag2Source(bag.files, bag.distro, compressed=bag.compression == "message")
+            return Rosbag2Source(files, bag.distro, compressed=per_message)
         raise LogError(f"{self.path}: storage {bag.storage!r} in metadata.yaml; robot_logs reads 'sqlite3' and 'mcap'")
+
+    def _decompressed(self, files: list[Path]) -> list[Path]:
+        """Copies of zstd-compressed storage files, decompressed into a folder removed on close."""
+        self._scratch = TemporaryDirectory(prefix="robot_logs-")
+        copies = []
+        for path in files:
+            copy = Path(self._scratch.name) / path.name.removesuffix(".zstd")
+            with path.open("rb") as source, copy.open("wb") as target:
+                zstandard.ZstdDecompressor().copy_stream(source, target)
+            copies.append(copy)
+        return copies
 
     def open(self) -> None:
         """Open the file (or its salvageable part).
@@ -152,6 +166,9 @@ class LogReader:
         if self._source is not None:
             self._source.close()
             self._source = None
+        if self._scratch is not None:
+            self._scratch.cleanup()
+            self._scratch = None
 
     def __enter__(self) -> LogReader:
         self.open()

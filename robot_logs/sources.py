@@ -172,15 +172,17 @@ class McapSource:
         files: the MCAP files (one, or the storage files of a split ROS2 bag).
         distro: the bag's `ros_distro` from its metadata, if any.
         salvage: skip damaged chunks and read truncated files up to the cut instead of raising.
+        compressed: messages are zstd-compressed one by one (a bag's compression_mode 'message').
 
     Raises:
         SourceDamaged: a file without an index breaks off or holds a malformed record (salvage off).
     """
 
-    def __init__(self, files: list[Path], distro: str | None = None, salvage: bool = False) -> None:
+    def __init__(self, files: list[Path], distro: str | None = None, salvage: bool = False, compressed: bool = False) -> None:
         self.files = files
         self.distro = distro
         self.salvage = salvage
+        self._decompress = zstandard.ZstdDecompressor().decompress if compressed else None
         self.damage: str | None = None
         self._schemas: dict[tuple[int, int], Schema] = {}
         self._types: dict[tuple[int, int], tuple[str, MessageType]] = {}
@@ -265,7 +267,8 @@ class McapSource:
                 records = self._indexed(path, topics)
             for record in records:
                 topic, mtype = self._types[index, record.channel_id]
-                yield RawMessage(topic, mtype, record.log_time, record.data)
+                data = self._decompress(record.data) if self._decompress else record.data
+                yield RawMessage(topic, mtype, record.log_time, data)
 
     def close(self) -> None:
         """Nothing stays open between calls."""

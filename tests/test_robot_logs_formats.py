@@ -18,6 +18,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType
 from mcap.writer import Writer as McapWriter
+from rosbags.rosbag2 import CompressionMode
 from rosbags.typesys import Stores, get_typestore
 from ruamel.yaml import YAML
 
@@ -73,9 +74,9 @@ def reference(scans: list[Scan], tmp_path_factory: pytest.TempPathFactory) -> li
     return rows
 
 
-def write_bag(path: Path, scans: list[Scan], bag_format: str, store: Stores = Stores.ROS2_HUMBLE, version: int = 9) -> Path:
+def write_bag(path: Path, scans: list[Scan], bag_format: str, version: int = 9, compression: CompressionMode = CompressionMode.NONE) -> Path:
     """Scans, odometry, tf, a type nobody defines and recorded service events, as a ROS2 bag."""
-    with BagWriter(path, bag_format, store, version) as bag:  # type: ignore[arg-type]
+    with BagWriter(path, bag_format, Stores.ROS2_HUMBLE, version, compression) as bag:  # type: ignore[arg-type]
         for k, scan in enumerate(scans):
             bag.scan(scan)
             if k % EVERY == 0:
@@ -134,6 +135,14 @@ FOXY_QOS = (
     "  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n"
     "    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false"
 )
+
+
+@pytest.mark.parametrize("bag_format", ["ros2-mcap", "ros2-sqlite3"])
+@pytest.mark.parametrize("compression", [CompressionMode.FILE, CompressionMode.MESSAGE])
+def test_compressed_bags_read(bag_format: str, compression: CompressionMode, scans: list[Scan], reference: list[tuple], tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "bag", scans, bag_format, compression=compression)
+    assert counts(bag) == COUNTS
+    assert track_log(bag).rows == reference
 
 
 def make_old(bag: Path, version: int) -> None:

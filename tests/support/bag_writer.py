@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 import numpy as np
 from rosbags.rosbag1 import Writer as Ros1Writer
-from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2 import Writer as Ros2Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -37,9 +37,17 @@ class BagWriter:
         bag_format: "ros1", "ros2-sqlite3" or "ros2-mcap".
         store: the ROS 2 type store whose definitions the messages follow (ros2-* only).
         version: the rosbag2 metadata version (8 or 9, what rosbags writes).
+        compression: zstd compression of whole storage files or of each message (ros2-* only).
     """
 
-    def __init__(self, path: str | Path, bag_format: BagFormat = "ros1", store: Stores = Stores.ROS2_HUMBLE, version: int = 9) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        bag_format: BagFormat = "ros1",
+        store: Stores = Stores.ROS2_HUMBLE,
+        version: int = 9,
+        compression: CompressionMode = CompressionMode.NONE,
+    ) -> None:
         self.ros1 = bag_format == "ros1"
         if self.ros1:
             self.store = get_typestore(Stores.ROS1_NOETIC)
@@ -49,6 +57,8 @@ class BagWriter:
             self.store = get_typestore(store)
             plugin = StoragePlugin.MCAP if bag_format == "ros2-mcap" else StoragePlugin.SQLITE3
             self._writer = Ros2Writer(Path(path), version=version, storage_plugin=plugin)
+            if compression != CompressionMode.NONE:
+                self._writer.set_compression(compression, CompressionFormat.ZSTD)
         self._connections: dict[str, Any] = {}
 
     def __enter__(self) -> BagWriter:
