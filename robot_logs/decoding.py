@@ -41,9 +41,10 @@ ROS1, CDR, JSON = "ros1", "cdr", "json"
 class Undecodable(Exception):
     """A message type or message robot_logs cannot decode; the text says why.
 
-    `damaged` is True when definitions of the type were found but the bytes fit none of them
-    (a corrupt message, or a definition no store knows), False when the type itself is unknown
-    or its encoding is not one robot_logs reads.
+    `damaged` is True for a message that does not fit the definition that decoded the topic's
+    earlier messages (corrupt bytes); False for a type problem: no definition found, none that
+    fits the topic's first message (a variant no store knows), or an encoding robot_logs does
+    not read. A type problem holds for every later message of the topic too.
     """
 
     def __init__(self, text: str, damaged: bool = False) -> None:
@@ -111,12 +112,13 @@ def _embedded_store(mtype: MessageType) -> Typestore:
 
 
 class _TypeDecoder:
-    """Decodes one message type, settling on the first candidate store that decodes a message."""
+    """Decodes one message type, settling on the first candidate store that decodes its first message."""
 
     def __init__(self, mtype: MessageType, stores: list[Typestore]) -> None:
         self.mtype = mtype
         self._stores = stores
         self._chosen: Callable[[bytes], object] | None = None
+        self._problem: Undecodable | None = None
 
     def _function(self, store: Typestore) -> Callable[[bytes], object]:
         name = self.mtype.name
@@ -127,6 +129,8 @@ class _TypeDecoder:
     def __call__(self, raw: bytes) -> object:
         if self._chosen is not None:
             return self._chosen(raw)
+        if self._problem is not None:
+            raise self._problem
         failures = []
         for store in self._stores:
             function = self._function(store)
@@ -138,8 +142,10 @@ class _TypeDecoder:
             self._chosen = function
             return message
         if not failures:
-            raise Undecodable(f"no definition of {self.mtype.name} in the log or in rosbags' type stores")
-        raise Undecodable(f"no definition of {self.mtype.name} decodes it ({failures[0]})", damaged=True)
+            self._problem = Undecodable(f"no definition of {self.mtype.name} in the log or in rosbags' type stores")
+        else:
+            self._problem = Undecodable(f"no definition of {self.mtype.name} fits its messages ({failures[0]})")
+        raise self._problem
 
 
 class MessageDecoder:

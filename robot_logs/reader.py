@@ -190,8 +190,9 @@ class LogReader:
 
         Args:
             topics: the topics to read; no other topic is read or decoded.
-            skip_undecodable: skip messages that cannot be decoded, counting them in `undecoded`
-                (with the reason in `undecoded_why`), instead of raising.
+            skip_undecodable: skip messages whose type cannot be decoded, counting them in
+                `undecoded` (with the reason in `undecoded_why`), instead of raising; corrupt
+                messages stay damage.
 
         Raises:
             LogError: damage met while reading (with salvage on, the damaged part is skipped
@@ -219,14 +220,15 @@ class LogReader:
         self.damage = getattr(self._source, "damage", None) or self.damage
 
     def _undecodable(self, topic: str, exc: Undecodable, skip: bool) -> None:
-        """Count a message that cannot be decoded, or refuse it (damage when it is one bad message)."""
-        if skip:
-            self.undecoded[topic] += 1
-            self.undecoded_why.setdefault(topic, str(exc))
-        elif exc.damaged and self.salvage:
+        """A message that cannot be decoded: corrupt bytes are damage (skipped when salvaging),
+        a type problem is counted when skipping and refused otherwise."""
+        if exc.damaged and self.salvage:
             self.damage = self.damage or f"undecodable message on {topic}: {exc}"
         elif exc.damaged:
             raise self._damaged(f"undecodable message on {topic}: {_describe(exc)}")
+        elif skip:
+            self.undecoded[topic] += 1
+            self.undecoded_why.setdefault(topic, str(exc))
         else:
             raise LogError(f"topic {topic} of {self.path} cannot be decoded: {_describe(exc)}")
 

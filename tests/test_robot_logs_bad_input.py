@@ -64,7 +64,7 @@ def test_a_damaged_log_is_refused_by_name(damaged: dict[str, Path], kind: str, c
 def test_salvage_reads_what_can_be_read(damaged: dict[str, Path], kind: str, scans: int, capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run(capsys, "inspect", damaged[kind], "--salvage")
     assert code == 0
-    assert next(line for line in out.splitlines() if line.startswith("/scan")).split()[2] == str(scans)
+    assert next(line for line in out.splitlines() if line.startswith("/scan")).split()[3] == str(scans)
     assert "warning: the log is damaged" in err
     table = track_log(damaged[kind], salvage=True)
     assert len(table) > 0

@@ -123,7 +123,7 @@ def test_inspect_reports_topics_rates_and_frames(stationary: dict[str, Path], ca
     assert "ROS2 bag (mcap storage)" in out
     assert "duration: 125.989 s by header stamps" in out
     line = next(row for row in out.splitlines() if row.startswith("/scan"))
-    assert line.split() == ["/scan", "sensor_msgs/msg/LaserScan", "1265", "10.03", "laser"]
+    assert line.split() == ["/scan", "sensor_msgs/msg/LaserScan", "cdr", "1265", "10.03", "laser"]
 
 
 def test_inspect_flags_stamps_far_from_record_times(robot_logs_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
