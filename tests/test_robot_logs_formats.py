@@ -130,6 +130,8 @@ def test_a_folder_and_its_storage_file_read_alike(bag_format: str, scans: list[S
     assert track_log(storage).rows == reference
 
 
+QUICK_VERSIONS = (1, 4, 8)  # one of each database schema in the quick loop; the rest are slow
+
 FOXY_QOS = (
     "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n"
     "  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n"
@@ -137,6 +139,7 @@ FOXY_QOS = (
 )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bag_format", ["ros2-mcap", "ros2-sqlite3"])
 @pytest.mark.parametrize("compression", [CompressionMode.FILE, CompressionMode.MESSAGE])
 def test_compressed_bags_read(bag_format: str, compression: CompressionMode, scans: list[Scan], reference: list[tuple], tmp_path: Path) -> None:
@@ -185,7 +188,7 @@ def make_old(bag: Path, version: int) -> None:
         db.commit()
 
 
-@pytest.mark.parametrize("version", [1, 2, 3, 4, 5, 6, 7, 8, 9])
+@pytest.mark.parametrize("version", [v if v in QUICK_VERSIONS else pytest.param(v, marks=pytest.mark.slow) for v in range(1, 10)])
 def test_old_sqlite3_bags_read_by_folder_and_file(version: int, scans: list[Scan], reference: list[tuple], tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "old", scans, "ros2-sqlite3", version=min(max(version, 8), 9))
     make_old(bag, version)
@@ -310,7 +313,10 @@ def mcap_source(scans: list[Scan], tmp_path_factory: pytest.TempPathFactory) -> 
     return next(bag.glob("*.mcap"))
 
 
-@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+QUICK_LAYOUTS = ("chunked-lz4", "no-summary", "unchunked-no-summary")
+
+
+@pytest.mark.parametrize("layout", [k if k in QUICK_LAYOUTS else pytest.param(k, marks=pytest.mark.slow) for k in sorted(LAYOUTS)])
 def test_every_mcap_layout_reads(
     layout: str, mcap_source: Path, reference: list[tuple], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
