@@ -47,7 +47,7 @@ class TopicInfo:
     name: str
     msgtype: str
     count: int
-    encoding: str = CDR
+    encoding: str
 
     @property
     def service(self) -> bool:
