@@ -13,10 +13,9 @@ import numpy as np
 from designs.exchange import candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, plain
 from designs.plan import StudyPlan
-from designs.spec import factor_table
+from designs.spec import PLAN_COLUMNS, factor_table
 
 FORMAT = "navtrials.design/1"
-PLAN_COLUMNS = ("order", "run_code")
 
 
 def plan_table(plan: StudyPlan) -> tuple[list[str], list[list[str]]]:
