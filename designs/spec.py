@@ -120,7 +120,7 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")
-    factors = tuple(_factor(raw, f"{source}: factors[{i}]") for i, raw in enumerate(raw_factors))
+    factors = tuple(factor_from_table(raw, f"{source}: factors[{i}]") for i, raw in enumerate(raw_factors))
     names = [f.name for f in factors]
     for name in names:
         if names.count(name) > 1:
@@ -184,7 +184,8 @@ def factor_table(factor: Factor) -> dict[str, Any]:
     return table
 
 
-def _factor(raw: Any, where: str) -> Factor:
+def factor_from_table(raw: Any, where: str) -> Factor:
+    """One [[factors]] table as its factor, validated; DesignError names `where`."""
     if not isinstance(raw, dict):
         raise DesignError(f"{where}: expected a table with name and type")
     name = _string(raw, "name", where)
