@@ -11,6 +11,7 @@ import csv
 import io
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, fields
+from datetime import datetime
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -34,6 +35,20 @@ def cell(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.3f}"
     return str(value)
+
+
+def utc_cell(cell: str) -> str:
+    """A recorded_utc cell: empty, or an ISO 8601 time with its UTC offset (it orders judgments
+    against the unblinding); ValueError otherwise."""
+    if not cell:
+        return cell
+    try:
+        when = datetime.fromisoformat(cell)
+    except ValueError:
+        raise ValueError(f"recorded_utc must be an ISO 8601 time such as 2026-05-01T14:03:00+00:00, got {cell!r}") from None
+    if when.tzinfo is None:
+        raise ValueError(f"recorded_utc must give its UTC offset (e.g. +00:00), got {cell!r}")
+    return cell
 
 
 def record_cells(record: Any) -> dict[str, str]:
