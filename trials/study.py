@@ -233,15 +233,13 @@ def check_plan(path: Path, header: list[str], rows: list[tuple[int, list[str]]],
     planned = {cells[1]: cells for cells in expected_rows}
     code_at = header.index("run_code")
     seen: dict[str, int] = {}
-    for position, (line, cells) in enumerate(rows):
+    for line, cells in rows:
         code = cells[code_at]
         if code in seen:
             raise StudyError(f"{path} line {line}: run {code!r} appears again (first on line {seen[code]}); {remedy}")
         seen[code] = line
         if code not in planned:
             raise StudyError(f"{path} line {line}: run {code!r} is not in the design's {len(planned)} runs; {remedy}")
-        if position >= len(expected_rows) or expected_rows[position][1] != code:
-            raise StudyError(f"{path} line {line}: run {code} is out of plan order; {remedy}")
         for name, value in zip(expected_header, planned[code]):
             cell = cells[header.index(name)]
             if cell != value:
@@ -249,6 +247,9 @@ def check_plan(path: Path, header: list[str], rows: list[tuple[int, list[str]]],
     absent = [cells[1] for cells in expected_rows if cells[1] not in seen]
     if absent:
         raise StudyError(f"{path}: run {absent[0]} of the design is missing ({len(rows)} of {len(expected_rows)} rows); {remedy}")
+    for (line, cells), expected in zip(rows, expected_rows):
+        if cells[code_at] != expected[1]:
+            raise StudyError(f"{path} line {line}: run {cells[code_at]} is out of plan order (run {expected[1]} comes here); {remedy}")
     recorded = design.get("plan")
     if recorded is not None and recorded != plan_digest(expected_header, expected_rows):
         raise StudyError(f"{design_path}: its plan digest does not match its own runs (was design.json edited?); "
