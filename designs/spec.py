@@ -55,6 +55,8 @@ MAX_RUNS = 1000
 MAX_STARTS = 1000
 MAX_LEVELS = 20
 MAX_CANDIDATES = 10_000
+#: runs x starts: each start exchanges every run, so this bounds the search's time (about 10 s at the limit).
+MAX_SEARCH = 100_000
 #: Numbers in a spec (levels, ranges, fixed values) are physical settings; larger magnitudes are refused
 #: so that coding and plan.csv cells stay exact and short.
 MAX_MAGNITUDE = 1e6
@@ -157,6 +159,12 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
         alpha=alpha,
         arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
     )
+
+
+def check_search_size(spec: StudySpec) -> None:
+    """DesignError when runs x starts (from the spec or the command line) exceeds MAX_SEARCH."""
+    if spec.runs * spec.starts > MAX_SEARCH:
+        raise DesignError(f"runs x starts = {spec.runs} x {spec.starts} exceeds {MAX_SEARCH:,}; ask for fewer runs or starts")
 
 
 def spec_to_toml(spec: StudySpec) -> str:

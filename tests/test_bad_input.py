@@ -106,6 +106,8 @@ CASES = [
     Case("snr negative", ("design", "--snr", "-1", "--study", "{tmp}/new"), "argument --snr: expected a finite number in (0, 100], got '-1'"),
     Case("runs far too many", ("design", "--runs", "100000", "--study", "{tmp}/new"),
          "argument --runs: expected a whole number from 1 to 1000, got '100000'"),
+    Case("runs times starts too large", ("design", "--runs", "1000", "--starts", "101", "--study", "{tmp}/new"),
+         "runs x starts = 1000 x 101 exceeds 100,000; ask for fewer runs or starts"),
     Case("starts zero", ("design", "--starts", "0", "--study", "{tmp}/new"), "argument --starts: expected a whole number from 1 to 1000, got '0'"),
     Case("runs too few from the spec", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "runs = 2 is too few: the model has p = 3 parameters", spec('[study]\nruns = 2\n\n' + SPEED.replace("Speed", "A") + SPEED.replace("Speed", "B"))),
