@@ -127,7 +127,7 @@ class StudyRun:
         rows that play a log (all of them with `from_log`) may have factors the simulator does not know.
 
         Raises:
-            StudyError: no plan, `--blind` on an open study, or a row it cannot run.
+            StudyError: no plan, `--blind` on an open study, a row it cannot run, or a damaged outcomes.csv.
         """
         design = folder.read_design()
         blinding = design.get("blinding")
@@ -143,6 +143,7 @@ class StudyRun:
             if level is not None and level not in arms:
                 kind = "arm" if blinding else "controller"
                 raise StudyError(f"{where}: {CONTROLLER} {level!r} is not a known {kind} ({', '.join(arms)})")
+        read_outcomes(folder.path(OUTCOMES), bool(blinding))  # a damaged file is refused before the lock is written
         seed = design.get("seed")
         if not isinstance(seed, int):
             raise StudyError(f"{folder.path(DESIGN)}: no integer study seed to derive the run seeds from")
