@@ -12,9 +12,7 @@ sealed/superseded/<UTC time>/), never deleted.
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import json
 import shutil
 from collections.abc import Iterable, Mapping, Sequence
@@ -27,7 +25,7 @@ from designs import export
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
 from designs.spec import LOG_COLUMN
-from trials.csv_table import table_text
+from trials.csv_table import read_rows, table_text
 from trials.errors import StudyError
 
 SPEC = "study.toml"
@@ -75,10 +73,9 @@ def plan_content(header: Sequence[str], rows: Iterable[Sequence[str]]) -> bytes:
 
 
 def plan_digest(header: Sequence[str], rows: Iterable[Sequence[str]]) -> dict[str, str]:
-    """design.json's `plan` field: the SHA-256 of plan.csv's design columns as `trials design` writes them.
-
-    Cells, not bytes, are hashed, so a plan re-saved with a byte order mark, CRLF line ends or
-    padded cells still matches; any changed setting, code, row or column does not.
+    """design.json's `plan` field: the SHA-256 of plan.csv's design columns written out as `trials design`
+    writes them. The file's cells are hashed this way, not its bytes, so a re-save that keeps every
+    cell (a byte order mark, CRLF line ends, padding) still matches; any changed cell, row or column does not.
     """
     return {"file": PLAN, "sha256": hashlib.sha256(plan_content(header, rows)).hexdigest()}
 
@@ -140,7 +137,7 @@ class StudyFolder:
         """plan.csv as one dict per run, in run order, checked against design.json (`check_plan`)."""
         design = self.read_design()
         path = self.path(PLAN)
-        header, rows = read_csv_rows(path)
+        header, rows = read_rows(path, same_width=True)
         check_plan(path, header, rows, design, self.path(DESIGN))
         return [dict(zip(header, cells)) for _, cells in rows]
 
@@ -175,42 +172,6 @@ class StudyFolder:
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.move(str(self.path(name)), str(target))
         return self.path(SUPERSEDED) / stamp if public else None
-
-
-def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """A comma-separated UTF-8 file's header and its (line number, cells) rows, cells stripped.
-
-    A byte order mark and CRLF line ends (spreadsheet re-saves) are read; blank lines are skipped.
-
-    Raises:
-        StudyError: binary or non-UTF-8 content, `;` separators, no header, or a row whose
-            number of cells differs from the header's, naming the file and line.
-    """
-    data = path.read_bytes()
-    nul = data.find(b"\x00")
-    if nul >= 0:
-        raise StudyError(f"{path} holds binary data (a NUL byte at byte {nul}), not CSV text")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise StudyError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start}); save it as UTF-8 CSV") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
-    rows: list[tuple[int, list[str]]] = []
-    try:
-        for cells in reader:
-            if any(c.strip() for c in cells):
-                rows.append((reader.line_num, [c.strip() for c in cells]))
-    except csv.Error as exc:
-        raise StudyError(f"{path} line {reader.line_num}: {exc}") from None
-    if not rows:
-        raise StudyError(f"{path} is empty: it has no header line")
-    (_, header), body = rows[0], rows[1:]
-    if len(header) == 1 and ";" in header[0]:
-        raise StudyError(f"{path} is separated by ';', not ',' (a spreadsheet's re-save?); save it as comma-separated CSV")
-    for line, cells in body:
-        if len(cells) != len(header):
-            raise StudyError(f"{path} line {line}: {len(cells)} cells, but the header has {len(header)} ({','.join(header)})")
-    return header, body
 
 
 def check_plan(path: Path, header: list[str], rows: list[tuple[int, list[str]]], design: dict[str, Any], design_path: Path) -> None:
