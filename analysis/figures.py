@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import io
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -23,13 +26,23 @@ def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str
             axes.text(j, i, f"{abs(value):.2f}", ha="center", va="center", fontsize=6, color="white" if abs(value) > 0.6 else "black")
     figure.colorbar(image, ax=axes, label="|correlation|")
     axes.set_title(title)
-    figure.tight_layout()
+    with _quiet_glyphs():
+        figure.tight_layout()
     return _png(figure)
+
+
+@contextmanager
+def _quiet_glyphs() -> Iterator[None]:
+    """A name in a script the font lacks draws as boxes, without matplotlib's warning per missing glyph."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from")
+        yield
 
 
 def _png(figure: Figure) -> bytes:
     buffer = io.BytesIO()
-    FigureCanvasAgg(figure).print_png(buffer)
+    with _quiet_glyphs():
+        FigureCanvasAgg(figure).print_png(buffer)
     return buffer.getvalue()
 
 

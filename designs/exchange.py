@@ -82,7 +82,7 @@ def candidate_set(model: Model) -> np.ndarray:
 def check_runs(model: Model, runs: int) -> None:
     """Raise DesignError when `runs` cannot estimate the model's p parameters."""
     if runs < model.p:
-        raise DesignError(f"--runs {runs} is too few: the model has p = {model.p} parameters, so it needs at least {model.p} runs")
+        raise DesignError(f"runs = {runs} is too few: the model has p = {model.p} parameters, so it needs at least {model.p} runs")
 
 
 def d_optimal(model: Model, runs: int, *, seed: int, starts: int = 100) -> ExactDesign:

@@ -10,20 +10,49 @@ from typing import Any
 
 import numpy as np
 
+from designs.errors import DesignError
 from designs.exchange import candidate_set
-from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, plain
+from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
-from designs.spec import factor_table
+from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
 
 FORMAT = "navtrials.design/1"
-PLAN_COLUMNS = ("order", "run_code")
 
 
 def plan_table(plan: StudyPlan) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the public run sheet, in run order."""
-    header = [*PLAN_COLUMNS, *(f.name for f in plan.spec.factors)]
-    rows = [[str(run.order), run.code, *(_cell(run.values[f.name]) for f in plan.spec.factors)] for run in plan.runs]
-    return header, rows
+    return _table(plan.spec.factors, [(run.order, run.code, run.values) for run in plan.runs])
+
+
+def plan_from_record(record: dict[str, Any], source: str) -> tuple[list[str], list[list[str]]]:
+    """The run sheet a design.json record describes: its factors decoded from each run's settings.
+
+    plan.csv must equal it cell for cell, so a hand edit of the plan is found even in a design.json
+    written before it recorded the plan's digest.
+
+    Raises:
+        DesignError: the record's factors or runs are not those of a design this module wrote.
+    """
+    try:
+        factors = tuple(factor_from_table({k: v for k, v in raw.items() if k != "coding"}, f"{source}: factors[{i}]")
+                        for i, raw in enumerate(record["factors"]))
+        design_factors = [f for f in factors if not isinstance(f, FixedFactor)]
+        runs = []
+        for run in record["design"]:
+            settings = run["settings"]
+            if len(settings) != len(design_factors):
+                raise DesignError(f"{source}: run {run['run_code']} has {len(settings)} settings for {len(design_factors)} factors")
+            values: dict[str, float | str] = {f.name: f.value for f in factors if isinstance(f, FixedFactor)}
+            values.update({f.name: f.decode(s) for f, s in zip(design_factors, settings)})
+            runs.append((int(run["order"]), str(run["run_code"]), values))
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise DesignError(f"{source}: its factors or runs are damaged ({type(exc).__name__}: {exc})") from None
+    return _table(factors, runs)
+
+
+def _table(factors: tuple[Factor, ...], runs: list[tuple[int, str, dict[str, float | str]]]) -> tuple[list[str], list[list[str]]]:
+    header = [*PLAN_COLUMNS, *(f.name for f in factors)]
+    return header, [[str(order), code, *(_cell(values[f.name]) for f in factors)] for order, code, values in runs]
 
 
 def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:

@@ -13,7 +13,7 @@ from designs.bound import ApproximateDesign, solve_in_background
 from designs.diagnostics import Diagnostics, diagnose
 from designs.exchange import ExactDesign, candidate_set, check_runs, d_optimal
 from designs.model import Model, parse_model
-from designs.spec import StudySpec
+from designs.spec import StudySpec, check_search_size
 
 #: Run-code alphabet: capitals and digits without the look-alikes 0/O, 1/I/L, 2/Z, 5/S, 8/B.
 CODE_ALPHABET = "ACDEFGHJKMNPQRTUVWXY34679"
@@ -71,6 +71,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
     if blind is not None:
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
+    check_search_size(spec)
     model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
     check_runs(model, spec.runs)
     bound_job = solve_in_background(model.matrix(candidate_set(model)))

@@ -21,6 +21,7 @@ live only in the sealed allocation.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, replace
 from numbers import Real
@@ -43,6 +44,23 @@ from designs.factors import (
 
 FACTOR_TYPES = ("continuous", "discrete", "categorical", "fixed")
 DEFAULT_STARTS = 100
+#: The columns plan.csv holds before the factors, and the column in which a plan may name a robot log
+#: (`trials.log_trial`); no factor may take these names.
+PLAN_COLUMNS = ("order", "run_code")
+LOG_COLUMN = "Log"
+RESERVED_NAMES = (*PLAN_COLUMNS, LOG_COLUMN)
+#: Sizes a spec may ask for: the exchange's time grows with runs x starts x candidate points, and
+#: beyond these a study takes minutes to design and is almost surely a typing slip.
+MAX_RUNS = 1000
+MAX_STARTS = 1000
+MAX_LEVELS = 20
+MAX_CANDIDATES = 10_000
+#: runs x starts: each start exchanges every run, so this bounds the search's time (about 10 s at the limit).
+MAX_SEARCH = 100_000
+#: Numbers in a spec (levels, ranges, fixed values) are physical settings; larger magnitudes are refused
+#: so that coding and plan.csv cells stay exact and short.
+MAX_MAGNITUDE = 1e6
+MAX_SNR = 100.0
 
 
 @dataclass(frozen=True)
@@ -88,6 +106,8 @@ def read_spec(path: Path) -> StudySpec:
         raise DesignError(f"no study spec at {path}") from None
     except UnicodeDecodeError as exc:
         raise DesignError(f"malformed {path.name}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise DesignError(f"cannot read the study spec {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"malformed {path.name}: {exc}") from None
     return spec_from_dict(data, source=path.name)
@@ -102,7 +122,7 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")
-    factors = tuple(_factor(raw, f"{source}: factors[{i}]") for i, raw in enumerate(raw_factors))
+    factors = tuple(factor_from_table(raw, f"{source}: factors[{i}]") for i, raw in enumerate(raw_factors))
     names = [f.name for f in factors]
     for name in names:
         if names.count(name) > 1:
@@ -112,19 +132,39 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
         raise DesignError(f"{source}: only one factor can be blind, got {[f.name for f in blind]}")
     if not any(not isinstance(f, FixedFactor) for f in factors):
         raise DesignError(f"{source}: every factor is fixed; a design needs at least one varying factor")
+    candidates = math.prod(len(f.candidate_settings) for f in factors if not isinstance(f, FixedFactor))
+    if candidates > MAX_CANDIDATES:
+        raise DesignError(f"{source}: the factors span {candidates} candidate points; at most {MAX_CANDIDATES} "
+                          "(fewer factors or levels)")
     allowed = {"name", "runs", "model", "seed", "starts", "snr", "alpha"}
-    _no_unknown_keys(study, allowed, f"{source}: [study]")
+    where = f"{source}: [study]"
+    _no_unknown_keys(study, allowed, where)
+    name = _string(study, "name", where, default="study")
+    if not name.isprintable():
+        raise DesignError(f"{where}: name must be one line of printable text, got {name!r}")
+    snr = _number(study, "snr", where, default=1.0)
+    if not 0 < snr <= MAX_SNR:
+        raise DesignError(f"{where}: snr must be a number above 0 and at most {MAX_SNR:g}, got {snr:g}")
+    alpha = _number(study, "alpha", where, default=0.05)
+    if not 0 < alpha < 1:
+        raise DesignError(f"{where}: alpha must be a number between 0 and 1, got {alpha:g}")
     return StudySpec(
-        name=_string(study, "name", f"{source}: [study]", default="study"),
+        name=name,
         factors=factors,
-        model=_string(study, "model", f"{source}: [study]", default="main"),
-        runs=_integer(study, "runs", f"{source}: [study]", minimum=1),
-        seed=_integer(study, "seed", f"{source}: [study]", minimum=0, required=False),
-        starts=_integer(study, "starts", f"{source}: [study]", minimum=1, required=False) or DEFAULT_STARTS,
-        snr=_number(study, "snr", f"{source}: [study]", default=1.0),
-        alpha=_number(study, "alpha", f"{source}: [study]", default=0.05),
+        model=_string(study, "model", where, default="main"),
+        runs=_integer(study, "runs", where, minimum=1, maximum=MAX_RUNS),
+        seed=_integer(study, "seed", where, minimum=0, maximum=2**63 - 1, required=False),
+        starts=_integer(study, "starts", where, minimum=1, maximum=MAX_STARTS, required=False) or DEFAULT_STARTS,
+        snr=snr,
+        alpha=alpha,
         arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
     )
+
+
+def check_search_size(spec: StudySpec) -> None:
+    """DesignError when runs x starts (from the spec or the command line) exceeds MAX_SEARCH."""
+    if spec.runs * spec.starts > MAX_SEARCH:
+        raise DesignError(f"runs x starts = {spec.runs} x {spec.starts} exceeds {MAX_SEARCH:,}; ask for fewer runs or starts")
 
 
 def spec_to_toml(spec: StudySpec) -> str:
@@ -152,13 +192,17 @@ def factor_table(factor: Factor) -> dict[str, Any]:
     return table
 
 
-def _factor(raw: Any, where: str) -> Factor:
+def factor_from_table(raw: Any, where: str) -> Factor:
+    """One [[factors]] table as its factor, validated; DesignError names `where`."""
     if not isinstance(raw, dict):
         raise DesignError(f"{where}: expected a table with name and type")
     name = _string(raw, "name", where)
     where = f"{where} ({name})"
-    if not name.isidentifier():
-        raise DesignError(f"{where}: factor names must be letters, digits and _ (no spaces), got {name!r}")
+    if not (name.isascii() and name.isidentifier()):
+        raise DesignError(f"{where}: factor names must be ASCII letters, digits and _ (no spaces), got {name!r}")
+    if name.casefold() in {n.casefold() for n in RESERVED_NAMES}:
+        raise DesignError(f"{where}: {name!r} is a plan.csv column of its own; a factor cannot be named "
+                          f"{', '.join(RESERVED_NAMES)}")
     kind = _string(raw, "type", where)
     if kind not in FACTOR_TYPES:
         raise DesignError(f"{where}: unknown factor type {kind!r} (expected {', '.join(FACTOR_TYPES)})")
@@ -174,7 +218,7 @@ def _factor(raw: Any, where: str) -> Factor:
         for level in levels:
             if not isinstance(level, Real) or isinstance(level, bool):
                 raise DesignError(f"{where}: level {level!r} is not a number; a discrete numeric factor needs numeric levels")
-        factor = DiscreteFactor(name, tuple(float(v) for v in levels), units)
+        factor = DiscreteFactor(name, tuple(_finite(float(v), "level", where) for v in levels), units)
     elif kind == "categorical":
         _no_unknown_keys(raw, common | {"levels", "blind", "arms"}, where)
         blind = raw.get("blind", False)
@@ -184,7 +228,13 @@ def _factor(raw: Any, where: str) -> Factor:
         if key == "arms" and not blind:
             raise DesignError(f"{where}: arms are only for a blind factor; use levels")
         levels = _levels(raw, where, key)
-        factor = CategoricalFactor(name, tuple(str(v) for v in levels), blind)
+        for level in levels:
+            if not isinstance(level, str):
+                raise DesignError(f"{where}: level {level!r} is not a string; a categorical factor's levels are names "
+                                  "(quote numbers: \"2\")")
+            if not level.isprintable():
+                raise DesignError(f"{where}: level {level!r} must be one line of printable text")
+        factor = CategoricalFactor(name, tuple(levels), blind)
     else:
         _no_unknown_keys(raw, common | {"value"}, where)
         if "value" not in raw:
@@ -192,7 +242,9 @@ def _factor(raw: Any, where: str) -> Factor:
         value = raw["value"]
         if isinstance(value, bool) or not isinstance(value, (Real, str)):
             raise DesignError(f"{where}: value must be a number or a string, got {value!r}")
-        factor = FixedFactor(name, float(value) if isinstance(value, Real) else value, units)
+        if isinstance(value, str) and not value.isprintable():
+            raise DesignError(f"{where}: value {value!r} must be one line of printable text")
+        factor = FixedFactor(name, _finite(float(value), "value", where) if isinstance(value, Real) else value, units)
     validate_factor(factor, where)
     return factor
 
@@ -214,6 +266,8 @@ def _levels(raw: dict[str, Any], where: str, key: str = "levels") -> list[Any]:
     levels = raw.get(key)
     if not isinstance(levels, list):
         raise DesignError(f"{where}: {key} must be a list, got {levels!r}")
+    if len(levels) > MAX_LEVELS:
+        raise DesignError(f"{where}: {len(levels)} {key}; at most {MAX_LEVELS}")
     return levels
 
 
@@ -228,13 +282,20 @@ def _number(raw: dict[str, Any], key: str, where: str, default: float | None = N
     value = raw.get(key, default)
     if isinstance(value, bool) or not isinstance(value, Real):
         raise DesignError(f"{where}: {key} must be a number, got {value!r}")
-    return float(value)
+    return _finite(float(value), key, where)
 
 
-def _integer(raw: dict[str, Any], key: str, where: str, minimum: int, required: bool = True) -> int | None:
+def _finite(value: float, key: str, where: str) -> float:
+    """A spec's number, refused when it is inf, nan or beyond MAX_MAGNITUDE."""
+    if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+        raise DesignError(f"{where}: {key} must be a finite number of magnitude at most {MAX_MAGNITUDE:g}, got {value!r}")
+    return value
+
+
+def _integer(raw: dict[str, Any], key: str, where: str, minimum: int, maximum: int, required: bool = True) -> int | None:
     value = raw.get(key)
     if value is None and not required:
         return None
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise DesignError(f"{where}: {key} must be an integer >= {minimum}, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or not minimum <= value <= maximum:
+        raise DesignError(f"{where}: {key} must be a whole number from {minimum} to {maximum}, got {value!r}")
     return value

@@ -10,6 +10,7 @@ training drops it, which keeps shipped files small.
 from __future__ import annotations
 
 import os
+import re
 import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -114,7 +115,13 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoi
     try:
         record = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # torch raises many types for a corrupt or foreign file
-        raise NaviganError(f"{path} is not a readable checkpoint: {exc}") from exc
+        # torch wraps what its safe unpickler stopped at in a paragraph on unsafe loading; keep only that.
+        unpickler = re.search(r"WeightsUnpickler error:\s*([^\n]+?)(\.\s|\n|$)", str(exc))
+        if unpickler:
+            reason = f"a weights-only load stops at: {unpickler.group(1)}"
+        else:
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise NaviganError(f"{path} is not a readable checkpoint: {reason}") from None
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise NaviganError(f"{path} is not a {FORMAT} file")
     try:

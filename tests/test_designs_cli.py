@@ -189,7 +189,7 @@ def test_malformed_toml_names_the_line(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--runs", "4"], "--runs 4 is too few: the model has p = 5 parameters, so it needs at least 5 runs"),
+        (["--runs", "4"], "runs = 4 is too few: the model has p = 5 parameters, so it needs at least 5 runs"),
         (["--runs", "10", "--ab"], "needs at least 11 runs"),
         (["--model", "Pedestrians + Speed"], "unknown term 'Speed'"),
         (["--model", "Direction^2"], "needs a numeric factor with at least 3 levels"),
@@ -209,5 +209,5 @@ def test_console_command_help_and_usage_errors():
     assert "design" in help_text
     bad = subprocess.run([sys.executable, "-m", "trials.cli", "design", "--runs", "many"], capture_output=True, text=True)
     assert bad.returncode == 2
-    assert bad.stderr.startswith("error: argument --runs: invalid int value") and bad.stderr.count("\n") == 1
+    assert bad.stderr.startswith("error: argument --runs: expected a whole number from 1 to 1000, got 'many'") and bad.stderr.count("\n") == 1
     assert "Traceback" not in bad.stderr

@@ -136,7 +136,7 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
         (["--models", "human", "--subgoal-speed", "-1"],
          "--subgoal-speed: expected 'recorded' or a speed >= 0 in m/s, got '-1'"),
         (["--models", "human", "--subgoal-speed", "fast"], "--subgoal-speed: expected 'recorded'"),
-        (["--models", "human", "--shield", "0"], "--shield: expected a positive distance in m, got 0"),
+        (["--models", "human", "--shield", "0"], "argument --shield: expected a finite number in (0, 10], got '0'"),
     ],
 )
 def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):

@@ -1,10 +1,40 @@
-"""All-or-nothing file writes: stage every file under a temporary name, then rename."""
+"""All-or-nothing file writes: stage every file under a temporary name, then rename; a write that
+fails (a full disk, no permission) is a one-line error naming the file."""
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+from trials.errors import DiskFullError, StudyError
+
+#: errno values that mean the file system has no room left (for anyone, or for this user).
+NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+
+
+@contextmanager
+def no_space(path: Path) -> Iterator[None]:
+    """Turn running out of space while writing `path` into a DiskFullError naming it."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno in NO_SPACE:
+            raise DiskFullError(f"no space left on the device to write {path}; free some and run the command again") from None
+        raise
+
+
+@contextmanager
+def writing(path: Path) -> Iterator[None]:
+    """Turn an OSError while writing `path` into an error naming it: DiskFullError when there is no space."""
+    try:
+        with no_space(path):
+            yield
+    except OSError as exc:
+        raise StudyError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def write_files(files: dict[Path, bytes]) -> None:
@@ -17,15 +47,17 @@ def write_files(files: dict[Path, bytes]) -> None:
     staged: list[tuple[Path, Path]] = []
     try:
         for target, content in files.items():
-            target.parent.mkdir(parents=True, exist_ok=True)
             temporary = target.with_name(f".{target.name}.{secrets.token_hex(4)}.tmp")
-            staged.append((temporary, target))
-            with temporary.open("xb") as handle:
-                handle.write(content)
-                handle.flush()
-                os.fsync(handle.fileno())
+            with writing(target):
+                target.parent.mkdir(parents=True, exist_ok=True)
+                staged.append((temporary, target))
+                with temporary.open("xb") as handle:
+                    handle.write(content)
+                    handle.flush()
+                    os.fsync(handle.fileno())
         for temporary, target in staged:
-            os.replace(temporary, target)
+            with writing(target):
+                os.replace(temporary, target)
     finally:
         for temporary, _ in staged:
             temporary.unlink(missing_ok=True)

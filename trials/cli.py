@@ -41,11 +41,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `trials` command; returns the process exit code."""
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, or a usage error already printed as one line
+        return int(exc.code or 0)
     try:
         return int(args.handler(args) or 0)
     except USER_ERRORS as exc:
-        sys.stderr.write(f"error: {exc}\n")
+        # One line, always: a name or value holding a line break is shown escaped.
+        message = str(exc).replace("\r", "\\r").replace("\n", "\\n")
+        sys.stderr.write(f"error: {message}\n")
         return EXIT_USAGE
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: finished work is kept; run the command again to continue\n")

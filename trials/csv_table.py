@@ -11,6 +11,7 @@ import csv
 import io
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, fields
+from datetime import datetime
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -36,6 +37,20 @@ def cell(value: Any) -> str:
     return str(value)
 
 
+def utc_cell(cell: str) -> str:
+    """A recorded_utc cell: empty, or an ISO 8601 time with its UTC offset (it orders judgments
+    against the unblinding); ValueError otherwise."""
+    if not cell:
+        return cell
+    try:
+        when = datetime.fromisoformat(cell)
+    except ValueError:
+        raise ValueError(f"recorded_utc must be an ISO 8601 time such as 2026-05-01T14:03:00+00:00, got {cell!r}") from None
+    if when.tzinfo is None:
+        raise ValueError(f"recorded_utc must give its UTC offset (e.g. +00:00), got {cell!r}")
+    return cell
+
+
 def record_cells(record: Any) -> dict[str, str]:
     """A record's fields as cells, by column name."""
     return {f.name: cell(getattr(record, f.name)) for f in fields(record)}
@@ -55,20 +70,54 @@ class Table:
     rows: list[tuple[int, dict[str, str]]]
 
 
-def read_table(path: Path, required: Sequence[str]) -> Table:
-    """A CSV file with a header (an empty table when there is no file); StudyError when a required column is missing."""
+def read_rows(path: Path, same_width: bool) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """A comma-separated UTF-8 file's header and its (line number, cells) rows, cells stripped.
+
+    A byte order mark and CRLF line ends (spreadsheet re-saves) are read; blank lines are skipped.
+
+    Raises:
+        FileNotFoundError: no file.
+        StudyError: binary or non-UTF-8 content, `;` separators, no header, or (with `same_width`)
+            a row whose number of cells differs from the header's, naming the file and line.
+    """
+    data = path.read_bytes()
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise StudyError(f"{path} holds binary data (a NUL byte at byte {nul}), not CSV text")
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start}); save it as UTF-8 CSV") from None
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        for cells in reader:
+            if any(c.strip() for c in cells):
+                rows.append((reader.line_num, [c.strip() for c in cells]))
+    except csv.Error as exc:
+        raise StudyError(f"{path} line {reader.line_num}: {exc}") from None
+    if not rows:
+        raise StudyError(f"{path} is empty: it has no header line")
+    (_, header), body = rows[0], rows[1:]
+    if len(header) == 1 and ";" in header[0]:
+        raise StudyError(f"{path} is separated by ';', not ',' (a spreadsheet's re-save?); save it as comma-separated CSV")
+    for line, cells in body:
+        if same_width and len(cells) != len(header):
+            raise StudyError(f"{path} line {line}: {len(cells)} cells, but the header has {len(header)} ({','.join(header)})")
+    return header, body
+
+
+def read_table(path: Path, required: Sequence[str]) -> Table:
+    """A CSV file with a header (an empty table when there is no file); StudyError when a required column
+    is missing. A short row's missing cells read as empty, and cells beyond the header are ignored."""
+    try:
+        header, rows = read_rows(path, same_width=False)
     except FileNotFoundError:
         return Table((), [])
-    except UnicodeDecodeError as exc:
-        raise StudyError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    reader = csv.DictReader(io.StringIO(text))
-    header = tuple(reader.fieldnames or ())
     missing = [c for c in required if c not in header]
     if missing:
         raise StudyError(f"{path}: missing column(s) {', '.join(missing)} (expected {', '.join(required)})")
-    return Table(header, [(reader.line_num, {k: (v or "").strip() for k, v in row.items() if k is not None}) for row in reader])
+    return Table(tuple(header), [(line, {name: cells[i] if i < len(cells) else "" for i, name in enumerate(header)}) for line, cells in rows])
 
 
 def parse_rows(path: Path, table: Table, parse: Callable[[dict[str, str]], Row]) -> list[Row]:

@@ -20,6 +20,7 @@ from trials.study import (
     StudyFolder,
     json_content,
     plan_content,
+    plan_digest,
     utc_now,
 )
 
@@ -34,10 +35,12 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     d = plan.diagnostics
     # The figure first: it does not need the cvxpy bound, which may still be solving.
     figure = correlation_map_png(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns")
+    table = plan_table(plan)
+    record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
     public = {
         folder.path(SPEC): spec_to_toml(plan.spec).encode(),
-        folder.path(PLAN): plan_content(*plan_table(plan)),
-        folder.path(DESIGN): json_content(design_record(plan, created, ALLOCATION)),
+        folder.path(PLAN): plan_content(*table),
+        folder.path(DESIGN): json_content(record),
         folder.path(CORRELATION_MAP): figure,
     }
     secret: dict[Path, bytes] = {}

@@ -11,6 +11,10 @@ class StudyError(ValueError):
     """A study folder or command request that cannot be served; the message says what and where."""
 
 
+class DiskFullError(StudyError):
+    """A file could not be written for want of space; every later write would fail too, so work stops."""
+
+
 #: Exception types that mean "the user asked for something wrong", never a bug: the CLI prints them
 #: as one `error:` line with exit code 2, and `trials run` reports them from its workers without a traceback.
 USER_ERRORS: tuple[type[Exception], ...] = (DesignError, StudyError, LogError, NaviganError, AnalysisError, LatticeError)

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from analysis.records import RunMetrics
+from designs.spec import LOG_COLUMN
 from robot_logs.convert import to_odometry
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import LogTracking, result_rows
@@ -40,8 +41,6 @@ from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
 from trials.sim.follower import WaypointFollower
 from trials.sim.robot import RobotLimits, RobotState, footprint_gaps
 
-#: The plan column that names a row's log (a path, relative to the study folder).
-LOG_COLUMN = "Log"
 #: Seconds of log the controller must have seen before its first plan: 8 samples 0.4 s apart.
 OBSERVATION_S = (T_OBS - 1) * STEP_S
 #: The default goal lies this far ahead of the robot's first pose, as in the simulated scenes.

@@ -13,6 +13,7 @@ from trials.csv_table import (
     read_table,
     record_columns,
     record_row,
+    utc_cell,
 )
 from trials.study import RESPONSES, StudyFolder
 
@@ -51,4 +52,4 @@ def _response(row: dict[str, str]) -> Response:
         parsed_seed = int(seed) if seed else None
     except ValueError:
         raise ValueError(f"seed must be an integer, got {seed!r}") from None
-    return Response(row["run_code"], row["participant"], parse_answer(row["compliant"]), source, row.get("recorded_utc", ""), parsed_seed)
+    return Response(row["run_code"], row["participant"], parse_answer(row["compliant"]), source, utc_cell(row.get("recorded_utc", "")), parsed_seed)

@@ -11,7 +11,9 @@ Order of writes for one run, so an interruption anywhere loses and duplicates no
 is written under a hidden partial name; the sealed record (blinded studies) is written; the MCAP is
 renamed into place; the outcome row is appended (outcomes.csv rewritten through a temporary
 name). A run without a row is pending and runs again (with the same seed); partial files of
-interrupted runs are deleted when the next `trials run` starts.
+interrupted runs are deleted when the next `trials run` starts. A full disk (`DiskFullError`, in
+the parent or a worker) stops the command at its first failed write, since every later run would
+fail alike; the partial files are deleted as it stops.
 """
 
 from __future__ import annotations
@@ -30,10 +32,10 @@ from typing import Any
 import numpy as np
 
 from analysis.records import Outcome, RunMetrics
-from trials.atomic import write_files, write_text
+from trials.atomic import no_space, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
-from trials.errors import USER_ERRORS, StudyError
+from trials.errors import USER_ERRORS, DiskFullError, StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
 from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
@@ -125,7 +127,7 @@ class StudyRun:
         rows that play a log (all of them with `from_log`) may have factors the simulator does not know.
 
         Raises:
-            StudyError: no plan, `--blind` on an open study, or a row it cannot run.
+            StudyError: no plan, `--blind` on an open study, a row it cannot run, or a damaged outcomes.csv.
         """
         design = folder.read_design()
         blinding = design.get("blinding")
@@ -141,6 +143,7 @@ class StudyRun:
             if level is not None and level not in arms:
                 kind = "arm" if blinding else "controller"
                 raise StudyError(f"{where}: {CONTROLLER} {level!r} is not a known {kind} ({', '.join(arms)})")
+        read_outcomes(folder.path(OUTCOMES), bool(blinding))  # a damaged file is refused before the lock is written
         seed = design.get("seed")
         if not isinstance(seed, int):
             raise StudyError(f"{folder.path(DESIGN)}: no integer study seed to derive the run seeds from")
@@ -258,6 +261,8 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                     summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
                 on_start(len(todo))
                 for code, answer in _answers(pool, ((task.code, task) for task in tasks)):
+                    if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:
+                        raise DiskFullError(answer.message)  # every later run would fail alike: stop now
                     if isinstance(answer, Failure):
                         message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
                         summary.failed.append((code, message))
@@ -329,7 +334,10 @@ class TrialWorker:
         """Run one row. In a blinded study a failure's details go to the sealed part (a traceback
         names the controller's modules); the error says only where they are."""
         try:
-            return self._run(task)
+            with no_space(self.folder.run_log(task.code)):
+                return self._run(task)
+        except DiskFullError:
+            raise
         except Exception:
             if not self.blind:
                 raise

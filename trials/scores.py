@@ -13,6 +13,7 @@ from trials.csv_table import (
     read_table,
     record_columns,
     record_row,
+    utc_cell,
 )
 from trials.study import SCORES, StudyFolder
 
@@ -40,4 +41,4 @@ def append_scores(folder: StudyFolder, scores: Sequence[HumanScore]) -> None:
 
 
 def _score(row: dict[str, str]) -> HumanScore:
-    return HumanScore(row["run_code"], parse_score(row["score"]), row.get("scorer", ""), row.get("note", ""), row.get("recorded_utc", ""))
+    return HumanScore(row["run_code"], parse_score(row["score"]), row.get("scorer", ""), row.get("note", ""), utc_cell(row.get("recorded_utc", "")))

@@ -12,7 +12,7 @@ sealed/superseded/<UTC time>/), never deleted.
 
 from __future__ import annotations
 
-import csv
+import hashlib
 import json
 import shutil
 from collections.abc import Iterable, Mapping, Sequence
@@ -21,9 +21,11 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from designs import export
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
-from trials.csv_table import table_text
+from designs.spec import LOG_COLUMN
+from trials.csv_table import read_rows, table_text
 from trials.errors import StudyError
 
 SPEC = "study.toml"
@@ -70,6 +72,14 @@ def plan_content(header: Sequence[str], rows: Iterable[Sequence[str]]) -> bytes:
     return table_text(header, rows).encode()
 
 
+def plan_digest(header: Sequence[str], rows: Iterable[Sequence[str]]) -> dict[str, str]:
+    """design.json's `plan` field: the SHA-256 of plan.csv's design columns written out as `trials design`
+    writes them. The file's cells are hashed this way, not its bytes, so a re-save that keeps every
+    cell (a byte order mark, CRLF line ends, padding) still matches; any changed cell, row or column does not.
+    """
+    return {"file": PLAN, "sha256": hashlib.sha256(plan_content(header, rows)).hexdigest()}
+
+
 def json_content(record: Mapping[str, Any]) -> bytes:
     """design.json or the sealed key as `StudyFolder.read_design` and `read_sealed` read them back."""
     return (json.dumps(record, indent=1) + "\n").encode()
@@ -109,18 +119,27 @@ class StudyFolder:
             raise StudyError(f"no plan in {self.root.resolve()} ({PLAN} and {DESIGN}): run `trials design` first")
 
     def read_design(self) -> dict[str, Any]:
-        """design.json as a dict."""
+        """design.json as a dict, with the fields every reader relies on checked."""
         self.require_plan()
+        path = self.path(DESIGN)
         try:
-            return json.loads(self.path(DESIGN).read_text(encoding="utf-8"))
+            record = json.loads(path.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise StudyError(f"{self.path(DESIGN)} is damaged: {exc}") from None
+            raise StudyError(f"{path} is damaged: {exc}") from None
+        if not isinstance(record, dict) or record.get("format") != export.FORMAT:
+            raise StudyError(f"{path} is not a design record (its format field must be {export.FORMAT!r}); `trials design --force` makes a new plan")
+        for key, kind in (("seed", int), ("factors", list), ("design", list)):
+            if not isinstance(record.get(key), kind) or isinstance(record.get(key), bool):
+                raise StudyError(f"{path}: field {key!r} is missing or not a {kind.__name__}; `trials design --force` makes a new plan")
+        return record
 
     def read_plan(self) -> list[dict[str, str]]:
-        """plan.csv as one dict per run, in run order."""
-        self.require_plan()
-        with self.path(PLAN).open(newline="", encoding="utf-8") as handle:
-            return list(csv.DictReader(handle))
+        """plan.csv as one dict per run, in run order, checked against design.json (`check_plan`)."""
+        design = self.read_design()
+        path = self.path(PLAN)
+        header, rows = read_rows(path, same_width=True)
+        check_plan(path, header, rows, design, self.path(DESIGN))
+        return [dict(zip(header, cells)) for _, cells in rows]
 
     def read_sealed(self) -> SealedAllocation:
         """The sealed key, checked against the commitment in design.json."""
@@ -153,3 +172,46 @@ class StudyFolder:
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.move(str(self.path(name)), str(target))
         return self.path(SUPERSEDED) / stamp if public else None
+
+
+def check_plan(path: Path, header: list[str], rows: list[tuple[int, list[str]]], design: dict[str, Any], design_path: Path) -> None:
+    """StudyError unless plan.csv holds exactly the runs design.json planned: the same columns (and an
+    optional `Log` column), the same run codes once each in the same order, the same settings, and,
+    where design.json records one, the same digest. `trials design --force` is the way to change a plan."""
+    try:
+        expected_header, expected_rows = export.plan_from_record(design, str(design_path))
+    except DesignError as exc:
+        raise StudyError(str(exc)) from None
+    remedy = "plan.csv must stay as `trials design` wrote it (`trials design --force` makes a new plan)"
+    for name in header:
+        if header.count(name) > 1:
+            raise StudyError(f"{path}: column {name!r} appears {header.count(name)} times")
+        if name not in expected_header and name != LOG_COLUMN:
+            raise StudyError(f"{path}: column {name!r} is not in the design (its columns are {','.join(expected_header)})")
+    missing = [name for name in expected_header if name not in header]
+    if missing:
+        raise StudyError(f"{path}: column {missing[0]!r} is missing (the design's columns are {','.join(expected_header)}); {remedy}")
+    planned = {cells[1]: cells for cells in expected_rows}
+    code_at = header.index("run_code")
+    seen: dict[str, int] = {}
+    for line, cells in rows:
+        code = cells[code_at]
+        if code in seen:
+            raise StudyError(f"{path} line {line}: run {code!r} appears again (first on line {seen[code]}); {remedy}")
+        seen[code] = line
+        if code not in planned:
+            raise StudyError(f"{path} line {line}: run {code!r} is not in the design's {len(planned)} runs; {remedy}")
+        for name, value in zip(expected_header, planned[code]):
+            cell = cells[header.index(name)]
+            if cell != value:
+                raise StudyError(f"{path} line {line} (run {code}): {name} is {cell!r}, but the design has {value!r}; {remedy}")
+    absent = [cells[1] for cells in expected_rows if cells[1] not in seen]
+    if absent:
+        raise StudyError(f"{path}: run {absent[0]} of the design is missing ({len(rows)} of {len(expected_rows)} rows); {remedy}")
+    for (line, cells), expected in zip(rows, expected_rows):
+        if cells[code_at] != expected[1]:
+            raise StudyError(f"{path} line {line}: run {cells[code_at]} is out of plan order (run {expected[1]} comes here); {remedy}")
+    recorded = design.get("plan")
+    if recorded is not None and recorded != plan_digest(expected_header, expected_rows):
+        raise StudyError(f"{design_path}: its plan digest does not match its own runs (was design.json edited?); "
+                         "`trials design --force` makes a new plan")

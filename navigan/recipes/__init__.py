@@ -14,6 +14,7 @@ The split, the output file, the device and the data folder belong to the command
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 import types
 from collections.abc import Callable
@@ -36,11 +37,11 @@ NOT_IN_TABLES = frozenset({"model", "split"})
 
 
 def _positive(value: float) -> bool:
-    return value > 0
+    return math.isfinite(value) and value > 0
 
 
 def _at_least_zero(value: float) -> bool:
-    return value >= 0
+    return math.isfinite(value) and value >= 0
 
 
 _WHOLE_POSITIVE = (_positive, "a positive whole number")

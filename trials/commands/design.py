@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
+from trials import option_types as types
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,14 +20,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--ab", action="store_true", help="the paper's blinded A/B plan (NaviGAN-R vs the lattice planner)")
-    source.add_argument("--spec", type=Path, metavar="FILE", help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
-    parser.add_argument("--runs", type=int, help="number of runs (presets: 27, or 18 with --ab)")
+    source.add_argument("--spec", type=types.input_file, metavar="FILE",
+                        help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
+    parser.add_argument("--runs", type=types.whole(1, MAX_RUNS), help=f"number of runs, at most {MAX_RUNS} (presets: 27, or 18 with --ab)")
     parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
-    parser.add_argument("--seed", type=int, help="seed of the design search, run order and run codes (default: drawn and recorded)")
-    parser.add_argument("--starts", type=int, help="random starts of the exchange algorithm (default 100)")
-    parser.add_argument("--snr", type=float, help="signal-to-noise ratio for the power table (default 1)")
-    parser.add_argument("--allocation-seed", type=int, help="seed of the blind allocation (default: a fresh secret one, sealed)")
-    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--seed", type=types.seed, help="seed of the design search, run order and run codes (default: drawn and recorded)")
+    parser.add_argument("--starts", type=types.whole(1, MAX_STARTS), help=f"random starts of the exchange algorithm (default 100, at most {MAX_STARTS})")
+    parser.add_argument("--snr", type=types.number(0, MAX_SNR, above=True), help="signal-to-noise ratio for the power table (default 1)")
+    parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
     parser.set_defaults(handler=run)
 

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from trials import option_types as types
+
 BASELINES = ("constant-velocity",)
 LABELS = {"goal-social-lstm": "Goal-Social-LSTM", "navil2": "NaviL2", "navigan": "NaviGAN", "navigan-r": "NaviGAN-R"}
 
@@ -24,11 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     what.add_argument("--checkpoint", metavar="FILE", help="a checkpoint file, or a shipped name such as navigan-r-eth")
     what.add_argument("--baseline", choices=BASELINES, help="a baseline instead of a checkpoint")
     parser.add_argument("--split", help="eth, hotel, univ, zara1 or zara2 (default: the checkpoint's own)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
+    parser.add_argument("--seed", type=types.seed, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
-    parser.add_argument("--json", type=Path, metavar="FILE",
+    parser.add_argument("--json", type=types.output_file, metavar="FILE",
                         help="where to write the result (default: NAME-SPLIT-eval.json here)")
     parser.set_defaults(handler=run)
 

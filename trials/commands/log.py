@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from trials import option_types as types
+
 if TYPE_CHECKING:
     from robot_logs.summary import LogSummary
 
@@ -60,8 +62,8 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     )
     _add_log_argument(parser)
     parser.add_argument("--frame", choices=("sensor", "odom"), default="sensor", help="track in the scan's own frame (default) or the odometry frame")
-    parser.add_argument("--out", type=Path, metavar="CSV", help="write the tracks here (default: standard output)")
-    parser.add_argument("--mcap", type=Path, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
+    parser.add_argument("--out", type=types.output_file, metavar="CSV", help="write the tracks here (default: standard output)")
+    parser.add_argument("--mcap", type=types.output_file, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
     parser.set_defaults(handler=track)

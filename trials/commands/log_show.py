@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from trials import option_types as types
+
 
 def register(group: argparse._SubParsersAction) -> None:
     parser = group.add_parser(
@@ -14,7 +16,7 @@ def register(group: argparse._SubParsersAction) -> None:
         "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it.",
     )
     parser.add_argument("run", metavar="RUN", help="a run code of the study, or the path of a run's .mcap")
-    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=show)
 
 

@@ -6,7 +6,13 @@ import argparse
 import math
 from pathlib import Path
 
+from trials import option_types as types
+from trials.option_types import MAX_THREADS
+
 SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
+#: Upper ends of the scoring options: beyond them a value is a typing slip.
+MAX_SPEED_M_S = 10.0
+MAX_SHIELD_M = 10.0
 ALL_MODELS = ("goal-social-lstm,navil2,navil2-dagger,navigan,navigan-dagger,navigan-r,navigan-r-dagger,"
               "navigan-r-shield,human")
 
@@ -27,31 +33,31 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"comma-separated columns (default: all, {ALL_MODELS})")
     parser.add_argument("--checkpoints", type=Path, metavar="DIR",
                         help="folder of MODEL-SPLIT.pt checkpoints (default: the shipped weights)")
-    parser.add_argument("--out", type=Path, default=Path("playback"), metavar="DIR",
+    parser.add_argument("--out", type=types.folder, default=Path("playback"), metavar="DIR",
                         help="where results go (default: ./playback)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
-    parser.add_argument("--gamma", type=float, default=0.9,
+    parser.add_argument("--gamma", type=types.number(0, 1, above=True), default=0.9,
                         help="discount factor of S, per second at the preferred speed (default 0.9)")
-    parser.add_argument("--v-pref", type=float, default=1.0,
+    parser.add_argument("--v-pref", type=types.number(0, MAX_SPEED_M_S, above=True), default=1.0,
                         help="preferred speed in S's discount, m/s (default 1.0)")
-    parser.add_argument("--collision", type=float, default=0.1,
+    parser.add_argument("--collision", type=types.number(0, 0.2, below=True), default=0.1,
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
     parser.add_argument("--subgoal-speed", default="recorded", metavar="recorded|M/S",
                         help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead toward the "
                              "goal at the recorded pedestrian's pace (default) or at M/S; 0: the goal itself, as the "
                              "paper describes")
-    parser.add_argument("--shield", type=float, default=0.5, metavar="M",
+    parser.add_argument("--shield", type=types.number(0, MAX_SHIELD_M, above=True), default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
                              "constant-velocity forecast over 1.6 s (default 0.5)")
     parser.add_argument("--paper", type=Path, metavar="FILE",
                         help="the paper's Table I values to print beside ours, as JSON {\"source\": text, "
                              "\"values\": {\"S\"|\"C\"|\"A\": {column: number or null}}} (default: the shipped "
                              "navigan/playback/paper_table1.json)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the fluctuation noise (default 0)")
-    parser.add_argument("--episodes", type=int, metavar="N",
+    parser.add_argument("--seed", type=types.seed, default=0, help="seed of the fluctuation noise (default 0)")
+    parser.add_argument("--episodes", type=types.whole(1), metavar="N",
                         help="only the first N episodes of each split (a quick look)")
-    parser.add_argument("--threads", type=int, default=1,
+    parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), default=1,
                         help="CPU threads for torch (default 1: small batches; more threads thrash on a busy machine)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run)
@@ -87,19 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.playback.metrics import Scoring
     from navigan.playback.paper import PAPER_FILE
 
-    if not 0 < args.gamma <= 1:
-        raise NaviganError(f"--gamma: expected a number in (0, 1], got {args.gamma:g}")
-    if not args.v_pref > 0:
-        raise NaviganError(f"--v-pref: expected a positive speed, got {args.v_pref:g}")
     speed = subgoal_speed(args.subgoal_speed)
-    if not (math.isfinite(args.shield) and args.shield > 0):
-        raise NaviganError(f"--shield: expected a positive distance in m, got {args.shield:g}")
-    if not 0 <= args.collision < 0.2:
-        raise NaviganError(f"--collision: expected a distance in [0, 0.2) m, got {args.collision:g}")
-    for name in ("episodes", "threads"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            raise NaviganError(f"--{name}: expected a positive whole number, got {value}")
     torch.set_num_threads(args.threads)
     splits = list(SPLITS) if args.split == "all" else [args.split]
     models = [m.strip() for m in args.models.split(",") if m.strip()]

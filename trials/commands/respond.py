@@ -6,6 +6,9 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from trials import option_types as types
+from trials.commands.run import MAX_PARTICIPANTS
+
 if TYPE_CHECKING:
     from trials.study import StudyFolder
 
@@ -28,9 +31,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     action.add_argument("--import", dest="import_file", type=Path, metavar="FILE",
                         help="add every row of a CSV with columns run_code, participant, compliant (and optionally source, recorded_utc, seed)")
     action.add_argument("--simulate", action="store_true", help="simulate judgments of every finished run that has none")
-    parser.add_argument("--participants", type=int, metavar="N", help="with --simulate: judgments per run (default: one per pedestrian of the run)")
-    parser.add_argument("--seed", type=int, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
-    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
+                        help="with --simulate: judgments per run (default: one per pedestrian of the run)")
+    parser.add_argument("--seed", type=types.seed, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=run)
 
 
@@ -104,10 +108,6 @@ def _simulate(folder: StudyFolder, finished: list[str], participants: int | None
     from trials.simulated_participants import simulate_runs
     from trials.study import OUTCOMES, RESPONSES
 
-    if participants is not None and participants < 1:
-        raise StudyError(f"--participants must be at least 1, got {participants}")
-    if seed is not None and seed < 0:
-        raise StudyError(f"--seed must be >= 0, got {seed}")
     if not finished:
         raise StudyError(f"no finished runs in {OUTCOMES} to simulate judgments of: run `trials run` first")
     seed = secrets.randbits(31) if seed is None else seed

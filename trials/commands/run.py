@@ -4,7 +4,19 @@ logs open loop (`--from-log`, or a plan `Log` column), logging each to MCAP."""
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
+
+from robot_logs.physical import STEP_S
+from trials import option_types as types
+
+#: Upper ends of the options' ranges: beyond them a value is a typing slip, not a study.
+MAX_WORKERS = 256
+MAX_NOISE_M = 10.0
+MAX_TIMEOUT_S = 3600.0
+MAX_PARTICIPANTS = 1000
+MAX_GOAL_M = 1e4
+
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,18 +34,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("--blind", action="store_true", help="run blind (implied by a blinded study; an error on an open one)")
-    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
-    parser.add_argument("--workers", type=int, default=1, metavar="N", help="runs in parallel, one process each (default 1)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--workers", type=types.whole(1, MAX_WORKERS), default=1, metavar="N", help="runs in parallel, one process each (default 1)")
     parser.add_argument("--only", nargs="+", default=[], metavar="CODE", help="run only these rows (if pending)")
     parser.add_argument("--rerun", nargs="+", default=[], metavar="CODE", help="redo these finished runs; the old log and row move to superseded/")
     parser.add_argument("--perception", choices=("positions", "lidar"), default="positions",
                         help="what the controller is told: true positions with noise and dropouts (default), or "
                         "simulated laser scans through the person tracker")
-    parser.add_argument("--noise", type=float, default=0.05, metavar="M", help="positions: position noise, standard deviation in metres (default 0.05)")
-    parser.add_argument("--dropout", type=float, default=0.05, metavar="P", help="positions: chance a pedestrian is missed at a step (default 0.05)")
+    parser.add_argument("--noise", type=types.number(0, MAX_NOISE_M), default=0.05, metavar="M",
+                        help="positions: position noise, standard deviation in metres (default 0.05)")
+    parser.add_argument("--dropout", type=types.number(0, 1, below=True), default=0.05, metavar="P",
+                        help="positions: chance a pedestrian is missed at a step (default 0.05)")
     parser.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
-    parser.add_argument("--timeout", type=float, default=60.0, metavar="S", help="simulated seconds before a run times out (default 60)")
-    parser.add_argument("--participants", type=int, metavar="N",
+    parser.add_argument("--timeout", type=types.number(STEP_S, MAX_TIMEOUT_S), default=60.0, metavar="S",
+                        help=f"simulated seconds before a run times out, from one {STEP_S} s step to {MAX_TIMEOUT_S:g} (default 60)")
+    parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
                         help="do not add simulated participant judgments to responses.csv after each run")
@@ -41,11 +56,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     logs.add_argument("--from-log", type=Path, metavar="FILE",
                       help="play this log for every row run (pending rows, or --only / --rerun ones), "
                       "instead of simulating or the plan's Log column")
-    logs.add_argument("--goal", type=float, nargs=2, metavar=("X", "Y"),
+    logs.add_argument("--goal", type=types.number(-MAX_GOAL_M, MAX_GOAL_M), nargs=2, metavar=("X", "Y"),
                       help="goal in the log's odometry frame (the scan's frame without odometry); "
                       "default: 10 m ahead of the robot's first pose")
-    logs.add_argument("--start", type=float, default=0.0, metavar="S", help="skip the log's first S seconds (default 0)")
-    logs.add_argument("--duration", type=float, metavar="S", help="play at most S seconds from --start (default: to the end)")
+    logs.add_argument("--start", type=types.number(0, math.inf, below=True), default=0.0, metavar="S", help="skip the log's first S seconds (default 0)")
+    logs.add_argument("--duration", type=types.number(0, math.inf, above=True, below=True), metavar="S",
+                      help="play at most S seconds from --start (default: to the end)")
     logs.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
     logs.add_argument("--odom-topic", metavar="TOPIC",
                       help="Odometry topic (default: the log's only one; a log without one has a robot standing still)")
@@ -60,25 +76,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from robot_logs.topics import TopicNames
-    from trials.errors import StudyError
     from trials.log_trial import ReplayOptions
     from trials.runner import RunDone, RunOptions, StudyRun, run_study
     from trials.sim.perception import PositionNoise
     from trials.simulated_participants import simulate_run
     from trials.study import OUTCOMES, StudyFolder
 
-    if not args.noise >= 0:
-        raise StudyError(f"--noise must be 0 or more metres, got {args.noise}")
-    if not 0 <= args.dropout < 1:
-        raise StudyError(f"--dropout must be at least 0 and below 1, got {args.dropout}")
-    if not args.timeout > 0:
-        raise StudyError(f"--timeout must be positive, got {args.timeout}")
-    if args.participants is not None and args.participants < 1:
-        raise StudyError(f"--participants must be at least 1, got {args.participants}")
-    if not args.start >= 0:
-        raise StudyError(f"--start must be 0 or more seconds, got {args.start}")
-    if args.duration is not None and not args.duration > 0:
-        raise StudyError(f"--duration must be positive, got {args.duration}")
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
                            TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from trials import option_types as types
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
@@ -23,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--note", default="", metavar="TEXT", help="a remark kept with the score")
     parser.add_argument("--import", dest="import_file", type=Path, metavar="FILE",
                         help="add every row of a CSV with columns run_code, score (and optionally scorer, note, recorded_utc)")
-    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=run)
 
 

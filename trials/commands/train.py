@@ -6,6 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from trials import option_types as types
+from trials.option_types import MAX_THREADS
+
 #: Training settings the command may override, each a whole number (None: the recipe's).
 OVERRIDES = ("epochs", "patience", "seed")
 
@@ -33,10 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int,
                         help="seed of weights, batch order and noise (default: the recipe's)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
-    parser.add_argument("--threads", type=int, help="CPU threads for torch (default: torch's choice)")
+    parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
-    parser.add_argument("--out", type=Path, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
+    parser.add_argument("--out", type=types.output_file, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(handler=run)
 
@@ -61,8 +64,6 @@ def run(args: argparse.Namespace) -> int:
         expected = None if value is None else recipes.problem(TrainConfig, name, value)
         if expected is not None:
             raise NaviganError(f"--{name}: expected {expected}, got {value}")
-    if args.threads is not None and args.threads < 1:
-        raise NaviganError(f"--threads: expected a positive whole number, got {args.threads}")
     recipe = recipes.load(args.recipe)
     model, config = recipe.configs(args.split, **{name: getattr(args, name) for name in OVERRIDES})
     if args.device == "cuda" and not torch.cuda.is_available():

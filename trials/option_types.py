@@ -1,0 +1,83 @@
+"""argparse types for the `trials` options: bounded whole numbers and finite numbers, seeds, and paths
+that must be (or may become) a folder or a file.
+
+A value outside its range is an argparse usage error, so every command answers it the same way:
+one `error: argument --NAME: expected ..., got '...'` line and exit 2, before any work starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+#: Seeds are recorded in JSON and CSV files and fed to numpy's SeedSequence: whole numbers 0 .. 2^63 - 1.
+SEED_MAX = 2**63 - 1
+#: Torch threads a command may ask for.
+MAX_THREADS = 256
+
+
+def whole(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
+    """A whole number in [minimum, maximum]."""
+    expected = f"a whole number from {minimum} to {maximum}" if maximum is not None else f"a whole number >= {minimum}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if value < minimum or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+seed = whole(0, SEED_MAX)
+
+
+def number(minimum: float, maximum: float, *, above: bool = False, below: bool = False) -> Callable[[str], float]:
+    """A finite number in the range, its ends open where `above` / `below` say."""
+    expected = f"a finite number in {'(' if above else '['}{minimum:g}, {maximum:g}{')' if below else ']'}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        low_ok = value > minimum if above else value >= minimum
+        high_ok = value < maximum if below else value <= maximum
+        if not (math.isfinite(value) and low_ok and high_ok):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+def folder(text: str) -> Path:
+    """A folder to read or write: it may not exist yet, but must not be a file."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder")
+    return path
+
+
+def input_file(text: str) -> Path:
+    """A file to read: it must exist and be a file."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"no file {text}")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a file")
+    return path
+
+
+def output_file(text: str) -> Path:
+    """A file to write: its folder must exist (nothing creates folders the user mistyped), and it must not be a folder."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a file")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: the folder {path.parent} does not exist")
+    return path
