@@ -180,6 +180,9 @@ def test_budget_cut_after_a_first_solution_keeps_it(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
     full = planner.plan(budget=60.0)
-    cut = planner.plan(budget=full.iterations[0].seconds + 0.1)
-    assert cut.status == "solved" and 1.0 < cut.eps <= 3.0 and cut.cost <= 3.0 * full.cost
+    # an expansion budget that the first iteration (eps 3) spends exactly
+    cut = planner.plan(budget=60.0, max_expansions=full.iterations[0].expansions)
+    assert full.eps == 1.0 and len(full.iterations) > 1
+    assert cut.status == "solved" and cut.eps == 3.0 and cut.expansions == full.iterations[0].expansions
+    assert cut.cost == full.iterations[0].cost <= 3.0 * full.cost
     assert cut.states[-1] == (380, 100, 0)
