@@ -281,10 +281,10 @@ class CrowdPlanner:
         rungs = [(MARGIN, self.comfort_margin)] + [(NO_MARGIN, 0.0)] * (self.comfort_margin > 0)
         for rung, margin in rungs:
             situation = self.situation(pose, goal, pedestrian_history, margin)
+            if situation.hold in (BAD_OBSERVATION, AT_GOAL):  # no rung: nothing to recover from
+                return self._hold(situation.pose, {**situation.record, "status": situation.hold,
+                                                   "message": situation.message, "plan_seconds": time.perf_counter() - t0})
             record = {**situation.record, "rung": rung}
-            if situation.hold in (BAD_OBSERVATION, AT_GOAL):
-                return self._hold(situation.pose, {**record, "status": situation.hold, "message": situation.message,
-                                                   "plan_seconds": time.perf_counter() - t0})
             if situation.hold is not None:
                 record.update(status=situation.hold, message=situation.message)
                 continue
