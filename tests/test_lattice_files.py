@@ -163,16 +163,24 @@ def test_start_on_an_obstacle_is_in_collision():
 def test_budget_spent_before_the_goal_gives_the_best_partial_path(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
-    runs = [planner.plan(eps=1.0, budget=60.0) for _ in range(3)]  # plain A*: about 150 000 expansions
-    full = runs[-1]
-    budget = min(r.heuristic_seconds for r in runs) + 0.1 * min(r.iterations[0].seconds for r in runs)
-    result = planner.plan(eps=1.0, budget=budget)
-    assert result.status == "partial" and f"no path to the goal within {budget:g} s" in result.message
-    assert result.iterations == [] and 0 < result.expansions < full.expansions
-    assert result.seconds < budget + 0.2  # the clock is read every 1024 expansions
+    full = planner.plan(eps=1.0, budget=60.0)  # plain A*: about 150 000 expansions
+    cap = full.expansions // 10
+    result = planner.plan(eps=1.0, budget=60.0, max_expansions=cap)
+    assert result.status == "partial" and f"no path to the goal within 60 s or {cap} expansions" in result.message
+    assert result.iterations == [] and result.expansions == cap
     start, nearest = result.states[0], result.states[-1]
     assert start == (20, 100, 0) and nearest[0] > start[0] + 10  # on its way towards x = 380
     assert len(result.poses) > 1 and result.cost > 0
+
+
+def test_a_deadline_already_past_stops_at_the_first_clock_reading(sbpl_dir):
+    """The wall-clock budget without timing the test: a deadline that has passed before the search
+    starts ends it before its first expansion, with the start as the path."""
+    planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
+                           [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
+    result = planner.plan(eps=1.0, budget=1e-9)
+    assert result.status == "partial" and "no path to the goal within 1e-09 s;" in result.message
+    assert result.expansions == 0 and result.states == [(20, 100, 0)]
 
 
 @pytest.mark.slow
@@ -180,6 +188,9 @@ def test_budget_cut_after_a_first_solution_keeps_it(sbpl_dir):
     planner = make_planner(read_cfg(sbpl_dir / "ped6_5cm.cfg"), read_mprim(sbpl_dir / "unicycle_5cm.mprim"),
                            [(-0.5, -0.35), (0.5, -0.35), (0.5, 0.35), (-0.5, 0.35)])
     full = planner.plan(budget=60.0)
-    cut = planner.plan(budget=full.iterations[0].seconds + 0.1)
-    assert cut.status == "solved" and 1.0 < cut.eps <= 3.0 and cut.cost <= 3.0 * full.cost
+    # an expansion budget that the first iteration (eps 3) spends exactly
+    cut = planner.plan(budget=60.0, max_expansions=full.iterations[0].expansions)
+    assert full.eps == 1.0 and len(full.iterations) > 1
+    assert cut.status == "solved" and cut.eps == 3.0 and cut.expansions == full.iterations[0].expansions
+    assert cut.cost == full.iterations[0].cost <= 3.0 * full.cost
     assert cut.states[-1] == (380, 100, 0)

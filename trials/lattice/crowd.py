@@ -1,11 +1,25 @@
 """Receding-horizon lattice planning among moving pedestrians, in arrays: pose, goal, tracks in, way-points out.
 
 Every step it draws the tracked pedestrians into a cost grid around the robot and the goal, plans
-from the robot's pose to the goal with ARA* within its time budget, and returns way-points one step
-apart along the path, timed at the robot's nominal speed. It never raises while planning: when the
-robot already stands too close to someone it first retries without the comfort margin, then holds
-still; when the goal is covered or out of reach it aims at the nearest cell it can reach; when no
-path is found in time it follows the best partial path. The record says which.
+from the robot's pose to the goal with ARA* within its budget (wall-clock seconds, or a number of
+expansions where a run must reproduce on any machine), and returns way-points one step apart along
+the path, timed at the robot's nominal speed (turns in place take no time: the way-points cannot
+show them). A covered or unreachable goal is replaced by the nearest cell the robot can reach; a
+search out of budget gives the best partial path. It never raises while planning and never stands
+still for want of a plan; each step climbs this ladder until a rung moves the robot, and the
+record's `rung` says which did:
+
+1. `margin`: plan with the pedestrians grown by the comfort margin;
+2. `no_margin`: the start lies inside the margin, or that search cannot move the robot: plan
+   with the bare bodies;
+3. `escape`: the robot touches a body's inscribed zone or still has no path: drive `ESCAPE_STEP_M`
+   toward the direction that most increases its distance from the nearest pedestrian (behind:
+   it backs off; to the side: its follower turns in place first), and plan afresh next step;
+4. `hold`: no direction gains clearance (with someone within its turning circle, only straight
+   ahead or behind count): stand still this step only, until people move.
+
+Two more reasons to stand still: `wait`, the robot already stands on the reachable cell nearest a
+goal that people cover, and at the goal or with an unusable observation.
 """
 
 from __future__ import annotations
@@ -39,6 +53,45 @@ from trials.lattice.primitives import PrimitiveSet
 RESERVE_S = 0.02
 #: Free cells tried, nearest first, when the goal is covered or out of reach.
 GOAL_CANDIDATES = 400
+#: The recovery ladder's rungs (module docstring), as the record names them.
+MARGIN, NO_MARGIN, ESCAPE, HOLD, WAIT = "margin", "no_margin", "escape", "hold", "wait"
+#: Reasons to stand still that no rung can help.
+BAD_OBSERVATION, AT_GOAL = "bad_observation", "at_goal"
+#: An escape move: how far (m), how fast (m/s, the Husky's reverse limit), among how many directions.
+ESCAPE_STEP_M, ESCAPE_SPEED, ESCAPE_DIRECTIONS = 0.5, 0.5, 16
+#: Directions within this angle of straight ahead or straight behind need no turn in place (rad).
+STRAIGHT_RAD = math.pi / 4
+#: An escape must gain at least this much clearance (m).
+MIN_GAIN_M = 0.01
+
+
+def escape_point(pose: np.ndarray, centres: np.ndarray, turn_clearance: float) -> np.ndarray | None:
+    """Where to escape to: of the points `ESCAPE_STEP_M` from the robot's `pose` (x, y, heading) in
+    `ESCAPE_DIRECTIONS` directions, the one farthest from its nearest pedestrian centre (`centres`,
+    (k, 2)), or None when none gains `MIN_GAIN_M`. With a centre nearer than `turn_clearance`, where
+    turning in place would sweep into someone, only the directions within `STRAIGHT_RAD` of ahead or
+    behind are candidates. Ties go to the first direction counterclockwise from ahead."""
+    if not len(centres):
+        return None
+    bearings = 2 * math.pi * np.arange(ESCAPE_DIRECTIONS) / ESCAPE_DIRECTIONS
+    angles = pose[2] + bearings
+    points = pose[:2] + ESCAPE_STEP_M * np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def clearance(at: np.ndarray) -> np.ndarray:
+        return np.hypot(*(at[:, None, :] - centres[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+
+    now = float(clearance(pose[None, :2])[0])
+    gains = clearance(points) - now
+    if now < turn_clearance:
+        off_axis = np.abs(np.remainder(bearings + math.pi / 2, math.pi) - math.pi / 2)
+        gains[off_axis > STRAIGHT_RAD + 1e-9] = -math.inf
+    best = int(np.argmax(gains))
+    return points[best] if gains[best] >= MIN_GAIN_M else None
+
+
+def circumscribed_radius(polygon: Polygon) -> float:
+    """The radius of the circle the polygon sweeps turning in place about the robot's origin."""
+    return float(np.hypot(*np.asarray(polygon, dtype=np.float64).T).max()) if len(polygon) else 0.0
 
 
 def inscribed_radius(polygon: Polygon) -> float:
@@ -91,6 +144,8 @@ class CrowdPlanner:
         comfort_margin: clearance (m) the footprint keeps from a pedestrian's body.
         predict_s: also block each pedestrian's constant-velocity prediction this far ahead (s); 0: now only.
         budget_s: wall-clock budget of one `plan` call (s), everything included.
+        budget_expansions: when set, each search stops after this many expansions instead, and
+            `budget_s` is not used: the same answer on any machine, at any load.
         eps, eps_step: ARA*'s initial suboptimality bound and its decrement per iteration.
         window_margin: metres of grid around the robot and the goal.
         goal_tolerance: within this distance (m) of the goal the robot holds.
@@ -100,7 +155,8 @@ class CrowdPlanner:
 
     def __init__(self, *, footprint: Polygon, speed: float, step_s: float, horizon_steps: int,
                  cell_size: float = 0.1, pedestrian_radius: float = 0.3, comfort_margin: float = 0.2,
-                 predict_s: float = 0.0, budget_s: float = 0.25, eps: float = 3.0, eps_step: float = 0.2,
+                 predict_s: float = 0.0, budget_s: float = 0.25, budget_expansions: int | None = None,
+                 eps: float = 3.0, eps_step: float = 0.2,
                  window_margin: float = 4.0, goal_tolerance: float = 0.3, primitives: PrimitiveSet | None = None,
                  turn_45_s: float = HUSKY_TURN_45_S) -> None:
         for option, value in (("cell_size", cell_size), ("budget_s", budget_s), ("speed", speed),
@@ -115,6 +171,9 @@ class CrowdPlanner:
                 raise LatticeError(f"lattice controller: {option} must not be negative, got {value}")
         if not eps >= 1:
             raise LatticeError(f"lattice controller: eps must be at least 1, got {eps}")
+        if budget_expansions is not None and not budget_expansions >= 1:
+            raise LatticeError(f"lattice controller: budget_expansions must be at least 1, got {budget_expansions}")
+        self.budget_expansions = budget_expansions
         self.cell_size, self.pedestrian_radius, self.comfort_margin = cell_size, pedestrian_radius, comfort_margin
         self.predict_s, self.budget_s, self.eps, self.eps_step = predict_s, budget_s, eps, eps_step
         self.horizon_steps, self.window_margin, self.goal_tolerance = int(horizon_steps), window_margin, goal_tolerance
@@ -124,6 +183,7 @@ class CrowdPlanner:
                                      INSCRIBED_THRESH, CIRCUMSCRIBED_THRESH, speed, turn_45_s)
         self.actions = build_actions(prims, self._template, footprint)
         self.inscribed = inscribed_radius(self.actions.polygon)
+        self.turn_clearance = circumscribed_radius(self.actions.polygon) + pedestrian_radius
         self.reset()
         self._warm_up()
 
@@ -183,26 +243,26 @@ class CrowdPlanner:
         return CrowdPlan(np.repeat(np.asarray(robot[:2], np.float64)[None, :], self.horizon_steps, axis=0),
                          {**record, "holding": True})
 
-    def situation(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray) -> Situation:
+    def situation(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray,
+                  margin: float | None = None) -> Situation:
         """The grid, start and target for the robot's `pose` (x, y, heading), its `goal` (x, y) and the
         pedestrians' tracks `pedestrian_history` ((N, T, 2), oldest first, NaN before a track was seen),
-        or the reason the robot must hold."""
+        with the pedestrians grown by `margin` (default: the comfort margin), or the reason there is no
+        search to run."""
         pose = np.asarray(pose, dtype=np.float64)
         goal = np.asarray(goal, dtype=np.float64)[:2]
-        record: dict[str, Any] = {"status": "", "holding": False, "pedestrians": len(pedestrian_history)}
+        margin = self.comfort_margin if margin is None else margin
+        record: dict[str, Any] = {"status": "", "holding": False, "pedestrians": len(pedestrian_history),
+                                  "margin": margin}
         if not (np.isfinite(pose).all() and np.isfinite(goal).all()):
-            return Situation(np.nan_to_num(pose), record, "bad_observation", "robot pose or goal is not finite")
+            return Situation(np.nan_to_num(pose), record, BAD_OBSERVATION, "robot pose or goal is not finite")
         if np.hypot(*(goal - pose[:2])) <= self.goal_tolerance:
-            return Situation(pose, record, "at_goal", "within the goal tolerance")
+            return Situation(pose, record, AT_GOAL, "within the goal tolerance")
         planner, window = self._planner_for(pose[:2], goal)
         start = self._state(window, pose)
         centres = predicted_centres(pedestrian_history, self.predict_s, self.step_s)
-        for margin in dict.fromkeys((self.comfort_margin, 0.0)):
-            planner.set_grid(pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed))
-            collision = planner.collision(start)
-            if collision is None:
-                break
-        record["margin"] = margin
+        planner.set_grid(pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed))
+        collision = planner.collision(start)
         if collision is not None:
             return Situation(pose, record, "start_in_collision", collision)
         wanted = (*self._state(window, np.array([*goal, 0.0]))[:2], self._goal_heading)
@@ -214,23 +274,67 @@ class CrowdPlanner:
         return Situation(pose, record, planner=planner, window=window, start=start, target=target)
 
     def plan(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray) -> CrowdPlan:
-        """Way-points for the next `horizon_steps` steps (held in place when no move is possible); the
-        arguments as for `situation`."""
+        """Way-points for the next `horizon_steps` steps, climbing the recovery ladder (module docstring)
+        until a rung moves the robot; the arguments as for `situation`."""
         t0 = time.perf_counter()
-        situation = self.situation(pose, goal, pedestrian_history)
-        record = situation.record
-        if situation.hold is not None:
-            return self._hold(situation.pose, {**record, "status": situation.hold, "message": situation.message,
-                                               "plan_seconds": time.perf_counter() - t0})
-        budget = max(t0 + self.budget_s - RESERVE_S - time.perf_counter(), 0.0)
-        result = situation.planner.plan(situation.start, situation.target, self.eps, self.eps_step, budget=budget)
-        record.update(self._search_record(result))
-        if len(result.states) < 2:
-            return self._hold(situation.pose, {**record, "plan_seconds": time.perf_counter() - t0})
+        record: dict[str, Any] = {}
+        rungs = [(MARGIN, self.comfort_margin)] + [(NO_MARGIN, 0.0)] * (self.comfort_margin > 0)
+        for rung, margin in rungs:
+            situation = self.situation(pose, goal, pedestrian_history, margin)
+            if situation.hold in (BAD_OBSERVATION, AT_GOAL):  # no rung: nothing to recover from
+                return self._hold(situation.pose, {**situation.record, "status": situation.hold,
+                                                   "message": situation.message, "plan_seconds": time.perf_counter() - t0})
+            record = {**situation.record, "rung": rung}
+            if situation.hold is not None:
+                record.update(status=situation.hold, message=situation.message)
+                continue
+            result = situation.planner.plan(situation.start, situation.target, self.eps, self.eps_step,
+                                            **self._budget(t0))
+            record.update(self._search_record(result))
+            if len(result.states) >= 2:
+                record["plan_seconds"] = time.perf_counter() - t0
+                return CrowdPlan(situation.window.to_world(self._waypoints(result)), record)
+        if record.get("status") == "solved":  # it stands on the reachable cell nearest a goal people cover
+            return self._hold(np.asarray(pose, np.float64), {**record, "rung": WAIT,
+                                                             "plan_seconds": time.perf_counter() - t0})
+        return self._escape(np.asarray(pose, dtype=np.float64), pedestrian_history, record, t0)
+
+    def _budget(self, t0: float) -> dict[str, float]:
+        """The search's budget: the expansion budget when one is set, else what is left of `budget_s`."""
+        if self.budget_expansions is not None:
+            return {"budget": math.inf, "max_expansions": self.budget_expansions}
+        return {"budget": max(t0 + self.budget_s - RESERVE_S - time.perf_counter(), 0.0)}
+
+    def _waypoints(self, result: PlanResult) -> np.ndarray:
+        """(horizon_steps, 2) window positions along the path one `step_s` apart, timed at nominal speed
+        with turns in place taking no time: way-points show no heading, so the robot's follower turns
+        toward them itself, and a path timed to start with a turn would show the robot standing still."""
+        times, clock = [], 0.0
+        for heading, action in result.actions:
+            prim = self.actions.primitives[heading][action]
+            samples = len(prim.poses) - 1
+            seconds = 0.0 if prim.end[0] == prim.end[1] == 0 else float(self.actions.seconds[heading, action])
+            times.extend(clock + seconds * np.arange(samples) / samples)
+            clock += seconds
+        times.append(clock)
+        moments = np.asarray(times)
+        last = np.append(np.diff(moments) > 0, True)  # of poses passed at the same moment, the last
         ahead = self.step_s * np.arange(1, self.horizon_steps + 1)
-        local = np.column_stack([np.interp(ahead, result.times, result.poses[:, i]) for i in (0, 1)])
-        record["plan_seconds"] = time.perf_counter() - t0
-        return CrowdPlan(situation.window.to_world(local), record)
+        return np.column_stack([np.interp(ahead, moments[last], result.poses[last, i]) for i in (0, 1)])
+
+    def _escape(self, pose: np.ndarray, pedestrian_history: np.ndarray, record: dict[str, Any],
+                t0: float) -> CrowdPlan:
+        """The last rungs: a short move toward the most clearance from the pedestrians, or, when no
+        direction gains any, holding still until they move."""
+        centres = predicted_centres(pedestrian_history, 0.0, self.step_s)
+        target = escape_point(pose, centres, self.turn_clearance)
+        if target is None:
+            return self._hold(pose, {**record, "rung": HOLD, "plan_seconds": time.perf_counter() - t0})
+        direction = target - pose[:2]
+        reach = np.minimum(ESCAPE_SPEED * self.step_s * np.arange(1, self.horizon_steps + 1), ESCAPE_STEP_M)
+        waypoints = pose[:2] + reach[:, None] * direction / np.hypot(*direction)
+        record = {**record, "rung": ESCAPE, "escape_to": target.tolist(), "plan_seconds": time.perf_counter() - t0}
+        return CrowdPlan(waypoints, record)
 
     @staticmethod
     def _search_record(result: PlanResult) -> dict[str, Any]:

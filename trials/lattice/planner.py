@@ -119,11 +119,12 @@ class LatticePlanner:
         return None
 
     def plan(self, start: State | None = None, goal: State | None = None, eps: float = 3.0, eps_step: float = 0.2,
-             budget: float = 10.0, final_eps: float = 1.0) -> PlanResult:
+             budget: float = 10.0, final_eps: float = 1.0, max_expansions: float = math.inf) -> PlanResult:
         """Search from `start` to `goal` (lattice states; default: the environment's) with ARA*.
 
         The search starts at `eps` and lowers it by `eps_step` down to `final_eps`, returning the best
-        path found when eps reaches `final_eps` or when `budget` seconds (heuristic included) are spent.
+        path found when eps reaches `final_eps`, when `budget` seconds (heuristic included) are spent or
+        when `max_expansions` states are expanded (a budget that gives the same answer on any machine).
         """
         t0 = time.perf_counter()
         start = start if start is not None else self.env.to_state(self.env.start)
@@ -136,12 +137,14 @@ class LatticePlanner:
                                env.nominal_vel)
         t_heuristic = time.perf_counter() - t0
         found = self.search.search(self.grid, hcell, self._state_id(start), self._state_id(goal), eps, eps_step,
-                                   final_eps, deadline=t0 + budget)
+                                   final_eps, deadline=t0 + budget, max_expansions=max_expansions)
         states = [(*self.grid.xy(s // n), s % n) for s in found.states]
         actions, poses, times = self._trace(states)
         bound = "no bound yet" if math.isinf(found.eps) else f"within eps {found.eps:g} of optimal"
+        spent = " or ".join([f"{budget:g} s"] * (not math.isinf(budget))
+                            + [f"{max_expansions:g} expansions"] * (not math.isinf(max_expansions)))
         message = {"solved": f"path of cost {found.cost} {bound}",
-                   "partial": f"no path to the goal within {budget:g} s; the path leads to the state nearest it",
+                   "partial": f"no path to the goal within {spent}; the path leads to the state nearest it",
                    "no_path": "no path to the goal exists; the path leads to the reachable state nearest it",
                    }[found.status]
         return PlanResult(found.status, message, poses, times, states, found.cost, found.eps, found.expansions,

@@ -5,7 +5,8 @@ a weighted A* with priority g + int(eps * h) that expands every state at most on
 after they were closed wait in INCONS and re-enter OPEN when eps drops by `eps_step`, so later
 iterations reuse the earlier search. Each finished iteration's path costs at most eps times the
 optimum. The compiled kernel runs a bounded number of expansions per call, so the Python driver
-checks the clock between calls and no search outlives its budget; it takes its arrays grouped in
+checks the clock (and the expansion count, a budget that does not depend on machine load) between
+calls and no search outlives its budget; it takes its arrays grouped in
 named tuples (the grid, the action tables, the thresholds, the per-state labels and the heap). The
 edge rule is SBPL's GetActionCost; the bookkeeping follows SBPL's ARAPlanner, so epsilon-1 costs
 equal SBPL's.
@@ -218,9 +219,10 @@ class AraStar:
         self.call = 0
 
     def search(self, grid: PaddedGrid, hcell: np.ndarray, start: int, goal: int, eps: float = 3.0,
-               eps_step: float = 0.2, final_eps: float = 1.0, deadline: float = math.inf) -> SearchResult:
-        """ARA* from state `start` to state `goal` on `grid` until eps reaches `final_eps` or
-        `time.perf_counter()` passes `deadline`."""
+               eps_step: float = 0.2, final_eps: float = 1.0, deadline: float = math.inf,
+               max_expansions: float = math.inf) -> SearchResult:
+        """ARA* from state `start` to state `goal` on `grid` until eps reaches `final_eps`,
+        `time.perf_counter()` passes `deadline` or `max_expansions` states are expanded."""
         labels, heap, nth = self.labels, self.heap, self.tables.num_thetas
         t0 = time.perf_counter()
         self.call += 1
@@ -235,16 +237,20 @@ class AraStar:
         best = np.array([start, hcell[start // nth], 0], dtype=np.int64)
         iterations: list[Iteration] = []
         satisfied, iteration, expansions, outcome = math.inf, 0, 0, UNFINISHED
-        while satisfied > final_eps and time.perf_counter() < deadline:
+        def within_budget() -> bool:
+            return expansions < max_expansions and time.perf_counter() < deadline
+
+        while satisfied > final_eps and within_budget():
             if iteration > 0:
                 if abs(satisfied - eps) < EPS_TOLERANCE:
                     eps = max(eps - eps_step, final_eps)
                 new_iteration(labels, heap, hcell, nth, eps)
             iteration += 1
             outcome = UNFINISHED
-            while outcome == UNFINISHED and time.perf_counter() < deadline:
+            while outcome == UNFINISHED and within_budget():
+                chunk = int(min(CHUNK_EXPANSIONS, max_expansions - expansions))
                 outcome, done = improve_path(grid, self.tables, self.thresholds, hcell, labels, heap, eps, iteration,
-                                             self.call, goal, CHUNK_EXPANSIONS, best)
+                                             self.call, goal, chunk, best)
                 expansions += done
             if outcome != SOLVED:
                 break
