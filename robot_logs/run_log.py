@@ -43,6 +43,9 @@ CONTROLLER_RECORD = Topic("/controller/record", "navtrials.ControllerRecord")
 COMPARISON = Topic("/replay/comparison", "navtrials.ReplayComparison")
 RECORDED_POSES = Topic("/replay/recorded_poses", "foxglove.PosesInFrame")
 EVENTS = Topic("/events", "navtrials.Event")
+#: What the controller computed (its plans, its own record, a logged trial's plans against the log):
+#: a blinded run keeps these out of its public log, in its sealed record, with the `replay` metadata.
+CONTROLLER_TOPICS = (PLAN, PLAN_POSES, CONTROLLER_RECORD, COMPARISON, RECORDED_POSES)
 
 #: The fields of a /robot/state message the reader uses, in the order of `LoggedRun`'s arrays.
 ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
@@ -103,7 +106,7 @@ class LoggedRun:
         ids: pedestrian ids; pedestrians: (K, N, 2) their true positions (NaN while a pedestrian
             is absent, e.g. a logged trial's person not tracked then).
         events: (t, event, detail) in time order.
-        plans: number of planning steps.
+        plans: number of planning steps (0 in a blinded run's public log: its plans are sealed).
         replay: a logged trial's `replay` metadata record (its plans against the log); empty otherwise.
     """
 

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import os
 import secrets
+from collections.abc import Collection
 from pathlib import Path
 
+#: The mode of a file only its owner may read (a blinded study's sealed files).
+PRIVATE_FILE = 0o600
 
-def write_files(files: dict[Path, bytes]) -> None:
-    """Write several files so that none is left half-written.
+
+def write_files(files: dict[Path, bytes], private: Collection[Path] = ()) -> None:
+    """Write several files so that none is left half-written; those in `private` are created 0600.
 
     Each file is first written and flushed to a temporary name in its own folder; only when
     all are staged are they renamed over their targets, so a failure or an interrupt before
@@ -20,7 +24,8 @@ def write_files(files: dict[Path, bytes]) -> None:
             target.parent.mkdir(parents=True, exist_ok=True)
             temporary = target.with_name(f".{target.name}.{secrets.token_hex(4)}.tmp")
             staged.append((temporary, target))
-            with temporary.open("xb") as handle:
+            mode = PRIVATE_FILE if target in private else 0o666  # 0o666: as open() does, less the umask
+            with os.fdopen(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, mode), "wb") as handle:
                 handle.write(content)
                 handle.flush()
                 os.fsync(handle.fileno())
