@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from designs.blinding import seal, verify
+from designs.blinding import WHOLE_KEY, SealedAllocation, seal, verify
 from designs.errors import DesignError
 from trials.cli import main
 from trials.controllers.registry import NAMES as CONTROLLERS
@@ -83,10 +83,14 @@ def test_commitment_check_detects_a_changed_key(tmp_path):
 def test_seal_and_verify():
     sealed = seal("Controller", ("x", "y", "z"), seed=4)
     assert sorted(sealed.arms) == ["A", "B", "C"] and sorted(sealed.arms.values()) == ["x", "y", "z"]
-    verify(sealed, sealed.commitment())
-    tampered = type(sealed)(sealed.factor, {**sealed.arms, "A": "w"}, sealed.salt, sealed.seed)
-    with pytest.raises(DesignError):
-        verify(tampered, sealed.commitment())
+    key = sealed.to_dict()
+    assert "whole key" in verify(key, sealed, WHOLE_KEY, sealed.commitment())
+    # Every field is covered: the arms, the salt, the allocation seed, and a field added to the file.
+    for changed in ({"arms": {**sealed.arms, "A": "w"}}, {"salt": "0" * 32}, {"allocation_seed": sealed.seed + 1},
+                    {"note": "added"}):
+        tampered = {**key, **changed}
+        with pytest.raises(DesignError, match="does not match the commitment in design.json"):
+            verify(tampered, SealedAllocation.from_dict(tampered, "key"), WHOLE_KEY, sealed.commitment())
 
 
 def test_blind_spec_written_by_the_researcher_moves_under_sealed(tmp_path, capsys):

@@ -54,7 +54,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
         assert name not in text.lower(), name
         assert name not in (console.out + console.err).lower(), name
     record = json.loads((ab_study / "report" / "report.json").read_text())
-    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None}
+    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
     assert "| Runs with | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
     assert not (ab_study / "report" / "unblinding.json").exists()

@@ -14,9 +14,11 @@ from __future__ import annotations
 import gzip
 import json
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from robot_logs.run_log import CONTROLLER_RECORD, PLAN, REPLAY_METADATA
 from trials.atomic import write_files
 from trials.errors import StudyError
 from trials.study import StudyFolder, private_folder
@@ -55,3 +57,33 @@ def read_sealed_run(folder: StudyFolder, code: str) -> dict[str, Any]:
     except (OSError, EOFError, zlib.error, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise StudyError(f"the sealed record {path if path.exists() else older} is damaged: {exc}") from None
 
+
+
+@dataclass(frozen=True)
+class Unsealed:
+    """What `trials log show --unblind` adds to a blinded run: lines to print, and a logged trial's
+    `replay` figures (its plans against the log)."""
+
+    lines: list[str]
+    replay: dict[str, str]
+
+
+def unsealed_lines(folder: StudyFolder, code: str, commitment: str | None) -> Unsealed:
+    """Open the key (checked as `StudyFolder.open_sealed` does) and a run's sealed record: its
+    arm, controller and plans.
+
+    Raises:
+        StudyError: a key that fails its check, or no readable sealed record for the run.
+    """
+    sealed, check = folder.open_sealed(commitment)
+    record = read_sealed_run(folder, code)
+    topics = record.get("topics", {})
+    # An older release's record holds only the controller's own records, one per plan, as "steps".
+    plans = len(topics[PLAN.name]) if PLAN.name in topics else len(record.get("steps", []))
+    records = len(topics.get(CONTROLLER_RECORD.name, record.get("steps", [])))
+    arm = record.get("arm")
+    lines = [f"unblinded: {check}",
+             f"arm {arm} is {sealed.arms.get(str(arm), '?')}; controller: {record.get('controller', '?')}"
+             + (f" ({record['weights']})" if "weights" in record else ""),
+             f"{plans} plans and {records} controller records in {folder.sealed_run(code)}"]
+    return Unsealed(lines, dict(record.get("metadata", {}).get(REPLAY_METADATA, {})))

@@ -53,6 +53,8 @@ REPORT_MARKDOWN = f"{REPORT}/report.md"
 REPORT_HTML = f"{REPORT}/report.html"
 REPORT_RECORD = f"{REPORT}/report.json"
 REPORT_FIGURES = f"{REPORT}/figures"
+#: The blinded report as it was before the first `--unblind` replaced it.
+REPORT_BLINDED = f"{REPORT}/blinded"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
@@ -165,6 +167,20 @@ class StudyFolder:
         except (KeyError, TypeError):
             raise StudyError(f"{self.path(DESIGN)}: blinding.commitment lacks its algorithm or digest") from None
         return sealed, check
+
+    def keep_blinded_report(self) -> Path | None:
+        """Move the blinded report (report.md, .html, .json, figures/) to report/blinded/ before an
+        unblinded one is written; an earlier report/blinded/ moves to superseded/<UTC time>/.
+        Returns report/blinded/ if a report moved."""
+        names = [name for name in (REPORT_MARKDOWN, REPORT_HTML, REPORT_RECORD, REPORT_FIGURES) if self.path(name).exists()]
+        if not names:
+            return None
+        self.supersede((REPORT_BLINDED,))
+        target = self.path(REPORT_BLINDED)
+        target.mkdir(parents=True)
+        for name in names:
+            shutil.move(str(self.path(name)), str(target / Path(name).name))
+        return target
 
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:
         """Move existing entries aside into superseded/<UTC time>/; returns that folder if any moved."""
