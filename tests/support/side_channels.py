@@ -22,8 +22,10 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-#: Topics whose counts follow from the motion (one message per physics or planning step of the run).
+#: The topic with one message per physics step: other periodic topics are counted per message of it.
 MOTION_TOPIC = "/robot/state"
+#: The topic that is not periodic (the start and the ending), counted as it is.
+EVENTS_TOPIC = "/events"
 
 
 @dataclass(frozen=True)
@@ -57,7 +59,8 @@ def mcap_features(path: Path) -> dict[str, float]:
     with path.open("rb") as stream:
         reader = make_reader(stream)
         counts = Counter(channel.topic for _, channel, _ in reader.iter_messages())
-    per_state = {f"count {topic} per state": counts[topic] / counts[MOTION_TOPIC] for topic in counts}
+    per_state = {f"count {topic} per state": counts[topic] / counts[MOTION_TOPIC] for topic in counts if topic != EVENTS_TOPIC}
+    per_state[f"count {EVENTS_TOPIC}"] = counts[EVENTS_TOPIC]
     size = path.stat().st_size
     return {"mcap bytes": size, "mcap bytes per message": size / sum(counts.values()), "topics": len(counts), **per_state}
 
