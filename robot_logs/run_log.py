@@ -62,11 +62,17 @@ def rounded(values: Any) -> list[float]:
 
 
 def robot_state(time: float, pose: tuple[float, float, float], velocity: tuple[float, float],
-                command: tuple[float, float]) -> dict[str, float]:
-    """/robot/state: the robot's pose (m, rad), velocity (m/s, rad/s) and the commanded velocity."""
-    (x, y, theta), (v, w), (v_cmd, w_cmd) = pose, velocity, command
-    return {"t": round(time, 4), "x": round(x, 4), "y": round(y, 4), "theta": round(theta, 4),
-            "v": round(v, 4), "w": round(w, 4), "v_cmd": round(v_cmd, 4), "w_cmd": round(w_cmd, 4)}
+                command: tuple[float, float] | None) -> dict[str, float]:
+    """/robot/state: the robot's pose (m, rad), velocity (m/s, rad/s) and the commanded velocity
+    (left out when None: a blinded run's command follows its controller's plan)."""
+    (x, y, theta), (v, w) = pose, velocity
+    state = {"t": round(time, 4), "x": round(x, 4), "y": round(y, 4), "theta": round(theta, 4), "v": round(v, 4), "w": round(w, 4)}
+    return state if command is None else {**state, **robot_command(command)}
+
+
+def robot_command(command: tuple[float, float]) -> dict[str, float]:
+    """The commanded velocity of /robot/state (m/s, rad/s); a blinded run's sealed record keeps it."""
+    return {"v_cmd": round(command[0], 4), "w_cmd": round(command[1], 4)}
 
 
 def pedestrians(time: float, ids: tuple[int, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any]:

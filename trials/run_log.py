@@ -4,8 +4,9 @@
 The log opens in Foxglove as a 3-D scene in its frame. Times are simulated seconds since the
 start (log times count from 0), never wall-clock time. A blinded run's log holds only what an
 observer of the trial could see (the motion, the scene, the events): what the controller computed
-(`fmt.CONTROLLER_TOPICS` and the `replay` metadata) is kept back in `withheld` for the run's sealed
-record instead.
+(`fmt.CONTROLLER_TOPICS`, the `replay` metadata, and the commanded velocity the path follower took
+from its plan) is kept back (`withheld`, `withheld_metadata`, `withheld_commands`) for the run's
+sealed record instead.
 """
 
 from __future__ import annotations
@@ -78,6 +79,8 @@ class RunLog:
         #: A blinded run's controller output: topic name -> its messages; metadata name -> record.
         self.withheld: dict[str, list[dict[str, Any]]] = {}
         self.withheld_metadata: dict[str, dict[str, str]] = {}
+        #: The velocity commanded at each state, which the path follower takes from the plan.
+        self.withheld_commands: list[dict[str, float]] = []
         self._limits = limits
         self._fixed = [entity(0, FRAME, "goal", cylinders=[cylinder(*goal, GOAL_TOLERANCE_M, 0.02, GOAL_COLOUR)])]
         if cone is not None:
@@ -88,7 +91,10 @@ class RunLog:
         w = self.writer
         w.write(*fmt.TRANSFORM, frame_transform(stamp, FRAME, "base_link", Pose2D(robot.x, robot.y, robot.theta)), stamp)
         w.write(*fmt.SCENE, scene_update([*self._fixed, self._robot(stamp, robot), self._people(stamp, crowd)]), stamp)
-        w.write(*fmt.ROBOT_STATE, fmt.robot_state(time, (robot.x, robot.y, robot.theta), (robot.v, robot.w), command), stamp)
+        if self.blind:
+            self.withheld_commands.append({"t": round(time, 4), **fmt.robot_command(command)})
+        public_command = None if self.blind else command
+        w.write(*fmt.ROBOT_STATE, fmt.robot_state(time, (robot.x, robot.y, robot.theta), (robot.v, robot.w), public_command), stamp)
         w.write(*fmt.PEDESTRIANS, fmt.pedestrians(time, crowd.ids, crowd.position, crowd.velocity), stamp)
 
     def perceived(self, time: float, ids: tuple[int, ...], history: np.ndarray) -> None:

@@ -417,7 +417,8 @@ class TrialWorker:
         its log is renamed): its plans and own records by topic, a logged trial's plans against the log."""
         if self.blind:
             record = {"format": SEALED_RUN_FORMAT, "run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
-                      **self._controllers[level].details(), "topics": log.withheld, "metadata": log.withheld_metadata}
+                      **self._controllers[level].details(), "topics": log.withheld, "metadata": log.withheld_metadata,
+                      "commands": log.withheld_commands}
             write_sealed(self.folder, self.folder.sealed_run(task.code), (json.dumps(jsonable(record)) + "\n").encode())
 
     @staticmethod

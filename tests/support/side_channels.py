@@ -55,14 +55,19 @@ def plan_arms(study: Path) -> dict[str, str]:
 
 
 def mcap_features(path: Path) -> dict[str, float]:
-    """File size, bytes per message, and the count of each topic per robot state (motion-free ratios)."""
+    """Bytes per message and per physics step, the topics, and the count of each topic per physics step.
+
+    The raw file size is left out: it is the number of steps, the run's duration, which is motion
+    (outcomes.csv has it) and does differ by controller in these scenes.
+    """
     with path.open("rb") as stream:
         reader = make_reader(stream)
         counts = Counter(channel.topic for _, channel, _ in reader.iter_messages())
     per_state = {f"count {topic} per state": counts[topic] / counts[MOTION_TOPIC] for topic in counts if topic != EVENTS_TOPIC}
     per_state[f"count {EVENTS_TOPIC}"] = counts[EVENTS_TOPIC]
     size = path.stat().st_size
-    return {"mcap bytes": size, "mcap bytes per message": size / sum(counts.values()), "topics": len(counts), **per_state}
+    return {"mcap bytes per message": size / sum(counts.values()), "mcap bytes per step": size / counts[MOTION_TOPIC],
+            "topics": len(counts), **per_state}
 
 
 def mtime_gaps(paths: Mapping[str, Path]) -> dict[str, float]:
