@@ -106,3 +106,18 @@ def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):
     assert main(["run", "--study", str(study)]) == 2
     assert f"error: the sealed key {key} is missing" in capsys.readouterr().err
     assert not list(study.glob("runs/*.mcap")) and not (study / "outcomes.csv").exists()
+
+
+def test_log_show_unblind_adds_the_sealed_controller_and_plans(blind_run, capsys):
+    study, _ = blind_run
+    key = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
+    recorded = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    row = _plan(study)[0]
+    record = json.loads(gzip.decompress((study / "sealed" / "runs" / f"{row['run_code']}.json.gz").read_bytes()))
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--unblind", "--commitment", recorded]) == 0
+    out = capsys.readouterr().out
+    plans = len(record["topics"]["/controller/plan"])
+    assert f"arm {row['Controller']} is {key[row['Controller']]}; controller: {key[row['Controller']]}" in out
+    assert f"{plans} plans and {plans} controller records in" in out and "recorded outside the study" in out
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--commitment", recorded]) == 2
+    assert "give it with --unblind" in capsys.readouterr().err
