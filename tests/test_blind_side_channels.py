@@ -2,8 +2,8 @@
 
 Three blinded 18-run A/B studies (the paper's plan, seeds 5 and 77 simulated on one worker, so each
 line and file comes when its run ends; one played from a robot log with `--from-log`). For every
-run the test computes what an evaluator without the key can: MCAP bytes, bytes per message, topics
-and per-topic counts, modification times, the listing of sealed/runs, the time between console
+run the test computes what an evaluator without the key can: the MCAP's compressed bytes per
+message and its bytes besides the messages, topics and per-topic counts, modification times, the listing of sealed/runs, the time between console
 lines, the finished_utc stamps. Knowing the key, it checks that no feature's values for one
 controller fall wholly apart from the other's, pooled over the studies and within each Pedestrians
 level. The same check finds the record sizes inside the sealed archive, which do differ by
@@ -82,7 +82,7 @@ def _pooled(studies: list[tuple[Path, TimedRun]]) -> tuple[dict[str, dict[str, f
 
 def test_no_public_feature_separates_the_arms(studies):
     features, controllers, groups = _pooled(studies)
-    assert {"mcap bytes per message", "mcap mtime gap s", "console gap s", "sealed/runs entry bytes",
+    assert {"mcap compressed bytes per message", "mcap bytes besides the messages", "mcap mtime gap s", "console gap s", "sealed/runs entry bytes",
             "count /events", "finished_utc gap s"} <= set(features)
     assert all(len(values) == len(controllers) for values in features.values())
     for group in [None, *sorted(set(groups.values()))]:

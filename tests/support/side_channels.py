@@ -55,19 +55,24 @@ def plan_arms(study: Path) -> dict[str, str]:
 
 
 def mcap_features(path: Path) -> dict[str, float]:
-    """Bytes per message and per physics step, the topics, and the count of each topic per physics step.
+    """The log's bytes split as a reader sees them, its topics, and each topic's count per physics step.
 
-    The raw file size is left out: it is the number of steps, the run's duration, which is motion
-    (outcomes.csv has it) and does differ by controller in these scenes.
+    The file size and the size per message are not features of their own: the size is mostly the
+    number of steps (the run's duration, which is motion, in outcomes.csv, and does differ by
+    controller in these scenes), and so is the size per message, through the fixed part of the
+    file spread over more or fewer messages. What is left is the compressed bytes per message
+    and the bytes besides the messages (header, schemas, metadata, summary).
     """
     with path.open("rb") as stream:
         reader = make_reader(stream)
         counts = Counter(channel.topic for _, channel, _ in reader.iter_messages())
+        chunks = reader.get_summary().chunk_indexes
+    messages = sum(counts.values())
+    stored = sum(c.chunk_length + c.message_index_length for c in chunks)
     per_state = {f"count {topic} per state": counts[topic] / counts[MOTION_TOPIC] for topic in counts if topic != EVENTS_TOPIC}
     per_state[f"count {EVENTS_TOPIC}"] = counts[EVENTS_TOPIC]
-    size = path.stat().st_size
-    return {"mcap bytes per message": size / sum(counts.values()), "mcap bytes per step": size / counts[MOTION_TOPIC],
-            "topics": len(counts), **per_state}
+    return {"mcap compressed bytes per message": sum(c.chunk_length for c in chunks) / messages,
+            "mcap bytes besides the messages": path.stat().st_size - stored, "topics": len(counts), **per_state}
 
 
 def mtime_gaps(paths: Mapping[str, Path]) -> dict[str, float]:
