@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import stat
 from pathlib import Path
 
@@ -116,6 +117,19 @@ def test_blind_spec_written_by_the_researcher_moves_under_sealed(tmp_path, capsy
     assert "lattice" not in capsys.readouterr().out.lower()
 
 
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory) -> Path:
+    """The blinded A/B plan (seed 5), designed once; tests change copies of it."""
+    study = tmp_path_factory.mktemp("ab") / "study"
+    assert main(["design", "--ab", "--study", str(study), "--seed", "5"]) == 0
+    return study
+
+
+@pytest.fixture
+def study(designed, tmp_path) -> Path:
+    return Path(shutil.copytree(designed, tmp_path / "study"))
+
+
 def _digest(key: dict) -> str:
     return hashlib.sha256(json.dumps(key, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
@@ -132,9 +146,8 @@ def test_design_prints_the_whole_commitment_and_seals_privately(tmp_path, capsys
     assert stat.S_IMODE((tmp_path / "sealed" / "allocation.json").stat().st_mode) == 0o600
 
 
-def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(tmp_path):
-    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "5"]) == 0
-    folder, path, design = StudyFolder(tmp_path), tmp_path / "sealed" / "allocation.json", tmp_path / "design.json"
+def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(study):
+    folder, path, design = StudyFolder(study), study / "sealed" / "allocation.json", study / "design.json"
     recorded = json.loads(design.read_text())["blinding"]["commitment"]["digest"]
     assert "recorded outside the study" in folder.open_sealed(recorded)[1]
     key = json.loads(path.read_text())
@@ -151,19 +164,17 @@ def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(tm
         folder.open_sealed(recorded[:16])
 
 
-def test_the_allocation_seed_is_committed_to(tmp_path):
-    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "5"]) == 0
-    path = tmp_path / "sealed" / "allocation.json"
+def test_the_allocation_seed_is_committed_to(study):
+    path = study / "sealed" / "allocation.json"
     key = json.loads(path.read_text())
     path.write_text(json.dumps({**key, "allocation_seed": key["allocation_seed"] + 1}))
     with pytest.raises(StudyError, match="does not match the commitment in design.json"):
-        StudyFolder(tmp_path).read_sealed()
+        StudyFolder(study).read_sealed()
 
 
-def test_an_older_study_keeps_its_commitment_checked_as_before(tmp_path):
+def test_an_older_study_keeps_its_commitment_checked_as_before(study):
     """A study made by an earlier release: its key has `created`, design.json the salted factor-and-arms digest."""
-    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "5"]) == 0
-    path, design = tmp_path / "sealed" / "allocation.json", tmp_path / "design.json"
+    path, design = study / "sealed" / "allocation.json", study / "design.json"
     key = {**json.loads(path.read_text()), "created": "2026-01-01T00:00:00+00:00"}
     path.write_text(json.dumps(key))
     arms = json.dumps({"factor": key["factor"], "arms": key["arms"]}, sort_keys=True, separators=(",", ":"))
@@ -171,7 +182,7 @@ def test_an_older_study_keeps_its_commitment_checked_as_before(tmp_path):
     record["blinding"]["commitment"] = {"algorithm": FACTOR_AND_ARMS,
                                         "digest": hashlib.sha256(f"{key['salt']}\n{arms}".encode()).hexdigest()}
     design.write_text(json.dumps(record))
-    folder = StudyFolder(tmp_path)
+    folder = StudyFolder(study)
     assert "the older format: the allocation seed is not covered" in folder.open_sealed()[1]
     path.write_text(json.dumps({**key, "allocation_seed": 1}))
     assert folder.read_sealed().seed == 1  # not covered by that format, as before
