@@ -10,9 +10,10 @@ the parent before any run starts (once per log), and is played open loop (`trial
 Order of writes for one run, so an interruption anywhere loses and duplicates nothing: the MCAP
 is written under a hidden partial name; the sealed record (blinded studies, `trials.sealed_runs`)
 is written; the MCAP is renamed into place; the outcome row is appended (outcomes.csv rewritten
-through a temporary name). In a blinded study every public file a run writes, and its folder, get
-their modification time rounded down to the minute, as `finished_utc` is. A run without a row is pending and runs again (with the same seed); partial files of
-interrupted runs are deleted when the next `trials run` starts.
+through a temporary name). A run without a row is pending and runs again (with the same seed);
+partial files of interrupted runs are deleted when the next `trials run` starts. In a blinded
+study every public file a run writes, and its folder, gets its modification time rounded down to
+the minute, as `finished_utc` is.
 """
 
 from __future__ import annotations
@@ -214,9 +215,8 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
     files: dict[Path, bytes] = {old: outcomes_text(read_outcomes(old, outcomes.blind) + moved, outcomes.blind).encode()}
     originals, private = [], set()
     for code in codes:
-        sealed = folder.sealed_run(code)
         for source, base in ((folder.run_log(code), target / RUNS), (folder.run_figure(code), target / RUNS),
-                             (sealed, secret / RUNS), (sealed.with_suffix(""), secret / RUNS)):
+                             (folder.sealed_run(code), secret / RUNS), (folder.older_sealed_run(code), secret / RUNS)):
             if source.exists():
                 files[base / source.name] = source.read_bytes()
                 originals.append(source)

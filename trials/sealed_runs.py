@@ -47,8 +47,7 @@ def read_sealed_run(folder: StudyFolder, code: str) -> dict[str, Any]:
     Raises:
         StudyError: no record for the run, or a damaged one.
     """
-    path = folder.sealed_run(code)
-    older = path.with_suffix("")
+    path, older = folder.sealed_run(code), folder.older_sealed_run(code)
     try:
         content = gzip.decompress(path.read_bytes()) if path.exists() else older.read_bytes()
         return json.loads(content)

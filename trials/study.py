@@ -115,6 +115,10 @@ class StudyFolder:
         """sealed/runs/<code>.json.gz, a blinded run's controller output (`trials.sealed_runs`)."""
         return self.path(SEALED_RUNS) / f"{code}.json.gz"
 
+    def older_sealed_run(self, code: str) -> Path:
+        """sealed/runs/<code>.json, a blinded run's record as earlier releases wrote it (plain JSON)."""
+        return self.path(SEALED_RUNS) / f"{code}.json"
+
     def sealed_failure(self, code: str) -> Path:
         """sealed/runs/<code>.error.txt.gz, what went wrong in a blinded run (it may name the controller)."""
         return self.path(SEALED_RUNS) / f"{code}.error.txt.gz"
