@@ -102,8 +102,9 @@ class Blinding:
 
     `factor` is the plan column that holds a run's arm (None when the study compares no
     controllers); `labels` maps its plan values to what the report shows: arm labels while
-    blind, controller names once unblinded. `revealed` says this report opened the key;
-    `unblinded_utc` lists every verified unblinding of the study so far.
+    blind, controller names once unblinded. `revealed` says this report opened the key, and
+    `check` which check of the key it made; `unblinded_utc` lists every verified unblinding of
+    the study so far.
     """
 
     blinded: bool
@@ -112,6 +113,7 @@ class Blinding:
     revealed: bool = False
     commitment: str | None = None
     unblinded_utc: tuple[str, ...] = ()
+    check: str = ""
 
     @property
     def open(self) -> bool:

@@ -184,8 +184,7 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     elif blinding.blinded:
         mapping = ", ".join(f"{arm} = {name}" for arm, name in sorted(blinding.labels.items()))
         items.append(
-            f"**Unblinded** at {blinding.unblinded_utc[-1]}: the sealed key matched the commitment "
-            f"(sha256 {str(blinding.commitment)[:16]}...) in design.json. Arms: {mapping}. First unblinded at {blinding.unblinded_utc[0]}."
+            f"**Unblinded** at {blinding.unblinded_utc[-1]}. {blinding.check} Arms: {mapping}. First unblinded at {blinding.unblinded_utc[0]}."
         )
     else:
         items.append("Not blinded.")
@@ -450,6 +449,7 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             "controllers_named": blinding.open,
             "unblinded_utc": list(blinding.unblinded_utc) if blinding.revealed else [],
             "arms": dict(blinding.labels) if blinding.revealed else None,
+            "key_check": blinding.check if blinding.revealed else None,
         },
         "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished]},
         "rubric": {"source": rubric_source, "thresholds": asdict(a.rubric)},

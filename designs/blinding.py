@@ -1,8 +1,15 @@
-"""Blinded allocation: opaque arm labels, a sealed key, and a salted SHA-256 commitment to it.
+"""Blinded allocation: opaque arm labels, a sealed key, and a SHA-256 commitment to the whole key.
 
 The public files name only arm labels. The key (arm label -> real level) is drawn from its own
-secret seed, never from the public study seed, and is committed to by
-sha256(salt + "\\n" + canonical JSON of the key), so a changed key is detected on unblinding.
+secret seed, never from the public study seed. The commitment is the SHA-256 of the key file's
+canonical bytes (every field: factor, arms, salt, allocation seed), so any change to the key is
+detected; the random salt keeps the few possible keys from being tried against it. design.json
+holds the commitment, but whoever can rewrite the key can rewrite design.json too, so the
+researcher records it elsewhere as well (`trials design` prints it) and unblinding checks the key
+against that record when given.
+
+Studies made by earlier releases hold the older commitment, sha256(salt + "\\n" + JSON of factor and
+arms), which leaves the allocation seed out; it is still checked as it was.
 """
 
 from __future__ import annotations
@@ -17,6 +24,15 @@ import numpy as np
 
 from designs.errors import DesignError
 
+#: design.json's name of each commitment format: the whole key, and the older one of factor and arms.
+WHOLE_KEY = "sha256 of the sealed key's canonical JSON (every field, sorted keys, no spaces, UTF-8)"
+FACTOR_AND_ARMS = "sha256(salt + newline + key json)"
+
+
+def canonical_bytes(record: dict[str, object]) -> bytes:
+    """A JSON record as one byte string: keys sorted, no spaces, UTF-8."""
+    return json.dumps(record, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
+
 
 @dataclass(frozen=True)
 class SealedAllocation:
@@ -28,6 +44,11 @@ class SealedAllocation:
     seed: int
 
     def commitment(self) -> str:
+        """The commitment to the whole key (`WHOLE_KEY`), over exactly what `to_dict` writes."""
+        return hashlib.sha256(canonical_bytes(self.to_dict())).hexdigest()
+
+    def factor_and_arms_commitment(self) -> str:
+        """The older commitment (`FACTOR_AND_ARMS`): the salt, the factor and the arms, not the seed."""
         key = json.dumps({"factor": self.factor, "arms": self.arms}, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(f"{self.salt}\n{key}".encode()).hexdigest()
 
@@ -60,7 +81,34 @@ def seal(factor: str, levels: tuple[str, ...], seed: int | None = None) -> Seale
     return SealedAllocation(factor, arms, secrets.token_hex(16), seed)
 
 
-def verify(sealed: SealedAllocation, commitment: str) -> None:
-    """Raise DesignError unless the sealed key matches the public commitment."""
-    if not secrets.compare_digest(sealed.commitment(), commitment):
+def verify(key: dict[str, object], sealed: SealedAllocation, algorithm: str, digest: str, recorded: str | None = None) -> str:
+    """Check a key file's content (`key`, read as `sealed`) against design.json's commitment
+    (`algorithm`, `digest`) and, when given, the commitment the researcher `recorded` elsewhere.
+
+    Returns which check was made, in a sentence for the report.
+
+    Raises:
+        DesignError: an unknown commitment format, a malformed recorded value, or a key that
+            does not match either commitment.
+    """
+    if algorithm == WHOLE_KEY:
+        actual = hashlib.sha256(canonical_bytes(key)).hexdigest()
+        covers = "the whole key (arms, salt, allocation seed)"
+    elif algorithm == FACTOR_AND_ARMS:
+        actual = sealed.factor_and_arms_commitment()
+        covers = "the factor, arms and salt only (the older format: the allocation seed is not covered)"
+    else:
+        raise DesignError(f"design.json: unknown commitment algorithm {algorithm!r}; expected {WHOLE_KEY!r} or {FACTOR_AND_ARMS!r}")
+    if not secrets.compare_digest(actual, str(digest)):
         raise DesignError("the sealed key does not match the commitment in design.json: it was changed after the design was made")
+    if recorded is None:
+        return (f"The sealed key matched design.json's commitment (sha256 {actual[:16]}...), which covers {covers}; no "
+                "independently recorded commitment was given (--commitment), so a key and design.json changed together would pass.")
+    value = recorded.strip().lower()
+    if len(value) != 64 or any(c not in string.hexdigits for c in value):
+        raise DesignError(f"--commitment: expected the 64 hex digits `trials design` printed, got {recorded!r}")
+    if not secrets.compare_digest(actual, value):
+        raise DesignError(f"the sealed key does not match the commitment you recorded ({value[:16]}...): the key or design.json "
+                          "was changed after the design was made, or the recorded value belongs to another study")
+    return (f"The sealed key matched the commitment recorded outside the study (--commitment {actual[:16]}...) and "
+            f"design.json's, which cover {covers}.")

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from designs.blinding import WHOLE_KEY
 from designs.errors import DesignError
 from designs.exchange import candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
@@ -112,7 +113,7 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
         record["blinding"] = {
             "factor": plan.sealed.factor,
             "arms": sorted(plan.sealed.arms),
-            "commitment": {"algorithm": "sha256(salt + newline + key json)", "digest": plan.sealed.commitment()},
+            "commitment": {"algorithm": WHOLE_KEY, "digest": plan.sealed.commitment()},
             "key": key,
         }
     return record
@@ -138,10 +139,12 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     if largest:
         lines.append(f"Largest correlation between model columns: {largest}")
     if plan.sealed is not None:
-        lines.append(
-            f"Blinded: {plan.sealed.factor} appears as arms {', '.join(sorted(plan.sealed.arms))}; "
-            f"the key is sealed (commitment {plan.sealed.commitment()[:16]}...)"
-        )
+        lines += [
+            f"Blinded: {plan.sealed.factor} appears as arms {', '.join(sorted(plan.sealed.arms))}; the key is sealed, committed to by",
+            f"  {plan.sealed.commitment()}",
+            "Record this commitment outside the study folder (lab notebook, preregistration): unblinding with "
+            "`trials report --unblind --commitment <it>` refuses a key that does not match it.",
+        ]
     return lines
 
 

@@ -43,6 +43,9 @@ CONTROLLER_RECORD = Topic("/controller/record", "navtrials.ControllerRecord")
 COMPARISON = Topic("/replay/comparison", "navtrials.ReplayComparison")
 RECORDED_POSES = Topic("/replay/recorded_poses", "foxglove.PosesInFrame")
 EVENTS = Topic("/events", "navtrials.Event")
+#: What the controller computed (its plans, its own record, a logged trial's plans against the log):
+#: a blinded run keeps these out of its public log, in its sealed record, with the `replay` metadata.
+CONTROLLER_TOPICS = (PLAN, PLAN_POSES, CONTROLLER_RECORD, COMPARISON, RECORDED_POSES)
 
 #: The fields of a /robot/state message the reader uses, in the order of `LoggedRun`'s arrays.
 ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
@@ -59,11 +62,17 @@ def rounded(values: Any) -> list[float]:
 
 
 def robot_state(time: float, pose: tuple[float, float, float], velocity: tuple[float, float],
-                command: tuple[float, float]) -> dict[str, float]:
-    """/robot/state: the robot's pose (m, rad), velocity (m/s, rad/s) and the commanded velocity."""
-    (x, y, theta), (v, w), (v_cmd, w_cmd) = pose, velocity, command
-    return {"t": round(time, 4), "x": round(x, 4), "y": round(y, 4), "theta": round(theta, 4),
-            "v": round(v, 4), "w": round(w, 4), "v_cmd": round(v_cmd, 4), "w_cmd": round(w_cmd, 4)}
+                command: tuple[float, float] | None) -> dict[str, float]:
+    """/robot/state: the robot's pose (m, rad), velocity (m/s, rad/s) and the commanded velocity
+    (left out when None: a blinded run's command follows its controller's plan)."""
+    (x, y, theta), (v, w) = pose, velocity
+    state = {"t": round(time, 4), "x": round(x, 4), "y": round(y, 4), "theta": round(theta, 4), "v": round(v, 4), "w": round(w, 4)}
+    return state if command is None else {**state, **robot_command(command)}
+
+
+def robot_command(command: tuple[float, float]) -> dict[str, float]:
+    """The commanded velocity of /robot/state (m/s, rad/s); a blinded run's sealed record keeps it."""
+    return {"v_cmd": round(command[0], 4), "w_cmd": round(command[1], 4)}
 
 
 def pedestrians(time: float, ids: tuple[int, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any]:
@@ -103,7 +112,7 @@ class LoggedRun:
         ids: pedestrian ids; pedestrians: (K, N, 2) their true positions (NaN while a pedestrian
             is absent, e.g. a logged trial's person not tracked then).
         events: (t, event, detail) in time order.
-        plans: number of planning steps.
+        plans: number of planning steps (0 in a blinded run's public log: its plans are sealed).
         replay: a logged trial's `replay` metadata record (its plans against the log); empty otherwise.
     """
 

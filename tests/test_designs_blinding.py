@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
+import shutil
+import stat
 from pathlib import Path
 
 import pytest
 
-from designs.blinding import seal, verify
+from designs.blinding import FACTOR_AND_ARMS, WHOLE_KEY, SealedAllocation, seal, verify
 from designs.errors import DesignError
 from trials.cli import main
 from trials.controllers.registry import NAMES as CONTROLLERS
@@ -83,10 +86,14 @@ def test_commitment_check_detects_a_changed_key(tmp_path):
 def test_seal_and_verify():
     sealed = seal("Controller", ("x", "y", "z"), seed=4)
     assert sorted(sealed.arms) == ["A", "B", "C"] and sorted(sealed.arms.values()) == ["x", "y", "z"]
-    verify(sealed, sealed.commitment())
-    tampered = type(sealed)(sealed.factor, {**sealed.arms, "A": "w"}, sealed.salt, sealed.seed)
-    with pytest.raises(DesignError):
-        verify(tampered, sealed.commitment())
+    key = sealed.to_dict()
+    assert "whole key" in verify(key, sealed, WHOLE_KEY, sealed.commitment())
+    # Every field is covered: the arms, the salt, the allocation seed, and a field added to the file.
+    for changed in ({"arms": {**sealed.arms, "A": "w"}}, {"salt": "0" * 32}, {"allocation_seed": sealed.seed + 1},
+                    {"note": "added"}):
+        tampered = {**key, **changed}
+        with pytest.raises(DesignError, match="does not match the commitment in design.json"):
+            verify(tampered, SealedAllocation.from_dict(tampered, "key"), WHOLE_KEY, sealed.commitment())
 
 
 def test_blind_spec_written_by_the_researcher_moves_under_sealed(tmp_path, capsys):
@@ -108,3 +115,77 @@ def test_blind_spec_written_by_the_researcher_moves_under_sealed(tmp_path, capsy
     assert main(["design", "--study", str(tmp_path), "--force"]) == 0
     assert sorted(StudyFolder(tmp_path).read_sealed().arms.values()) == ["Lattice", "NaviGAN-R"]
     assert "lattice" not in capsys.readouterr().out.lower()
+
+
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory) -> Path:
+    """The blinded A/B plan (seed 5), designed once; tests change copies of it."""
+    study = tmp_path_factory.mktemp("ab") / "study"
+    assert main(["design", "--ab", "--study", str(study), "--seed", "5"]) == 0
+    return study
+
+
+@pytest.fixture
+def study(designed, tmp_path) -> Path:
+    return Path(shutil.copytree(designed, tmp_path / "study"))
+
+
+def _digest(key: dict) -> str:
+    return hashlib.sha256(json.dumps(key, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def test_design_prints_the_whole_commitment_and_seals_privately(tmp_path, capsys):
+    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "5"]) == 0
+    out = capsys.readouterr().out
+    key = json.loads((tmp_path / "sealed" / "allocation.json").read_text())
+    digest = json.loads((tmp_path / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    assert set(key) == {"factor", "arms", "salt", "allocation_seed"} and digest == _digest(key)
+    assert f"  {digest}\n" in out and "Record this commitment outside the study folder" in out
+    assert "readable by you only (folder 0700, files 0600)" in out
+    assert stat.S_IMODE((tmp_path / "sealed").stat().st_mode) == 0o700
+    assert stat.S_IMODE((tmp_path / "sealed" / "allocation.json").stat().st_mode) == 0o600
+
+
+def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(study):
+    folder, path, design = StudyFolder(study), study / "sealed" / "allocation.json", study / "design.json"
+    recorded = json.loads(design.read_text())["blinding"]["commitment"]["digest"]
+    assert "recorded outside the study" in folder.open_sealed(recorded)[1]
+    key = json.loads(path.read_text())
+    key["arms"] = {"A": key["arms"]["B"], "B": key["arms"]["A"]}
+    path.write_text(json.dumps(key))
+    record = json.loads(design.read_text())
+    record["blinding"]["commitment"]["digest"] = _digest(key)
+    design.write_text(json.dumps(record))
+    # design.json alone is fooled, and says it could be; the recorded value is not.
+    assert "a key and design.json changed together would pass" in folder.open_sealed()[1]
+    with pytest.raises(StudyError, match="does not match the commitment you recorded"):
+        folder.open_sealed(recorded)
+    with pytest.raises(StudyError, match="expected the 64 hex digits"):
+        folder.open_sealed(recorded[:16])
+
+
+def test_the_allocation_seed_is_committed_to(study):
+    path = study / "sealed" / "allocation.json"
+    key = json.loads(path.read_text())
+    path.write_text(json.dumps({**key, "allocation_seed": key["allocation_seed"] + 1}))
+    with pytest.raises(StudyError, match="does not match the commitment in design.json"):
+        StudyFolder(study).read_sealed()
+
+
+def test_an_older_study_keeps_its_commitment_checked_as_before(study):
+    """A study made by an earlier release: its key has `created`, design.json the salted factor-and-arms digest."""
+    path, design = study / "sealed" / "allocation.json", study / "design.json"
+    key = {**json.loads(path.read_text()), "created": "2026-01-01T00:00:00+00:00"}
+    path.write_text(json.dumps(key))
+    arms = json.dumps({"factor": key["factor"], "arms": key["arms"]}, sort_keys=True, separators=(",", ":"))
+    record = json.loads(design.read_text())
+    record["blinding"]["commitment"] = {"algorithm": FACTOR_AND_ARMS,
+                                        "digest": hashlib.sha256(f"{key['salt']}\n{arms}".encode()).hexdigest()}
+    design.write_text(json.dumps(record))
+    folder = StudyFolder(study)
+    assert "the older format: the allocation seed is not covered" in folder.open_sealed()[1]
+    path.write_text(json.dumps({**key, "allocation_seed": 1}))
+    assert folder.read_sealed().seed == 1  # not covered by that format, as before
+    path.write_text(json.dumps({**key, "arms": {"A": key["arms"]["B"], "B": key["arms"]["A"]}}))
+    with pytest.raises(StudyError, match="does not match the commitment in design.json"):
+        folder.read_sealed()

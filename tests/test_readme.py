@@ -40,9 +40,12 @@ def test_the_readme_shows_the_three_commands_and_the_ab_flow():
 @pytest.mark.parametrize("block", [0, 1], ids=["three commands", "blinded A/B"])
 def test_each_study_block_runs_in_a_fresh_folder(block, tmp_path):
     blocks = [b for b in re.findall(r"```bash\n(.*?)```", README, re.S) if "pip install" not in b]
+    printed = ""
     for words in commands(blocks[block]):
-        done = run(words, tmp_path)
+        commitment = re.findall(r"\b[0-9a-f]{64}\b", printed)  # HEX stands for the commitment `trials design` printed
+        done = run([commitment[-1] if word == "HEX" else word for word in words], tmp_path)
         assert done.returncode == 0, f"{shlex.join(words)}: {done.stderr}"
+        printed += done.stdout
     assert (tmp_path / "report" / "report.md").is_file()
 
 

@@ -54,7 +54,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
         assert name not in text.lower(), name
         assert name not in (console.out + console.err).lower(), name
     record = json.loads((ab_study / "report" / "report.json").read_text())
-    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None}
+    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
     assert "| Runs with | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
     assert not (ab_study / "report" / "unblinding.json").exists()
@@ -124,6 +124,35 @@ def test_tampered_key_is_refused_and_changes_nothing(ab_study: Path, capsys: pyt
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "does not match the commitment" in err
     assert {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()} == before
+
+
+def test_unblinding_checks_the_recorded_commitment_and_keeps_the_blinded_report(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    recorded = json.loads((ab_study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    assert main(["report", "--study", str(ab_study)]) == 0
+    blinded = {p.relative_to(ab_study / "report"): p.read_bytes() for p in (ab_study / "report").rglob("*") if p.is_file()}
+    before = {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    wrong = ("0" if recorded[0] != "0" else "1") + recorded[1:]
+    for args, message in ((["--unblind", "--commitment", wrong], "does not match the commitment you recorded"),
+                          (["--unblind", "--commitment", "abc"], "expected the 64 hex digits"),
+                          (["--commitment", recorded], "give it with --unblind")):
+        assert main(["report", "--study", str(ab_study), *args]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and message in err, err
+        assert {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()} == before
+    assert main(["report", "--study", str(ab_study), "--unblind", "--commitment", recorded.upper()]) == 0
+    out = capsys.readouterr().out
+    assert "matched the commitment recorded outside the study" in out and "The blinded report is kept in" in out
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    assert record["blinding"]["controllers_named"] and "recorded outside the study" in record["blinding"]["key_check"]
+    assert "matched the commitment recorded outside the study" in (ab_study / "report" / "report.md").read_text()
+    kept = {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()}
+    assert kept == blinded
+    # Unblinding again replaces the unblinded report only; the blinded one stays as it was.
+    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    assert "no independently recorded commitment was given" in capsys.readouterr().out
+    assert {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()} == kept
+    assert not (ab_study / "superseded").exists()
 
 
 def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import csv
+import gzip
 import json
+import stat
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.blinding import NAMES, mcap_text
 from tests.support.run_studies import design_small_study
 from trials.cli import main
+from trials.sealed_runs import SEALED_BLOCK
 
 pytestmark = pytest.mark.slow  # a blinded study run end to end in worker processes
 
@@ -63,21 +67,28 @@ def test_nothing_public_names_a_controller(blind_run):
     assert checked >= 6 + 2 + 5  # logs, pictures, and the study's own files were all read
 
 
-def test_the_sealed_part_holds_the_controller_records(blind_run):
+def test_the_sealed_part_holds_the_controller_output(blind_run):
     study, _ = blind_run
     arms = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
     for row in _plan(study):
-        record = json.loads((study / "sealed" / "runs" / f"{row['run_code']}.json").read_text())
+        path = study / "sealed" / "runs" / f"{row['run_code']}.json.gz"
+        assert path.stat().st_size == SEALED_BLOCK and stat.S_IMODE(path.stat().st_mode) == 0o600
+        record = json.loads(gzip.decompress(path.read_bytes()))
         assert record["arm"] == row["Controller"] and record["controller"] == arms[row["Controller"]]
-        assert record["steps"] and all("record" in step and "t" in step for step in record["steps"])
-    assert NAMES.search((study / "sealed" / "runs" / f"{_plan(study)[0]['run_code']}.json").read_bytes())
+        steps, plans = record["topics"]["/controller/record"], record["topics"]["/controller/plan"]
+        assert steps and all("record" in step and "t" in step for step in steps)
+        assert [p["t"] for p in plans] == [s["t"] for s in steps] and all(p["waypoints"] for p in plans)
+        assert NAMES.search(json.dumps(record).encode())
+    assert stat.S_IMODE((study / "sealed").stat().st_mode) == 0o700
+    assert stat.S_IMODE((study / "sealed" / "runs").stat().st_mode) == 0o700
 
 
-def test_a_log_of_a_blind_run_has_no_controller_topic(blind_run):
+def test_a_log_of_a_blind_run_has_no_controller_output(blind_run):
     study, _ = blind_run
-    code = _plan(study)[0]["run_code"]
-    content = mcap_text(study / "runs" / f"{code}.mcap")
-    assert b"/controller/record" not in content and b"ControllerRecord" not in content
+    for row in _plan(study):
+        content = mcap_text(study / "runs" / f"{row['run_code']}.mcap")
+        for topic in CONTROLLER_TOPICS:
+            assert topic.name.encode() not in content and topic.schema.encode() not in content
 
 
 def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):
@@ -95,3 +106,18 @@ def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):
     assert main(["run", "--study", str(study)]) == 2
     assert f"error: the sealed key {key} is missing" in capsys.readouterr().err
     assert not list(study.glob("runs/*.mcap")) and not (study / "outcomes.csv").exists()
+
+
+def test_log_show_unblind_adds_the_sealed_controller_and_plans(blind_run, capsys):
+    study, _ = blind_run
+    key = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
+    recorded = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    row = _plan(study)[0]
+    record = json.loads(gzip.decompress((study / "sealed" / "runs" / f"{row['run_code']}.json.gz").read_bytes()))
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--unblind", "--commitment", recorded]) == 0
+    out = capsys.readouterr().out
+    plans = len(record["topics"]["/controller/plan"])
+    assert f"arm {row['Controller']} is {key[row['Controller']]}; controller: {key[row['Controller']]}" in out
+    assert f"{plans} plans and {plans} controller records in" in out and "recorded outside the study" in out
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--commitment", recorded]) == 2
+    assert "give it with --unblind" in capsys.readouterr().err

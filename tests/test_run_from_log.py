@@ -9,6 +9,8 @@ sensor's origin); a bag written here adds a robot driving by odometry.
 from __future__ import annotations
 
 import csv
+import gzip
+import json
 import os
 import re
 import shutil
@@ -24,6 +26,7 @@ from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.physical import STEP_S
 from robot_logs.records import Odometry, Transform
+from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.bag_writer import BagWriter
 from tests.support.blinding import NAMES, mcap_text
 from trials.cli import main
@@ -327,5 +330,10 @@ def test_a_blinded_logged_trial_names_no_controller(robot_logs_dir, tmp_path_fac
         checked += 1
     assert checked >= 2 + 1 + 4  # both logs, a picture, and the study's own files
     for code in codes:
-        sealed = (study / "sealed" / "runs" / f"{code}.json").read_text()
-        assert NAMES.search(sealed.encode()) and '"steps"' in sealed
+        record = json.loads(gzip.decompress((study / "sealed" / "runs" / f"{code}.json.gz").read_bytes()))
+        assert NAMES.search(record["controller"].encode())
+        # The plans, the controller's records and the plans against the log are sealed, not public.
+        assert {"/controller/plan", "/controller/record", "/replay/comparison"} <= set(record["topics"])
+        assert int(record["metadata"]["replay"]["plans"]) == len(record["topics"]["/controller/plan"]) > 0
+        public = FoxgloveReader(study / "runs" / f"{code}.mcap")
+        assert "replay" not in public.metadata and not set(public.topics) & {t.name for t in CONTROLLER_TOPICS}

@@ -6,12 +6,14 @@ from __future__ import annotations
 import errno
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from trials.errors import DiskFullError, StudyError
 
+#: The mode of a file only its owner may read (a blinded study's sealed files).
+PRIVATE_FILE = 0o600
 #: errno values that mean the file system has no room left (for anyone, or for this user).
 NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 
@@ -37,8 +39,8 @@ def writing(path: Path) -> Iterator[None]:
         raise StudyError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
-def write_files(files: dict[Path, bytes]) -> None:
-    """Write several files so that none is left half-written.
+def write_files(files: dict[Path, bytes], private: Collection[Path] = ()) -> None:
+    """Write several files so that none is left half-written; those in `private` are created 0600.
 
     Each file is first written and flushed to a temporary name in its own folder; only when
     all are staged are they renamed over their targets, so a failure or an interrupt before
@@ -51,7 +53,8 @@ def write_files(files: dict[Path, bytes]) -> None:
             with writing(target):
                 target.parent.mkdir(parents=True, exist_ok=True)
                 staged.append((temporary, target))
-                with temporary.open("xb") as handle:
+                mode = PRIVATE_FILE if target in private else 0o666  # 0o666: as open() does, less the umask
+                with os.fdopen(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, mode), "wb") as handle:
                     handle.write(content)
                     handle.flush()
                     os.fsync(handle.fileno())

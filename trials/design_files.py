@@ -15,18 +15,21 @@ from trials.study import (
     CORRELATION_MAP,
     DESIGN,
     PLAN,
+    SEALED,
     SEALED_SPEC,
     SPEC,
     StudyFolder,
     json_content,
     plan_content,
     plan_digest,
+    private_folder,
     utc_now,
 )
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None) -> list[Path]:
-    """Write study.toml, plan.csv, design.json, correlation_map.png and the sealed key.
+    """Write study.toml, plan.csv, design.json, correlation_map.png and the sealed key (sealed/ 0700,
+    its files 0600).
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
     it is kept under sealed/. Returns the public files written.
@@ -45,9 +48,11 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     }
     secret: dict[Path, bytes] = {}
     if plan.sealed is not None:
-        key = {**plan.sealed.to_dict(), "created": created}
-        secret[folder.path(ALLOCATION)] = json_content(key)
+        # Exactly the committed fields: the commitment covers the key file's every field.
+        secret[folder.path(ALLOCATION)] = json_content(plan.sealed.to_dict())
     if sealed_spec_text is not None:
         secret[folder.path(SEALED_SPEC)] = sealed_spec_text.encode()
-    write_files({**public, **secret})
+    if secret:
+        private_folder(folder, folder.path(SEALED))
+    write_files({**public, **secret}, private=set(secret))
     return list(public)

@@ -2,9 +2,11 @@
 (topics, schemas, message layout; it also reads the log back).
 
 The log opens in Foxglove as a 3-D scene in its frame. Times are simulated seconds since the
-start (log times count from 0), never wall-clock time. A blinded run's log names no controller:
-the controller's own records (`Plan.record`) are kept back in `records` for the sealed part of the
-study instead of going to `/controller/record`.
+start (log times count from 0), never wall-clock time. A blinded run's log holds only what an
+observer of the trial could see (the motion, the scene, the events): what the controller computed
+(`fmt.CONTROLLER_TOPICS`, the `replay` metadata, and the commanded velocity the path follower took
+from its plan) is kept back (`withheld`, `withheld_metadata`, `withheld_commands`) for the run's
+sealed record instead.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ class RunLog:
         path: runs/<code>.mcap; the file appears there only when the log is closed normally.
         metadata: the `run` metadata record (strings).
         goal, cone: where they stand (m); a logged trial has no cone (None).
-        blind: keep controller records out of the log (they collect in `records`).
+        blind: keep what the controller computed out of the log (it collects in `withheld`).
         limits: the robot's footprint, for the scene.
     """
 
@@ -74,7 +76,11 @@ class RunLog:
                  blind: bool, limits: RobotLimits = RobotLimits()) -> None:
         self.writer = FoxgloveWriter(path, metadata={fmt.RUN_METADATA: metadata})
         self.blind = blind
-        self.records: list[dict[str, Any]] = []
+        #: A blinded run's controller output: topic name -> its messages; metadata name -> record.
+        self.withheld: dict[str, list[dict[str, Any]]] = {}
+        self.withheld_metadata: dict[str, dict[str, str]] = {}
+        #: The velocity commanded at each state, which the path follower takes from the plan.
+        self.withheld_commands: list[dict[str, float]] = []
         self._limits = limits
         self._fixed = [entity(0, FRAME, "goal", cylinders=[cylinder(*goal, GOAL_TOLERANCE_M, 0.02, GOAL_COLOUR)])]
         if cone is not None:
@@ -85,7 +91,10 @@ class RunLog:
         w = self.writer
         w.write(*fmt.TRANSFORM, frame_transform(stamp, FRAME, "base_link", Pose2D(robot.x, robot.y, robot.theta)), stamp)
         w.write(*fmt.SCENE, scene_update([*self._fixed, self._robot(stamp, robot), self._people(stamp, crowd)]), stamp)
-        w.write(*fmt.ROBOT_STATE, fmt.robot_state(time, (robot.x, robot.y, robot.theta), (robot.v, robot.w), command), stamp)
+        if self.blind:
+            self.withheld_commands.append({"t": round(time, 4), **fmt.robot_command(command)})
+        public_command = None if self.blind else command
+        w.write(*fmt.ROBOT_STATE, fmt.robot_state(time, (robot.x, robot.y, robot.theta), (robot.v, robot.w), public_command), stamp)
         w.write(*fmt.PEDESTRIANS, fmt.pedestrians(time, crowd.ids, crowd.position, crowd.velocity), stamp)
 
     def perceived(self, time: float, ids: tuple[int, ...], history: np.ndarray) -> None:
@@ -97,24 +106,32 @@ class RunLog:
     def planned(self, time: float, plan: Plan) -> None:
         stamp = fmt.stamp_ns(time)
         points = np.asarray(plan.waypoints, dtype=float).reshape(-1, 2)
-        self.writer.write(*fmt.PLAN, fmt.plan(time, points), stamp)
-        self.writer.write(*fmt.PLAN_POSES, poses_in_frame(stamp, FRAME, points), stamp)
-        entry = fmt.controller_record(time, jsonable(plan.record))
-        if self.blind:
-            self.records.append(entry)
-        else:
-            self.writer.write(*fmt.CONTROLLER_RECORD, entry, stamp)
+        self._controller_output(fmt.PLAN, fmt.plan(time, points), stamp)
+        self._controller_output(fmt.PLAN_POSES, poses_in_frame(stamp, FRAME, points), stamp)
+        self._controller_output(fmt.CONTROLLER_RECORD, fmt.controller_record(time, jsonable(plan.record)), stamp)
 
     def compared(self, time: float, recorded: np.ndarray, figures: Mapping[str, float | None]) -> None:
         """A logged trial's plan against the log: the robot's recorded positions at the way-points' times."""
         stamp = fmt.stamp_ns(time)
         points = np.asarray(recorded, dtype=float).reshape(-1, 2)
-        self.writer.write(*fmt.COMPARISON, fmt.comparison(time, points, jsonable(figures)), stamp)
-        self.writer.write(*fmt.RECORDED_POSES, poses_in_frame(stamp, FRAME, points), stamp)
+        self._controller_output(fmt.COMPARISON, fmt.comparison(time, points, jsonable(figures)), stamp)
+        self._controller_output(fmt.RECORDED_POSES, poses_in_frame(stamp, FRAME, points), stamp)
 
     def add_metadata(self, name: str, values: Mapping[str, str]) -> None:
-        """Another metadata record (e.g. a logged trial's `replay` summary, known only at the end)."""
-        self.writer.add_metadata(name, values)
+        """Another metadata record (e.g. a logged trial's `replay` summary, known only at the end;
+        figures of the controller's plans, so a blinded run keeps it in `withheld`)."""
+        if self.blind and name == fmt.REPLAY_METADATA:
+            self.withheld_metadata[name] = dict(values)
+        else:
+            self.writer.add_metadata(name, values)
+
+    def _controller_output(self, topic: fmt.Topic, message: dict[str, Any], stamp: int) -> None:
+        """Log a message the controller's output made; a blinded run keeps it (but the poses, which
+        only redraw the plan for Foxglove) for its sealed record."""
+        if not self.blind:
+            self.writer.write(*topic, message, stamp)
+        elif topic not in (fmt.PLAN_POSES, fmt.RECORDED_POSES):
+            self.withheld.setdefault(topic.name, []).append(message)
 
     def event(self, time: float, name: str, detail: str) -> None:
         self.writer.write(*fmt.EVENTS, fmt.event(time, name, detail), fmt.stamp_ns(time))

@@ -8,10 +8,12 @@ that plays a robot log (`--from-log`, or the plan's `Log` column) has its log re
 the parent before any run starts (once per log), and is played open loop (`trials.log_trial`).
 
 Order of writes for one run, so an interruption anywhere loses and duplicates nothing: the MCAP
-is written under a hidden partial name; the sealed record (blinded studies) is written; the MCAP is
-renamed into place; the outcome row is appended (outcomes.csv rewritten through a temporary
-name). A run without a row is pending and runs again (with the same seed); partial files of
-interrupted runs are deleted when the next `trials run` starts. A full disk (`DiskFullError`, in
+is written under a hidden partial name; the sealed record (blinded studies, `trials.sealed_runs`)
+is written; the MCAP is renamed into place; the outcome row is appended (outcomes.csv rewritten
+through a temporary name). A run without a row is pending and runs again (with the same seed);
+partial files of interrupted runs are deleted when the next `trials run` starts. In a blinded
+study every public file a run writes, and its folder, gets its modification time rounded down to
+the minute, as `finished_utc` is. A full disk (`DiskFullError`, in
 the parent or a worker) stops the command at its first failed write, since every later run would
 fail alike; the partial files are deleted as it stops.
 """
@@ -32,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from analysis.records import Outcome, RunMetrics
-from trials.atomic import no_space, write_files, write_text
+from trials.atomic import no_space, write_files
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, DiskFullError, StudyError
@@ -42,8 +44,23 @@ from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcome
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
 from trials.scenario import CONTROLLER, settings_from_row
+from trials.sealed_runs import SEALED_RUN_FORMAT, write_sealed
 from trials.sim.perception import PositionNoise
-from trials.study import DESIGN, OUTCOMES, PLAN, RESPONSES, RUN_LOCK, RUNS, SEALED, SEALED_RUNS, SUPERSEDED, StudyFolder, utc_now
+from trials.study import (
+    DESIGN,
+    OUTCOMES,
+    PLAN,
+    RESPONSES,
+    RUN_LOCK,
+    RUNS,
+    SEALED,
+    SEALED_RUNS,
+    SUPERSEDED,
+    StudyFolder,
+    private_folder,
+    to_the_minute,
+    utc_now,
+)
 
 PERCEPTIONS = ("positions", "lidar")
 
@@ -72,11 +89,12 @@ class RunTask:
 
 @dataclass(frozen=True)
 class RunDone:
-    """A finished run as the parent sees it: its public outcome (no controller when blind) and a
-    logged trial's `replay` summary."""
+    """A finished run as the parent sees it: its public outcome (no controller when blind), whether it
+    played a log, and a logged trial's `replay` summary (none when blind: it figures the plans)."""
 
     code: str
     outcome: Outcome
+    logged: bool = False
     replay: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -198,14 +216,18 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
     moved = [row for row in outcomes.rows if row.run_code in codes]
     old = target / OUTCOMES
     files: dict[Path, bytes] = {old: outcomes_text(read_outcomes(old, outcomes.blind) + moved, outcomes.blind).encode()}
-    originals = []
+    originals, private = [], set()
     for code in codes:
         for source, base in ((folder.run_log(code), target / RUNS), (folder.run_figure(code), target / RUNS),
-                             (folder.sealed_run(code), secret / RUNS)):
+                             (folder.sealed_run(code), secret / RUNS), (folder.older_sealed_run(code), secret / RUNS)):
             if source.exists():
                 files[base / source.name] = source.read_bytes()
                 originals.append(source)
-    write_files(files)
+                if base != target / RUNS:
+                    private.add(base / source.name)
+    if private:
+        private_folder(folder, secret / RUNS)
+    write_files(files, private)
     outcomes.remove(codes)
     for source in originals:
         source.unlink()
@@ -269,6 +291,8 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                         on_failed(code, message)
                         continue
                     outcomes.append(answer.outcome)
+                    if study.blind:
+                        to_the_minute(folder.path(OUTCOMES), folder.root)
                     summary.finished.append(answer)
                     on_done(answer)
         finally:
@@ -344,7 +368,7 @@ class TrialWorker:
             import traceback
 
             details = self.folder.sealed_failure(task.code)
-            write_text(details, traceback.format_exc())
+            write_sealed(self.folder, details, traceback.format_exc().encode())
             raise RuntimeError(f"the run failed; what went wrong is in {details} (reading it may unblind)") from None
 
     def _run(self, task: RunTask) -> RunDone:
@@ -362,10 +386,13 @@ class TrialWorker:
             with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind) as log:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
-            status, metrics, replay = played.status, played.outcome, played.summary()
+            status, metrics = played.status, played.outcome
+            replay = {} if self.blind else played.summary()
+        if self.blind:
+            to_the_minute(path, path.parent)
         outcome = Outcome(run_code=task.code, status=status, seed=task.seed, perception=perception, **asdict(metrics),
                           controller=None if self.blind else level, finished_utc=utc_stamp(self.blind))
-        return RunDone(task.code, outcome, replay)
+        return RunDone(task.code, outcome, task.scene is not None, replay)
 
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
                   path: Path) -> tuple[str, RunMetrics]:
@@ -394,11 +421,13 @@ class TrialWorker:
                                       config.limits, config.pedestrian_radius_m)
 
     def _seal(self, task: RunTask, level: str, arm: str | None, log: RunLog) -> None:
-        """Blinded studies: the run's controller records go to sealed/runs/<code>.json (before its log is renamed)."""
+        """Blinded studies: what the controller computed goes to sealed/runs/<code>.json.gz (before
+        its log is renamed): its plans and own records by topic, a logged trial's plans against the log."""
         if self.blind:
-            record = {"run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
-                      **self._controllers[level].details(), "steps": log.records}
-            write_text(self.folder.sealed_run(task.code), json.dumps(jsonable(record)) + "\n")
+            record = {"format": SEALED_RUN_FORMAT, "run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
+                      **self._controllers[level].details(), "topics": log.withheld, "metadata": log.withheld_metadata,
+                      "commands": log.withheld_commands}
+            write_sealed(self.folder, self.folder.sealed_run(task.code), (json.dumps(jsonable(record)) + "\n").encode())
 
     @staticmethod
     def _factors(task: RunTask) -> dict[str, str]:

@@ -4,7 +4,7 @@ the sealed key) written and read back.
 This module is the one place that names the study's files (docs/study_folder.md, docs/architecture.md). The content of
 each other file has one module: study.toml `designs.spec`, rubric.toml `analysis.scoring`,
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
-runs/<code>.mcap `robot_logs.run_log`, runs/.lock and sealed/runs/ `trials.runner`,
+runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
 report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -54,12 +55,30 @@ REPORT_MARKDOWN = f"{REPORT}/report.md"
 REPORT_HTML = f"{REPORT}/report.html"
 REPORT_RECORD = f"{REPORT}/report.json"
 REPORT_FIGURES = f"{REPORT}/figures"
+#: The blinded report as it was before the first `--unblind` replaced it.
+REPORT_BLINDED = f"{REPORT}/blinded"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 
 #: What a new design replaces: the design itself and every result of the old plan.
 PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT)
+
+
+def private_folder(folder: StudyFolder, path: Path) -> None:
+    """Create `path` (sealed/ or a folder in it) and each folder from sealed/ down to it, owner-only (0700)."""
+    sealed = folder.path(SEALED)
+    for level in [*(sealed / above for above in reversed(path.relative_to(sealed).parents)), path]:
+        level.mkdir(parents=True, exist_ok=True)
+        level.chmod(0o700)
+
+
+def to_the_minute(*paths: Path) -> None:
+    """Set each path's modification time to the start of its minute, as a blinded study gives every
+    public time: to the second, the times of its runs tell the controllers apart."""
+    for path in paths:
+        minute = path.stat().st_mtime_ns // 60_000_000_000 * 60_000_000_000
+        os.utime(path, ns=(minute, minute))
 
 
 def utc_now() -> str:
@@ -103,12 +122,16 @@ class StudyFolder:
         return self.run_log(code).with_suffix(RUN_FIGURE_SUFFIX)
 
     def sealed_run(self, code: str) -> Path:
-        """sealed/runs/<code>.json, a blinded run's controller records."""
+        """sealed/runs/<code>.json.gz, a blinded run's controller output (`trials.sealed_runs`)."""
+        return self.path(SEALED_RUNS) / f"{code}.json.gz"
+
+    def older_sealed_run(self, code: str) -> Path:
+        """sealed/runs/<code>.json, a blinded run's record as earlier releases wrote it (plain JSON)."""
         return self.path(SEALED_RUNS) / f"{code}.json"
 
     def sealed_failure(self, code: str) -> Path:
-        """sealed/runs/<code>.error.txt, what went wrong in a blinded run (it may name the controller)."""
-        return self.path(SEALED_RUNS) / f"{code}.error.txt"
+        """sealed/runs/<code>.error.txt.gz, what went wrong in a blinded run (it may name the controller)."""
+        return self.path(SEALED_RUNS) / f"{code}.error.txt.gz"
 
     def has_plan(self) -> bool:
         return self.path(PLAN).exists() or self.path(DESIGN).exists()
@@ -143,6 +166,11 @@ class StudyFolder:
 
     def read_sealed(self) -> SealedAllocation:
         """The sealed key, checked against the commitment in design.json."""
+        return self.open_sealed()[0]
+
+    def open_sealed(self, recorded: str | None = None) -> tuple[SealedAllocation, str]:
+        """The sealed key, checked against design.json's commitment and the one the researcher
+        `recorded` outside the study (when given); with the sentence saying which check was made."""
         blinding = self.read_design().get("blinding")
         if not blinding:
             raise StudyError(f"the study in {self.root} is not blinded: it has no sealed key")
@@ -155,16 +183,35 @@ class StudyFolder:
             raise StudyError(f"the sealed key {path} is damaged: {exc}") from None
         try:
             sealed = SealedAllocation.from_dict(data, str(path))
-            verify(sealed, blinding["commitment"]["digest"])
+            commitment = blinding["commitment"]
+            check = verify(data, sealed, commitment["algorithm"], commitment["digest"], recorded)
         except DesignError as exc:
             raise StudyError(f"{exc} ({path})") from None
-        return sealed
+        except (KeyError, TypeError):
+            raise StudyError(f"{self.path(DESIGN)}: blinding.commitment lacks its algorithm or digest") from None
+        return sealed, check
+
+    def keep_blinded_report(self) -> Path | None:
+        """Move the blinded report (report.md, .html, .json, figures/) to report/blinded/ before an
+        unblinded one is written; an earlier report/blinded/ moves to superseded/<UTC time>/.
+        Returns report/blinded/ if a report moved."""
+        names = [name for name in (REPORT_MARKDOWN, REPORT_HTML, REPORT_RECORD, REPORT_FIGURES) if self.path(name).exists()]
+        if not names:
+            return None
+        self.supersede((REPORT_BLINDED,))
+        target = self.path(REPORT_BLINDED)
+        target.mkdir(parents=True)
+        for name in names:
+            shutil.move(str(self.path(name)), str(target / Path(name).name))
+        return target
 
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:
         """Move existing entries aside into superseded/<UTC time>/; returns that folder if any moved."""
         stamp = utc_now().replace(":", "")
         public = [name for name in names if self.path(name).exists()]
         secret = [name for name in sealed_names if self.path(name).exists()]
+        if secret:
+            private_folder(self, self.path(SEALED) / SUPERSEDED / stamp)
         for name, base in [(n, self.path(SUPERSEDED) / stamp) for n in public] + [
             (n, self.path(SEALED) / SUPERSEDED / stamp) for n in secret
         ]:

@@ -32,8 +32,9 @@ UNBLINDING_FORMAT = "navtrials.unblinding/1"
 CONTROLLER_FACTOR = "Controller"
 
 
-def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
-    """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked."""
+def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | None = None) -> StudyData:
+    """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked,
+    checked against design.json's commitment and the recorded `commitment` when given."""
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
     design = folder.read_design()
@@ -54,7 +55,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
     responses: list[Response] = read_responses(folder.path(RESPONSES))
     _no_unknown_codes([r.run_code for r in responses], codes, f"{RESPONSES} has judgments")
 
-    blinding = _blinding(folder, design, spec_factor_names=[f.name for f in spec.factors], unblind=unblind, now=now, notes=notes)
+    blinding = _blinding(folder, design, [f.name for f in spec.factors], unblind, now, notes, commitment)
     runs = []
     for row in plan:
         code = row["run_code"]
@@ -91,7 +92,8 @@ def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:
         raise StudyError(f"{what} for unknown run code(s) {', '.join(unknown)}: not in {PLAN}")
 
 
-def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: list[str], unblind: bool, now: str, notes: list[str]) -> Blinding:
+def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: list[str], unblind: bool, now: str, notes: list[str],
+              commitment: str | None) -> Blinding:
     record = design.get("blinding")
     if not record:
         if unblind:
@@ -103,8 +105,8 @@ def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: li
     history = read_unblinding(folder, digest)
     if not unblind:
         return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history)
-    sealed = folder.read_sealed()
-    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now))
+    sealed, check = folder.open_sealed(commitment)
+    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check)
 
 
 def read_unblinding(folder: StudyFolder, commitment: str) -> tuple[str, ...]:

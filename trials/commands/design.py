@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     print("\n".join(summary_lines(plan)))
     print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
     if plan.sealed is not None:
-        print("The allocation key is in sealed/: keep it closed until the study is unblinded (trials report --unblind).")
+        print("The allocation key is in sealed/, readable by you only (folder 0700, files 0600): keep it closed until "
+              "the study is unblinded (trials report --unblind).")
     if moved is not None:
         print(f"The previous plan and its results moved to {moved}")
     return 0

@@ -13,10 +13,15 @@ def register(group: argparse._SubParsersAction) -> None:
         "show",
         help="summarise a trial run from its MCAP log and draw its trajectories",
         description="Print a run's settings, seed, events and metrics, recomputed from runs/<code>.mcap, and "
-        "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it.",
+        "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it. A blinded "
+        "run's log holds no controller output; --unblind adds it from the sealed record.",
     )
     parser.add_argument("run", metavar="RUN", help="a run code of the study, or the path of a run's .mcap")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--unblind", action="store_true",
+                        help="blinded study: open the sealed key (checked against design.json's commitment) and show "
+                        "the run's controller and its plans from sealed/runs/")
+    parser.add_argument("--commitment", metavar="HEX", help="with --unblind: the commitment recorded when the study was designed")
     parser.set_defaults(handler=show)
 
 
@@ -28,6 +33,7 @@ def show(args: argparse.Namespace) -> int:
     from trials.outcomes import outcome_cells
     from trials.run_figure import run_png
     from trials.scenario import CONE, GOAL
+    from trials.sealed_runs import unsealed_lines
     from trials.study import (
         OUTCOMES,
         RUN_FIGURE_SUFFIX,
@@ -36,6 +42,8 @@ def show(args: argparse.Namespace) -> int:
         StudyFolder,
     )
 
+    if args.commitment is not None and not args.unblind:
+        raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
     path = Path(args.run)
     if not path.is_file() and path.suffix != RUN_LOG_SUFFIX and len(path.parts) == 1:  # a run code
         path = StudyFolder(args.study).run_log(args.run)
@@ -61,10 +69,19 @@ def show(args: argparse.Namespace) -> int:
         lines.append(f"played from {meta['log']} ({meta['log_format']}) from {meta['log_offset_s']} s, frame {meta['log_frame']}, "
                      f"goal ({meta['goal_x']}, {meta['goal_y']}); odometry: {meta['odometry']}")
     lines.append("events: " + "; ".join(f"{t:.1f} s {name} ({detail})" for t, name, detail in run.events))
+    blinded = "controller" not in meta
+    plans = f"{run.plans} plans" if not blinded else "its plans sealed"
     lines.append(f"{status} after {outcome.duration_s:.1f} s {'of the log' if logged else 'simulated'}; "
-                 f"{len(run.ids)} {'tracked people' if logged else 'pedestrians'}, {run.plans} plans")
-    if run.replay:
-        figures = {k: v or "-" for k, v in run.replay.items()}
+                 f"{len(run.ids)} {'tracked people' if logged else 'pedestrians'}, {plans}")
+    replay = run.replay
+    if args.unblind:
+        if not blinded:
+            raise StudyError(f"--unblind: run {code}'s log is not blinded, it names its controller already")
+        unsealed = unsealed_lines(StudyFolder(args.study), code, args.commitment)
+        lines += unsealed.lines
+        replay = unsealed.replay
+    if replay:
+        figures = {k: v or "-" for k, v in replay.items()}
         lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
                      f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
     lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome_cells(outcome).items() if name != "duration_s")

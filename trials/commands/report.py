@@ -25,7 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--unblind",
         action="store_true",
         help="open the sealed key (checked against design.json's commitment) and name the controllers; "
-        "the time is recorded in report/unblinding.json",
+        "the time is recorded in report/unblinding.json, and the blinded report is kept in report/blinded/",
+    )
+    parser.add_argument(
+        "--commitment",
+        metavar="HEX",
+        help="with --unblind: the commitment `trials design` printed, as recorded outside the study folder; a "
+        "key that does not match it is refused",
     )
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")
@@ -54,8 +60,10 @@ def run(args: argparse.Namespace) -> int:
     from trials.study_data import load_study, unblinding_record
 
     folder = StudyFolder(args.study)
+    if args.commitment is not None and not args.unblind:
+        raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
     now = utc_now()
-    data = load_study(folder, args.unblind, now)
+    data = load_study(folder, args.unblind, now, args.commitment)
     if not data.finished:
         raise StudyError(f"no finished runs in {folder.path(OUTCOMES)} yet: nothing to report (run `trials run` first)")
     rubric_file = args.rubric or (folder.path(RUBRIC) if folder.path(RUBRIC).exists() else None)
@@ -70,12 +78,29 @@ def run(args: argparse.Namespace) -> int:
         folder.path(REPORT_RECORD): (json.dumps(report.record, indent=1) + "\n").encode(),
         **{figures / figure.name: figure.png for figure in report.figures},
     }
+    kept = None
     if data.blinding.revealed:
         files[folder.path(UNBLINDING)] = unblinding_record(data.blinding)
+        if not _unblinded(folder.path(REPORT_RECORD)):
+            kept = folder.keep_blinded_report()
     write_files(files)
     for stale in figures.glob("*.png"):
         if figures / stale.name not in files:
             stale.unlink()
     print("\n".join(report.summary))
     print(f"Wrote report.md, report.html, report.json and {len(report.figures)} figures in {out.resolve()}")
+    if data.blinding.revealed:
+        print(data.blinding.check)
+    if kept is not None:
+        print(f"The blinded report is kept in {kept.resolve()}")
     return 0
+
+
+def _unblinded(record: Path) -> bool:
+    """Whether report/report.json is of an unblinded report (one that a new unblinded report may replace)."""
+    import json
+
+    try:
+        return json.loads(record.read_text(encoding="utf-8"))["blinding"]["controllers_named"] is True
+    except (OSError, ValueError, KeyError, TypeError):
+        return False  # missing or unreadable: whatever is there is kept

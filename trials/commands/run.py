@@ -6,6 +6,10 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from trials.runner import RunDone
 
 from robot_logs.physical import STEP_S
 from trials import option_types as types
@@ -77,10 +81,10 @@ def run(args: argparse.Namespace) -> int:
 
     from robot_logs.topics import TopicNames
     from trials.log_trial import ReplayOptions
-    from trials.runner import RunDone, RunOptions, StudyRun, run_study
+    from trials.runner import RunOptions, StudyRun, run_study
     from trials.sim.perception import PositionNoise
     from trials.simulated_participants import simulate_run
-    from trials.study import OUTCOMES, StudyFolder
+    from trials.study import OUTCOMES, RESPONSES, StudyFolder, to_the_minute
 
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
@@ -92,34 +96,47 @@ def run(args: argparse.Namespace) -> int:
 
     # `kill` stops the run as Ctrl-C does: workers stopped, partial files removed.
     previous = signal.signal(signal.SIGTERM, stop)
-    # A blinded study's console shows no run times: they differ by controller.
-    bar_format = "{l_bar}{bar}| {n_fmt}/{total_fmt}" if study.blind else None
-    bar = tqdm(total=0, unit="run", desc="running", disable=None, bar_format=bar_format)
+    # A blinded study's console shows no run times, nor when each run ended (the time between two
+    # lines is a run's time, which differs by controller): no progress bar, and every run's line
+    # comes only when all have ended, in plan order.
+    bar = tqdm(total=0, unit="run", desc="running", disable=True if study.blind else None)
+    held: dict[str, tuple[str, bool]] = {}
+
+    def say(code: str, line: str, error: bool = False) -> None:
+        if study.blind:
+            held[code] = (line, error)
+        else:
+            bar.write(line, file=sys.stderr if error else None)
+            bar.update(1)
 
     def started(count: int) -> None:
         if study.blind:
-            bar.write("Blinded study: each worker opens the sealed key itself; controller records go to sealed/runs/.")
+            print(f"Blinded study: {count} runs; each worker opens the sealed key itself, controller output goes to "
+                  "sealed/runs/. Run times stay hidden: each run's line comes when all have ended.", flush=True)
         bar.reset(total=count)
 
     def done(run: RunDone) -> None:
         row = run.row
         gap = f", closest {row['min_distance_m']} m" if row["min_distance_m"] else ""
-        bar.write(f"{run.code}: {row['status']} after {row['duration_s']} s{gap}{_replayed(run.replay)}")
-        if not args.no_responses and not run.replay:
+        say(run.code, f"{run.code}: {row['status']} after {row['duration_s']} s{gap}{_replayed(run)}")
+        if not args.no_responses and not run.logged:
             # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
             # logged trial's robot drove as recorded, not as its controller planned, so it is not judged.
             simulate_run(study.folder, run.code, int(row["seed"]), args.participants, row["finished_utc"])
-        bar.update(1)
+            if study.blind:
+                to_the_minute(study.folder.path(RESPONSES), study.folder.root)
 
     def failed(code: str, message: str) -> None:
-        bar.write(f"{code}: failed: {message}", file=sys.stderr)
-        bar.update(1)
+        say(code, f"{code}: failed: {message}", error=True)
 
     try:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
     finally:
         bar.close()
         signal.signal(signal.SIGTERM, previous)
+        for code in (c for c in study.codes if c in held):
+            line, error = held[code]
+            print(line, file=sys.stderr if error else sys.stdout)
     for code in summary.skipped:
         print(f"{code} has already finished (`trials run --rerun {code}` redoes it)")
     if summary.superseded is not None:
@@ -134,10 +151,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _replayed(replay: dict[str, str]) -> str:
-    """A logged trial's plans against the log, for its console line."""
-    if not replay:
+def _replayed(run: RunDone) -> str:
+    """A logged trial's plans against the log, for its console line (sealed when blind)."""
+    if not run.logged:
         return ""
+    if not run.replay:
+        return " (played from its log; its plans are sealed)"
+    replay = run.replay
     deviation, clearance = replay["plan_deviation_mean_m"], replay["plan_min_clearance_m"]
     return (f" (played from its log; {replay['plans']} plans, {deviation or '-'} m from the recorded path on average, "
             f"closest predicted {clearance or '-'} m)")
