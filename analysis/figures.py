@@ -106,7 +106,9 @@ def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]],
         share = np.array([100.0 * r[1][arm][0] for r in rows])
         low = np.array([100.0 * r[1][arm][1] for r in rows])
         high = np.array([100.0 * r[1][arm][2] for r in rows])
-        axes.errorbar(x, share, yerr=[share - low, high - share], fmt="o", color=colours[arm], capsize=4, label=f"{arm} (Wilson 95 %)")
+        # matplotlib refuses negative error bars; an interval always holds its share, so clip rounding
+        yerr = np.clip([share - low, high - share], 0.0, None)
+        axes.errorbar(x, share, yerr=yerr, fmt="o", color=colours[arm], capsize=4, label=f"{arm} (Wilson 95 %)")
         if paper is not None and arm in paper:
             axes.scatter(x, [paper[arm].get(k, np.nan) for k, _ in rows], marker="D", facecolors="none", edgecolors=colours[arm], label=f"{arm}: paper")
     axes.set_xticks(range(len(rows)), [f">= {k} pedestrians" for k, _ in rows])

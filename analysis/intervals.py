@@ -3,6 +3,8 @@
 Wilson (1927): for k successes in n trials and z the normal quantile of the level,
     centre = (k + z^2/2) / (n + z^2),  half-width = z sqrt(k (n - k) / n + z^2/4) / (n + z^2).
 It stays inside [0, 1] and keeps close to its nominal coverage for small n, unlike the Wald interval.
+Rounding can put an end a hair past the share itself (k = n gives 0.9999999999999999 for some n), so
+the ends are clamped to hold the share: low <= k / n <= high always.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ def wilson(k: int, n: int, level: float = 0.95) -> Proportion:
     denominator = n + z * z
     centre = (k + z * z / 2.0) / denominator
     half = z * math.sqrt(k * (n - k) / n + z * z / 4.0) / denominator
-    return Proportion(k, n, max(0.0, centre - half), min(1.0, centre + half))
+    share = k / n
+    return Proportion(k, n, min(share, max(0.0, centre - half)), max(share, min(1.0, centre + half)))
 
 
 def exact_difference(first: Proportion, second: Proportion) -> float:
