@@ -78,6 +78,8 @@ class Fit:
     parameters: list[Parameter]
     effects: list[EffectTest]
     notes: list[str] = field(default_factory=list)
+    #: Named figures of the whole fit (R^2, RMSE, the within-run correlation), in the order shown.
+    summary: dict[str, float] = field(default_factory=dict)
 
 
 def estimable_columns(x: np.ndarray) -> np.ndarray:
@@ -91,7 +93,7 @@ def estimable_columns(x: np.ndarray) -> np.ndarray:
     return mask
 
 
-def _estimability_notes(dm: DesignMatrix, keep: np.ndarray, runs: int) -> list[str]:
+def estimability_notes(dm: DesignMatrix, keep: np.ndarray, runs: int) -> list[str]:
     notes = []
     if runs < len(dm.columns):
         notes.append(f"Too few runs: {runs} runs with data for {len(dm.columns)} model columns.")
@@ -160,7 +162,7 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
     successes = np.asarray(successes, dtype=float)
     trials = np.asarray(trials, dtype=float)
     keep = estimable_columns(dm.x)
-    notes = _estimability_notes(dm, keep, len(trials))
+    notes = estimability_notes(dm, keep, len(trials))
     x = dm.x[:, keep]
     direction = separation(x, successes, trials)
     firth = direction is not None
@@ -174,12 +176,12 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
     beta, covariance, objective = _logistic(x, successes, trials, firth)
     se = np.sqrt(np.diag(covariance))
     z = beta / se
-    parameters = _parameters(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+    parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
 
     def reduced_objective(columns: np.ndarray) -> float:
         return _logistic(dm.x[:, columns], successes, trials, firth)[2]
 
-    effects = _effects(dm, keep, lambda columns, df: _chi_square_test(objective, reduced_objective(columns), df))
+    effects = effect_tests(dm, keep, lambda columns, df: _chi_square_test(objective, reduced_objective(columns), df))
     method = "logistic regression, Firth's penalized likelihood" if firth else "logistic regression, maximum likelihood"
     return Fit(response, method, len(trials), int(trials.sum()), "z", "likelihood-ratio chi-square", parameters, effects, notes)
 
@@ -193,7 +195,7 @@ def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
     """Ordinary least squares of one value per run on the model matrix, with partial F tests."""
     y = np.asarray(y, dtype=float)
     keep = estimable_columns(dm.x)
-    notes = _estimability_notes(dm, keep, len(y))
+    notes = estimability_notes(dm, keep, len(y))
     x = dm.x[:, keep]
     beta = np.linalg.lstsq(x, y, rcond=None)[0]
     sse = float(np.sum((y - x @ beta) ** 2))
@@ -211,7 +213,7 @@ def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = beta / se
         p = 2.0 * t_dist.sf(np.abs(t), df_error) if df_error else np.full(len(beta), math.nan)
-    parameters = _parameters(dm, keep, beta, se, t, p)
+    parameters = parameter_rows(dm, keep, beta, se, t, p)
 
     def partial_f(columns: np.ndarray, df: int) -> tuple[float, float]:
         if not df_error or sigma2 == 0.0:
@@ -221,11 +223,13 @@ def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
         statistic = max(0.0, (sse_reduced - sse) / df) / sigma2
         return statistic, float(f_dist.sf(statistic, df, df_error))
 
-    effects = _effects(dm, keep, partial_f)
-    return Fit(response, "least squares", len(y), len(y), "t", f"partial F (error df {df_error})", parameters, effects, notes)
+    effects = effect_tests(dm, keep, partial_f)
+    total = float(np.sum((y - y.mean()) ** 2))
+    summary = {"R^2": 1.0 - sse / total if total > 0.0 else math.nan, "RMSE": math.sqrt(sigma2)}
+    return Fit(response, "least squares", len(y), len(y), "t", f"partial F (error df {df_error})", parameters, effects, notes, summary)
 
 
-def _parameters(dm: DesignMatrix, keep: np.ndarray, beta: np.ndarray, se: np.ndarray, statistic: np.ndarray, p: np.ndarray) -> list[Parameter]:
+def parameter_rows(dm: DesignMatrix, keep: np.ndarray, beta: np.ndarray, se: np.ndarray, statistic: np.ndarray, p: np.ndarray) -> list[Parameter]:
     """One Parameter per model column; columns left out get NaN."""
     values = iter(zip(beta, se, statistic, p))
     rows = []
@@ -235,7 +239,7 @@ def _parameters(dm: DesignMatrix, keep: np.ndarray, beta: np.ndarray, se: np.nda
     return rows
 
 
-def _effects(dm: DesignMatrix, keep: np.ndarray, test: Callable[[np.ndarray, int], tuple[float, float]]) -> list[EffectTest]:
+def effect_tests(dm: DesignMatrix, keep: np.ndarray, test: Callable[[np.ndarray, int], tuple[float, float]]) -> list[EffectTest]:
     """Each non-intercept term's test of dropping its estimable columns; `test(columns kept, df)`."""
     effects = []
     for name, columns in dm.terms:

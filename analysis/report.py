@@ -23,12 +23,20 @@ from analysis.records import SIMULATED, Response, StudyData
 from analysis.run_log import RunLog
 from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
 from analysis.scoring import Rubric
-from analysis.study_fits import fit_judgments, fit_metrics
+from analysis.study_fits import fit_judgments, fit_judgments_by_run, fit_metrics, fit_run_shares
 from designs.factors import CategoricalFactor, FixedFactor
 from robot_logs.errors import LogError
 from robot_logs.run_log import read_run
 
 FORMAT = "navtrials.report/1"
+#: Why the clustered fit is the primary analysis, said once in the report.
+PRIMARY_WHY = (
+    "The experimental unit is the run: its judgments share one robot behaviour, so they are correlated, and a run with more "
+    "pedestrians would otherwise weigh more. The primary analysis fits the plan's logistic model to every judgment by "
+    "generalized estimating equations with each run a cluster (Liang and Zeger, Biometrika 1986), exchangeable within a run, "
+    "with sandwich standard errors corrected for few clusters (Mancl and DeRouen, Biometrics 2001). Participants are not "
+    "modelled as a second cluster."
+)
 PEDESTRIANS = "Pedestrians"
 NOT_AVAILABLE = "n/a"
 
@@ -85,7 +93,7 @@ class _Analysis:
     judgment_source: str
     judged: list[RunJudgments]
     table: list[TableRow]
-    judgment_fit: Fit | None
+    judgment_fits: list[Fit]
     metric_fits: list[Fit]
     notes: list[str]
 
@@ -135,9 +143,9 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     arms = _arm_order(data)
     judged = count_judgments(judgments, arm_of, pedestrians)
     table = table_ii(judged, arms) if judged else []
-    judgment_fit = fit_judgments(data, judged) if judged else None
+    judgment_fits = [fit(data, judged) for fit in (fit_judgments_by_run, fit_run_shares, fit_judgments)] if judged else []
     metric_fits = fit_metrics(data) if data.finished else []
-    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fit, metric_fits, notes)
+    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes)
 
 
 def _stale_results(data: StudyData) -> list[str]:
@@ -284,6 +292,9 @@ def _ab_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading(heading)]
     if not a.table:
         return blocks + [Paragraph("No judgments of finished runs yet: record them with `trials respond` (or `trials respond --simulate` for simulated runs).")]
+    primary = _primary_result(a)
+    if primary:
+        blocks.append(Paragraph(primary))
     paper = blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms)
     header = ["Runs with"]
     for arm in a.arms:
@@ -318,12 +329,44 @@ def _ab_section(a: _Analysis) -> list[Block]:
     return blocks
 
 
+def _primary_result(a: _Analysis) -> str | None:
+    """The arm effect of the primary (run-level) analysis in one sentence, when there are two arms."""
+    factor = a.data.blinding.factor
+    if len(a.arms) != 2 or not a.judgment_fits or factor is None:
+        return None
+    fit = a.judgment_fits[0]
+    effect = next((e for e in fit.effects if e.term == factor), None)
+    column = next((p for p in fit.parameters if p.column.startswith(f"{factor}[") and "*" not in p.column), None)
+    if effect is None or column is None or math.isnan(column.estimate):
+        return "**Primary result** (run as the unit): not estimable from these judgments; see the notes under the model fits."
+    z = 1.959963984540054
+    ratio = [math.exp(2.0 * (column.estimate + k * z * column.std_error)) for k in (0.0, -1.0, 1.0)]
+    first, second = a.arms
+    return (
+        f"**Primary result** (run as the unit, {fit.runs} runs, {fit.observations} judgments): {first} against {second}, odds ratio "
+        f"{ratio[0]:.2f} (95 % CI {ratio[1]:.2f} - {ratio[2]:.2f}) at the centre of the design; effect test of {a.data.blinding.arm_word} "
+        f"chi-square {number(effect.statistic, 2)} on {effect.df} df, p {_equals(p_text(effect.p_value))} (logistic GEE clustered by run; "
+        "see the model fits). The table below counts judgments and is descriptive."
+    )
+
+
 def _models_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading("The design's model fitted to the results")]
     terms = ", ".join(a.data.model.term_names[1:]) or "intercept only"
     blocks.append(Paragraph(f"Model terms (from the plan): {terms}. Factors are coded as in the design: numeric ones on [-1, 1], categorical ones effect-coded (the last level is minus the sum of the others)."))
-    if a.judgment_fit is not None:
-        blocks += [Heading("Judgments: logistic regression", 3), *_fit_blocks(a.judgment_fit)]
+    if a.judgment_fits:
+        primary, shares, naive = a.judgment_fits
+        blocks += [
+            Heading("Judgments: the run as the unit (primary analysis)", 3),
+            Paragraph(PRIMARY_WHY),
+            *_fit_blocks(primary),
+            Heading("Judgments: each run's share of yes (least squares)", 3),
+            Paragraph("Every run counts once, whatever its number of judgments; a check on the primary analysis that needs no model of the correlation."),
+            *_fit_blocks(shares),
+            Heading("Judgments: logistic regression on every judgment (descriptive)", 3),
+            Paragraph("Treats the judgments as independent, as the paper's percentages do: its standard errors are too small when judgments of one run agree."),
+            *_fit_blocks(naive),
+        ]
     else:
         blocks.append(Paragraph("No judgments to fit yet."))
     if a.metric_fits:
@@ -340,7 +383,8 @@ def _models_section(a: _Analysis) -> list[Block]:
 
 
 def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
-    blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations.")]
+    figures = "".join(f"; {name} {number(value)}" for name, value in fit.summary.items())
+    blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations{figures}.")]
     if effects:
         blocks.append(
             Table(
@@ -467,7 +511,7 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             }
             for row in a.table
         ],
-        "fits": [_fit_record(fit) for fit in ([a.judgment_fit] if a.judgment_fit else []) + a.metric_fits],
+        "fits": [_fit_record(fit) for fit in a.judgment_fits + a.metric_fits],
         "notes": a.notes,
     }
 
@@ -482,6 +526,7 @@ def _fit_record(fit: Fit) -> dict[str, Any]:
         "method": fit.method,
         "parameters": [{"column": p.column, "estimate": _json_number(p.estimate), "std_error": _json_number(p.std_error), "p": _json_number(p.p_value)} for p in fit.parameters],
         "effects": [{"term": e.term, "df": e.df, "statistic": _json_number(e.statistic), "p": _json_number(e.p_value)} for e in fit.effects],
+        "summary": {name: _json_number(value) for name, value in fit.summary.items()},
         "notes": fit.notes,
     }
 
@@ -496,6 +541,9 @@ def _summary(a: _Analysis) -> list[str]:
         n = sum(total)
         shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
         lines.append(f"Scores {shares}   [paper: 3: 86.7 %, 1: 0 %]")
+    primary = _primary_result(a)
+    if primary:
+        lines.append(primary.replace("**", "").replace(" The table below counts judgments and is descriptive.", ""))
     if a.table:
         lines.append(f"Judged socially compliant ({a.judgment_source}):")
         for row in a.table:

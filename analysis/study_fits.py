@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.ab_table import RunJudgments
+from analysis.clustered import fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares, fit_logistic
 from analysis.records import Blinding, StudyData, StudyRun
 from designs.factors import CategoricalFactor
@@ -45,13 +46,32 @@ def relabel(fit: Fit, blinding: Blinding) -> Fit:
     return replace(fit, parameters=[replace(p, column=rename(p.column)) for p in fit.parameters])
 
 
-def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
-    """Logistic regression of each run's yes / total judgments on the plan's terms."""
+JUDGED = "judged socially compliant"
+
+
+def _judged_matrix(data: StudyData, judged: list[RunJudgments]) -> tuple[DesignMatrix, np.ndarray, np.ndarray]:
+    """The model rows of the judged runs, their yes counts and their judgment counts."""
     by_code = {run.code: run for run in data.runs}
-    runs = [by_code[j.code] for j in judged]
-    dm = DesignMatrix.from_model(data.model, settings(data, runs))
-    fit = fit_logistic(dm, np.array([j.yes for j in judged]), np.array([j.total for j in judged]), "judged socially compliant")
-    return relabel(fit, data.blinding)
+    dm = DesignMatrix.from_model(data.model, settings(data, [by_code[j.code] for j in judged]))
+    return dm, np.array([j.yes for j in judged], dtype=float), np.array([j.total for j in judged], dtype=float)
+
+
+def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """Logistic regression of every judgment on the plan's terms, as if judgments were independent (descriptive)."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_logistic(dm, yes, total, JUDGED), data.blinding)
+
+
+def fit_judgments_by_run(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """The primary analysis: the same logistic model by GEE, each run a cluster of judgments."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_gee(dm, yes, total, JUDGED), data.blinding)
+
+
+def fit_run_shares(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """Least squares of each run's share of yes on the plan's terms: every run weighs the same."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_least_squares(dm, yes / total, "share of yes per run"), data.blinding)
 
 
 def fit_metrics(data: StudyData) -> list[Fit]:
