@@ -16,7 +16,7 @@ import numpy as np
 from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
 from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, to_html, to_markdown
 from analysis.figures import ab_shares_png, arm_colours, correlation_map_png, min_distance_png, score_distribution_png, trajectories_png
-from analysis.intervals import wilson
+from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.records import SIMULATED, Response, StudyData
@@ -298,28 +298,41 @@ def _ab_section(a: _Analysis) -> list[Block]:
     paper = blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms)
     header = ["Runs with"]
     for arm in a.arms:
-        header += [f"{arm}: yes / judged", f"{arm}: % (Wilson 95 %)"]
+        header += [f"{arm}: runs", f"{arm}: yes / judged", f"{arm}: % (Wilson 95 %)"]
         if paper:
             header.append(f"{PAPER_NAMES[arm]} (paper)")
     two = len(a.arms) == 2
     if two:
-        header.append("Fisher's exact p")
+        header += ["Difference (95 % CI)", "Odds ratio (95 % CI)", "Fisher's exact p", "Holm p"]
     rows = []
     for row in a.table:
         cells = [f">= {row.min_pedestrians} pedestrians"]
         for arm in a.arms:
             share = row.shares[arm]
-            cells += [f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
+            cells += [str(row.runs[arm]), f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
             if paper:
                 cells.append(f"{PAPER_TABLE_II[arm].get(row.min_pedestrians, math.nan):.0f} %")
         if two:
-            cells.append(p_text(row.p_value))
+            d, r = row.difference, row.odds_ratio
+            cells += [
+                f"{_points(d.estimate)} ({_points(d.low)} to {_points(d.high)})",
+                f"{number(r.estimate, 2)} ({number(r.low, 2)} - {number(r.high, 2)})",
+                p_text(row.p_value),
+                p_text(row.holm_p),
+            ]
         rows.append(cells)
     source = "simulated participants" if a.judgment_source == SIMULATED else "participants"
-    caption = (
-        f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians. Wilson 95 % intervals; "
-        "two-sided Fisher's exact test of the difference between the two arms. Judgments of one run are not independent, "
-        "so the intervals are narrower than the runs alone would support."
+    caption = f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians, with Wilson 95 % intervals"
+    if two:
+        first, second = a.arms
+        caption += (
+            f". Difference: {first} minus {second} in percentage points, Newcombe's score interval; odds ratio of {first} to {second} "
+            "with 0.5 added to every cell (Woolf's interval); two-sided Fisher's exact test, and its p-value Holm-adjusted across the rows, "
+            "which are nested"
+        )
+    caption += (
+        ". Every judgment counts as independent here, so the intervals are narrower than the runs support: the table is descriptive, "
+        "the run-level analysis is the primary one."
     )
     blocks.append(Table(header, rows, caption, set(range(1, len(header)))))
     if blinding.blinded and not blinding.revealed:
@@ -348,6 +361,11 @@ def _primary_result(a: _Analysis) -> str | None:
         f"chi-square {number(effect.statistic, 2)} on {effect.df} df, p {_equals(p_text(effect.p_value))} (logistic GEE clustered by run; "
         "see the model fits). The table below counts judgments and is descriptive."
     )
+
+
+def _points(share_difference: float) -> str:
+    """A difference of two shares in percentage points, signed."""
+    return NOT_AVAILABLE if math.isnan(share_difference) else f"{100.0 * share_difference:+.1f}"
 
 
 def _models_section(a: _Analysis) -> list[Block]:
@@ -466,11 +484,15 @@ def _methods_section(a: _Analysis, rubric_source: str, participants: Participant
         Heading("Statistics", 3),
         Bullets(
             [
+                "Primary analysis of the judgments: the plan's logistic model by GEE with each run a cluster (statsmodels; exchangeable "
+                "working correlation; sandwich errors with Mancl and DeRouen's small-sample correction); Wald z tests per column, Wald "
+                "chi-square tests per term. Beside it, least squares on each run's share of yes.",
                 "Shares: Wilson score intervals at 95 %.",
-                "Differences between two arms: two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments.",
-                "Judgments: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum likelihood "
-                "(Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are perfectly "
-                "separated, Firth's penalized likelihood replaces maximum likelihood (its tests use the penalized likelihood).",
+                "Two arms, per row of Table II: the difference with Newcombe's score interval, the odds ratio with 0.5 added to every cell "
+                "and Woolf's interval, two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments, Holm-adjusted across the rows.",
+                "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
+                "likelihood (Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are "
+                "perfectly separated, Firth's penalized likelihood replaces maximum likelihood (its tests use the penalized likelihood).",
                 "Outcome metrics: least squares on the same terms; t tests per column, partial F tests per term.",
                 "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
             ]
@@ -506,8 +528,14 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
         "table_ii": [
             {
                 "min_pedestrians": row.min_pedestrians,
-                "arms": {arm: {"yes": p.k, "judged": p.n, "share": _json_number(p.share), "low": _json_number(p.low), "high": _json_number(p.high)} for arm, p in row.shares.items()},
+                "arms": {
+                    arm: {"runs": row.runs[arm], "yes": p.k, "judged": p.n, "share": _json_number(p.share), "low": _json_number(p.low), "high": _json_number(p.high)}
+                    for arm, p in row.shares.items()
+                },
+                "difference": _interval_record(row.difference),
+                "odds_ratio": _interval_record(row.odds_ratio),
                 "fisher_p": _json_number(row.p_value),
+                "holm_p": _json_number(row.holm_p),
             }
             for row in a.table
         ],
@@ -518,6 +546,10 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
 
 def _json_number(value: float) -> float | None:
     return None if math.isnan(value) or math.isinf(value) else value
+
+
+def _interval_record(interval: Interval) -> dict[str, float | None]:
+    return {"estimate": _json_number(interval.estimate), "low": _json_number(interval.low), "high": _json_number(interval.high)}
 
 
 def _fit_record(fit: Fit) -> dict[str, Any]:
@@ -548,7 +580,7 @@ def _summary(a: _Analysis) -> list[str]:
         lines.append(f"Judged socially compliant ({a.judgment_source}):")
         for row in a.table:
             cells = "   ".join(f"{arm} {percent(p.share)} ({p.k}/{p.n})" for arm, p in row.shares.items())
-            test = f"   Fisher p {_equals(p_text(row.p_value))}" if len(row.shares) == 2 else ""
+            test = f"   Fisher p {_equals(p_text(row.p_value))} (Holm {p_text(row.holm_p)})" if len(row.shares) == 2 else ""
             lines.append(f"  >= {row.min_pedestrians} pedestrians: {cells}{test}")
     if data.blinding.blinded:
         lines.append("Controllers named (unblinded)" if data.blinding.revealed else "Blinded: arms shown by label")

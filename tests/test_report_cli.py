@@ -56,7 +56,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
-    assert "| Runs with | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
+    assert "| Runs with | A: runs | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
     assert not (ab_study / "report" / "unblinding.json").exists()
     assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {
         "scores.png", "trajectories.png", "ab_shares.png", "min_distance.png", "correlation_map.png"
@@ -91,7 +91,15 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
         assert {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} == counted
         (y1, n1), (y2, n2) = counted.values()
         assert row["fisher_p"] == pytest.approx(fisher_exact([[y1, n1 - y1], [y2, n2 - y2]]).pvalue)
+        assert row["fisher_p"] <= row["holm_p"] <= 1.0
+        assert row["difference"]["estimate"] == pytest.approx(y1 / n1 - y2 / n2)
+    # The D-optimal plan is unbalanced within rows: 9, 6, 3 runs for one arm and 9, 5, 3 for the other.
+    runs = sorted([row["arms"][arm]["runs"] for row in record["table_ii"]] for arm in ("NaviGAN-R", "Lattice"))
+    assert runs == [[9, 5, 3], [9, 6, 3]]
+    assert record["fits"][0]["method"].startswith("logistic GEE clustered by run")
+    assert out.index("Primary result (run as the unit") < out.index("Judged socially compliant")
     markdown = (ab_study / "report" / "report.md").read_text()
+    assert markdown.index("**Primary result**") < markdown.index("| Runs with |")
     assert "SBPL (paper)" in markdown and "| >= 6 pedestrians |" in markdown
     row_four = next(line for line in markdown.splitlines() if line.startswith("| >= 4 pedestrians |"))
     assert "| 64 % |" in row_four and "| 75 % |" in row_four  # the paper's SBPL and NaviGAN-R

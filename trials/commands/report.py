@@ -13,7 +13,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Score every finished run with the rubric (human scores override it), tabulate the score "
             "distribution and the A/B table (Table II) with Wilson intervals and Fisher's exact tests, fit "
-            "the design's model to the judgments and outcome metrics, and write report/report.md, a "
+            "the design's model to the judgments (primary: logistic GEE clustered by run) and outcome metrics, and write report/report.md, a "
             "self-contained report/report.html, report/report.json and report/figures/. A blinded study is "
             "reported by arm label unless --unblind is given."
         ),
