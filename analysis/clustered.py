@@ -17,7 +17,7 @@ import numpy as np
 import statsmodels.api as sm
 from scipy.stats import chi2, norm
 
-from analysis.models import DesignMatrix, Fit, effect_tests, estimability_notes, estimable_columns, parameter_rows, separation
+from analysis.models import DesignMatrix, Fit, effect_tests, estimability_notes, estimable_columns, parameter_rows, separation, with_intervals
 
 TEST = "Wald chi-square (clustered)"
 METHOD = "logistic GEE clustered by run (exchangeable working correlation, bias-reduced sandwich errors)"
@@ -57,6 +57,8 @@ def fit_gee(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respons
     se = np.sqrt(np.diag(covariance))
     z = beta / se
     parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+    half = norm.ppf(0.975) * se
+    parameters = with_intervals(parameters, keep, list(zip(beta - half, beta + half)))
     position = np.cumsum(keep) - 1  # column of dm -> its index among the kept columns
 
     def wald(remaining: np.ndarray, df: int) -> tuple[float, float]:

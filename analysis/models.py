@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import linprog
+from scipy.optimize import brentq, linprog
 from scipy.special import expit
 from scipy.stats import chi2, norm
 from scipy.stats import f as f_dist
@@ -46,13 +46,16 @@ class DesignMatrix:
 
 @dataclass(frozen=True)
 class Parameter:
-    """One model column: estimate, standard error, Wald statistic and p-value (NaN when not estimable)."""
+    """One model column: estimate, standard error, test statistic and p-value, and the 95 % interval
+    where the fit gives one (NaN when not estimable or not given)."""
 
     column: str
     estimate: float
     std_error: float
     statistic: float
     p_value: float
+    low: float = math.nan
+    high: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -116,11 +119,17 @@ def separation(x: np.ndarray, successes: np.ndarray, trials: np.ndarray) -> np.n
     return np.asarray(result.x)
 
 
-def _logistic(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: bool) -> tuple[np.ndarray, np.ndarray, float]:
-    """Newton-Raphson (with step halving) for the binomial log-likelihood, or Firth's penalized one.
+def _logistic(
+    x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: bool, fixed: dict[int, float] | None = None
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Newton-Raphson (with step halving) for the binomial log-likelihood, or Firth's penalized one,
+    with the columns in `fixed` held at the given values (the penalty still uses every column, as
+    the profile penalized likelihood of Heinze and Schemper 2002 does).
 
     Returns the estimates, their covariance (inverse Fisher information) and the maximised objective.
     """
+    fixed = fixed or {}
+    free = np.array([j not in fixed for j in range(x.shape[1])])
 
     def information(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p = expit(x @ beta)
@@ -135,15 +144,17 @@ def _logistic(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: b
         return value
 
     beta = np.zeros(x.shape[1])
+    for j, value in fixed.items():
+        beta[j] = value
     current = objective(beta)
     for _ in range(200):
         p, w, info = information(beta)
-        inverse = np.linalg.inv(info)
         score = x.T @ (successes - trials * p)
         if firth:
-            leverage = w * np.einsum("ij,jk,ik->i", x, inverse, x)
+            leverage = w * np.einsum("ij,jk,ik->i", x, np.linalg.inv(info), x)
             score = score + x.T @ (leverage * (0.5 - p))
-        step = inverse @ score
+        step = np.zeros_like(beta)
+        step[free] = np.linalg.solve(info[np.ix_(free, free)], score[free])
         scale = 1.0
         while scale > 1e-10:
             candidate = objective(beta + scale * step)
@@ -175,15 +186,65 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
         )
     beta, covariance, objective = _logistic(x, successes, trials, firth)
     se = np.sqrt(np.diag(covariance))
-    z = beta / se
-    parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+    position = np.cumsum(keep) - 1  # column of dm -> its index among the kept columns
 
-    def reduced_objective(columns: np.ndarray) -> float:
-        return _logistic(dm.x[:, columns], successes, trials, firth)[2]
+    def constrained(columns: list[int], values: float = 0.0) -> float:
+        """The maximised objective with the given kept columns held at `values`."""
+        return _logistic(x, successes, trials, firth, {j: values for j in columns})[2]
 
-    effects = effect_tests(dm, keep, lambda columns, df: _chi_square_test(objective, reduced_objective(columns), df))
+    if firth:
+        # Wald tests understate the uncertainty of penalized estimates; the profile penalized likelihood does not.
+        statistic = np.array([_chi_square_test(objective, constrained([j]), 1)[0] for j in range(len(beta))])
+        p = chi2.sf(statistic, 1)
+        parameters = parameter_rows(dm, keep, beta, se, statistic, p)
+        intervals = [_profile_interval(lambda b, j=j: 2.0 * (objective - constrained([j], b)), beta[j], se[j]) for j in range(len(beta))]
+        parameters = with_intervals(parameters, keep, intervals)
+        label = "penalized LR chi-square"
+    else:
+        z = beta / se
+        parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+        parameters = with_intervals(parameters, keep, [(b - _Z95 * e, b + _Z95 * e) for b, e in zip(beta, se)])
+        label = "z"
+
+    def effect(remaining: np.ndarray, df: int) -> tuple[float, float]:
+        dropped = [int(position[j]) for j in np.flatnonzero(keep) if j not in set(remaining.tolist())]
+        return _chi_square_test(objective, constrained(dropped), df)
+
+    effects = effect_tests(dm, keep, effect)
     method = "logistic regression, Firth's penalized likelihood" if firth else "logistic regression, maximum likelihood"
-    return Fit(response, method, len(trials), int(trials.sum()), "z", "likelihood-ratio chi-square", parameters, effects, notes)
+    test = "penalized likelihood-ratio chi-square" if firth else "likelihood-ratio chi-square"
+    return Fit(response, method, len(trials), int(trials.sum()), label, test, parameters, effects, notes)
+
+
+_Z95 = 1.959963984540054
+_CHI2_95 = _Z95**2
+
+
+def _profile_interval(deviance: Callable[[float], float], estimate: float, std_error: float) -> tuple[float, float]:
+    """The 95 % profile interval: where the deviance from the optimum crosses the chi-square(1) quantile
+    on each side of the estimate (infinite where it never does within 50 standard errors)."""
+    ends = []
+    for sign in (-1.0, 1.0):
+        inner, outer = estimate, estimate + sign * std_error
+        while deviance(outer) < _CHI2_95 and abs(outer - estimate) < 50.0 * std_error:
+            inner, outer = outer, estimate + 2.0 * (outer - estimate)
+        if deviance(outer) < _CHI2_95:
+            ends.append(sign * math.inf)
+        else:
+            ends.append(brentq(lambda b: deviance(b) - _CHI2_95, inner, outer, xtol=1e-8))
+    return ends[0], ends[1]
+
+
+def with_intervals(parameters: list[Parameter], keep: np.ndarray, intervals: list[tuple[float, float]]) -> list[Parameter]:
+    """The parameters with the intervals of the kept columns, in order."""
+    values = iter(intervals)
+    rows = []
+    for parameter, kept in zip(parameters, keep):
+        if kept:
+            low, high = next(values)
+            parameter = replace(parameter, low=float(low), high=float(high))
+        rows.append(parameter)
+    return rows
 
 
 def _chi_square_test(full: float, reduced: float, df: int) -> tuple[float, float]:
@@ -214,6 +275,9 @@ def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
         t = beta / se
         p = 2.0 * t_dist.sf(np.abs(t), df_error) if df_error else np.full(len(beta), math.nan)
     parameters = parameter_rows(dm, keep, beta, se, t, p)
+    if df_error:
+        half = t_dist.ppf(0.975, df_error) * se
+        parameters = with_intervals(parameters, keep, list(zip(beta - half, beta + half)))
 
     def partial_f(columns: np.ndarray, df: int) -> tuple[float, float]:
         if not df_error or sigma2 == 0.0:

@@ -29,6 +29,12 @@ from robot_logs.errors import LogError
 from robot_logs.run_log import read_run
 
 FORMAT = "navtrials.report/1"
+#: How each kind of fit's parameter intervals and tests are made, by the name of its statistic.
+INTERVALS = {
+    "z": "Wald intervals and z tests.",
+    "t": "t intervals and t tests on the residual df.",
+    "penalized LR chi-square": "Profile penalized-likelihood intervals and penalized likelihood-ratio tests (Heinze and Schemper, Statistics in Medicine 2002).",
+}
 #: Why the clustered fit is the primary analysis, said once in the report.
 PRIMARY_WHY = (
     "The experimental unit is the run: its judgments share one robot behaviour, so they are correlated, and a run with more "
@@ -363,6 +369,12 @@ def _primary_result(a: _Analysis) -> str | None:
     )
 
 
+def _interval_text(low: float, high: float) -> str:
+    if math.isnan(low) or math.isnan(high):
+        return NOT_AVAILABLE
+    return f"{number(low) if math.isfinite(low) else '-inf'} to {number(high) if math.isfinite(high) else 'inf'}"
+
+
 def _points(share_difference: float) -> str:
     """A difference of two shares in percentage points, signed."""
     return NOT_AVAILABLE if math.isnan(share_difference) else f"{100.0 * share_difference:+.1f}"
@@ -414,10 +426,10 @@ def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
         )
     blocks.append(
         Table(
-            ["Column", "Estimate", "Std error", fit.statistic, "p"],
-            [[p.column, number(p.estimate), number(p.std_error), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
-            "Parameter estimates (n/a: not estimable from these runs).",
-            {1, 2, 3, 4},
+            ["Column", "Estimate", "Std error", "95 % CI", fit.statistic, "p"],
+            [[p.column, number(p.estimate), number(p.std_error), _interval_text(p.low, p.high), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
+            "Parameter estimates (n/a: not estimable from these runs, or no interval). " + INTERVALS.get(fit.statistic, ""),
+            {1, 2, 3, 4, 5},
         )
     )
     if fit.notes:
@@ -482,23 +494,36 @@ def _methods_section(a: _Analysis, rubric_source: str, participants: Participant
         blocks += [Heading("Simulated participants", 3), Bullets(participants.describe())]
     blocks += [
         Heading("Statistics", 3),
-        Bullets(
-            [
-                "Primary analysis of the judgments: the plan's logistic model by GEE with each run a cluster (statsmodels; exchangeable "
-                "working correlation; sandwich errors with Mancl and DeRouen's small-sample correction); Wald z tests per column, Wald "
-                "chi-square tests per term. Beside it, least squares on each run's share of yes.",
-                "Shares: Wilson score intervals at 95 %.",
-                "Two arms, per row of Table II: the difference with Newcombe's score interval, the odds ratio with 0.5 added to every cell "
-                "and Woolf's interval, two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments, Holm-adjusted across the rows.",
-                "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
-                "likelihood (Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are "
-                "perfectly separated, Firth's penalized likelihood replaces maximum likelihood (its tests use the penalized likelihood).",
-                "Outcome metrics: least squares on the same terms; t tests per column, partial F tests per term.",
-                "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
-            ]
-        ),
+        Bullets(_statistics(a)),
     ]
     return blocks
+
+
+def _statistics(a: _Analysis) -> list[str]:
+    """The methods behind the numbers this report shows, and only those."""
+    items = ["Shares: Wilson score intervals at 95 %."]
+    if a.judged:
+        items.append(
+            "Primary analysis of the judgments: the plan's logistic model by GEE with each run a cluster (statsmodels; exchangeable "
+            "working correlation; sandwich errors with Mancl and DeRouen's small-sample correction); Wald z tests and intervals per "
+            "column, Wald chi-square tests per term. Beside it, least squares on each run's share of yes."
+        )
+        if len(a.arms) == 2:
+            items.append(
+                "Two arms, per row of Table II: the difference with Newcombe's score interval, the odds ratio with 0.5 added to every cell "
+                "and Woolf's interval, two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments, Holm-adjusted across the rows."
+            )
+        items.append(
+            "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
+            "likelihood (Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are "
+            "perfectly separated, Firth's penalized likelihood replaces maximum likelihood, with profile penalized-likelihood intervals "
+            "and penalized likelihood-ratio tests for columns and terms alike."
+        )
+    items += [
+        "Outcome metrics: least squares on the same terms; t tests and intervals per column, partial F tests per term, R^2 and RMSE.",
+        "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
+    ]
+    return items
 
 
 # ----------------------------------------------------------------------------------------- record and summary
@@ -556,7 +581,10 @@ def _fit_record(fit: Fit) -> dict[str, Any]:
     return {
         "response": fit.response,
         "method": fit.method,
-        "parameters": [{"column": p.column, "estimate": _json_number(p.estimate), "std_error": _json_number(p.std_error), "p": _json_number(p.p_value)} for p in fit.parameters],
+        "parameters": [
+            {"column": p.column, **{name: _json_number(getattr(p, name)) for name in ("estimate", "std_error", "low", "high")}, "p": _json_number(p.p_value)}
+            for p in fit.parameters
+        ],
         "effects": [{"term": e.term, "df": e.df, "statistic": _json_number(e.statistic), "p": _json_number(e.p_value)} for e in fit.effects],
         "summary": {name: _json_number(value) for name, value in fit.summary.items()},
         "notes": fit.notes,
