@@ -1,16 +1,19 @@
-"""Figures shared by `trials design` and `trials report`, rendered off-screen to PNG bytes."""
+"""Figures shared by `trials design` and `trials report`, rendered off-screen to PNG (for the page) and
+SVG (for print and editing) bytes."""
 
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_svg import FigureCanvasSVG
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 
-def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str) -> bytes:
+def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: str) -> Rendered:
     """JMP's colour map on correlations: |r| between model columns, white 0 to dark red 1."""
     size = 2.5 + 0.45 * len(columns)
     figure = Figure(figsize=(size + 1.5, size))
@@ -24,13 +27,22 @@ def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str
     figure.colorbar(image, ax=axes, label="|correlation|")
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
-def _png(figure: Figure) -> bytes:
-    buffer = io.BytesIO()
-    FigureCanvasAgg(figure).print_png(buffer)
-    return buffer.getvalue()
+@dataclass(frozen=True)
+class Rendered:
+    """One figure as PNG and as SVG bytes."""
+
+    png: bytes
+    svg: bytes
+
+
+def _rendered(figure: Figure) -> Rendered:
+    png, svg = io.BytesIO(), io.BytesIO()
+    FigureCanvasAgg(figure).print_png(png)
+    FigureCanvasSVG(figure).print_svg(svg, metadata={"Date": None})  # no date: the same figure gives the same bytes
+    return Rendered(png.getvalue(), svg.getvalue())
 
 
 def arm_colours(arms: list[str]) -> dict[str, str]:
@@ -39,7 +51,7 @@ def arm_colours(arms: list[str]) -> dict[str, str]:
     return {arm: palette[i % len(palette)] for i, arm in enumerate(arms)}
 
 
-def score_distribution_png(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> bytes:
+def score_distribution_figure(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> Rendered:
     """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]), with the paper's shares as markers."""
     figure = Figure(figsize=(6.5, 3.6))
     axes = figure.add_subplot()
@@ -59,10 +71,10 @@ def score_distribution_png(groups: dict[str, list[int]], paper: dict[int, float]
     axes.legend(fontsize=8, loc="upper left")
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
-def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> bytes:
+def trajectories_figure(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> Rendered:
     """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm."""
     columns = min(6, max(len(panels), 1))
     rows = max(1, -(-len(panels) // columns))
@@ -91,10 +103,10 @@ def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]]
     handles.append(Line2D([], [], color="0.6", linewidth=0.8, label="pedestrian"))
     figure.subplots_adjust(left=left, right=right, bottom=bottom / height, top=1 - top / height, wspace=wspace, hspace=gap / (panel * aspect))
     figure.legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles), frameon=False)
-    return _png(figure)
+    return _rendered(figure)
 
 
-def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]], paper: dict[str, dict[int, float]] | None, title: str) -> bytes:
+def shares_figure(rows: list[tuple[int, dict[str, tuple[float, float, float]]]], paper: dict[str, dict[int, float]] | None, title: str) -> Rendered:
     """Share judged compliant (with its interval) per arm for runs with >= k pedestrians: rows of (k, arm -> (share, low, high))."""
     arms = list(rows[0][1]) if rows else []
     colours = arm_colours(arms)
@@ -117,10 +129,10 @@ def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]],
     axes.legend(fontsize=7, loc="lower left")
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
-def min_distance_png(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> bytes:
+def min_distance_figure(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> Rendered:
     """Minimum gap of each run against its pedestrian count, one colour per arm: points (arm, pedestrians, gap)."""
     colours = arm_colours(arms)
     figure = Figure(figsize=(6.5, 3.6))
@@ -142,4 +154,4 @@ def min_distance_png(points: list[tuple[str, float, float]], arms: list[str], ti
     axes.legend(fontsize=8)
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)

@@ -14,14 +14,14 @@ from typing import Any
 import numpy as np
 
 from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
-from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, to_html, to_markdown
-from analysis.figures import ab_shares_png, arm_colours, correlation_map_png, min_distance_png, score_distribution_png, trajectories_png
+from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, table_names, to_csv, to_html, to_markdown
+from analysis.figures import arm_colours, correlation_map_figure, min_distance_figure, score_distribution_figure, shares_figure, trajectories_figure
 from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.records import SIMULATED, Response, StudyData
 from analysis.run_log import RunLog
-from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
+from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
 from analysis.scoring import Rubric
 from analysis.study_fits import fit_judgments, fit_judgments_by_run, fit_metrics, fit_run_shares
 from designs.factors import CategoricalFactor, FixedFactor
@@ -59,6 +59,10 @@ class Report:
     @property
     def figures(self) -> list[Figure]:
         return [block for block in self.blocks if isinstance(block, Figure)]
+
+    def tables(self) -> dict[str, str]:
+        """Every table as CSV text, by file stem."""
+        return {name: to_csv(table) for name, table in table_names(self.blocks)}
 
     def markdown(self) -> str:
         return to_markdown(self.title, self.blocks)
@@ -110,6 +114,7 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
     title = f"Study report: {data.spec.name}"
     blocks = [
         *_overview(analysis, generated_utc),
+        *_design_section(analysis),
         *_scores_section(analysis),
         *_ab_section(analysis),
         *_figures_section(analysis),
@@ -233,17 +238,18 @@ def _scores_section(a: _Analysis) -> list[Block]:
     final = {code: s.final for code, s in a.scores.items()}
     total = counts(final.values())
     n = sum(total)
+    paper = paper_score_shares(a.data.spec)
     rows = []
     for score, count in zip(SCORES, total):
         interval = wilson(count, n)
-        rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", f"{PAPER_SCORE_SHARES[score]:.1f} %"])
+        rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", *([f"{paper[score]:.1f} %"] if paper else [])])
     rubric_only = counts(s.auto.score for s in a.scores.values())
     blocks: list[Block] = [
         Heading("Scores"),
         Paragraph("1 = collision, 2 = no collision but unnatural (turning in place, backing up, stopping or hesitating, passing within intimate distance), 3 = natural and comfortable."),
         Table(
-            ["Score", "Runs", "Share", "Wilson 95 %", "Paper (Tsai & Oh)"],
-            rows + [["all", str(n), "", "", ""]],
+            ["Score", "Runs", "Share", "Wilson 95 %", *(["Paper (Tsai & Oh)"] if paper else [])],
+            rows + [["all", str(n), "", "", *([""] if paper else [])]],
             f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3.",
             {1, 2},
         ),
@@ -445,7 +451,9 @@ def _figures_section(a: _Analysis) -> list[Block]:
     if a.scores:
         groups = {arm: counts(a.scores[r.code].final for r in data.finished if r.arm == arm) for arm in a.arms}
         groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(s.final for s in a.scores.values())}
-        blocks.append(Figure("scores.png", score_distribution_png(groups, PAPER_SCORE_SHARES, "Score distribution"), f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top) and the paper's shares (diamonds)."))
+        paper_shares = paper_score_shares(data.spec)
+        caption = f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
+        blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption))
     panels = []
     for run in data.finished:
         log = a.logs.get(run.code)
@@ -454,23 +462,61 @@ def _figures_section(a: _Analysis) -> list[Block]:
         title = f"{run.order}. {run.code} | {run.arm} | {a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
         panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
     if panels:
-        blocks.append(Figure("trajectories.png", trajectories_png(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
+        blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
     if a.table:
         rows = [(row.min_pedestrians, {arm: (row.shares[arm].share, row.shares[arm].low, row.shares[arm].high) for arm in a.arms}) for row in a.table]
         paper = PAPER_TABLE_II if data.blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms) else None
-        blocks.append(Figure("ab_shares.png", ab_shares_png(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
+        blocks.append(Figure("ab_shares" if len(a.arms) > 1 else "judged_shares", shares_figure(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
     points = [
         (run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m)
         for run in data.finished
         if run.outcome is not None and run.outcome.min_distance_m is not None
     ]
     if points:
-        blocks.append(Figure("min_distance.png", min_distance_png(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+        blocks.append(Figure("min_distance", min_distance_figure(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+    return blocks
+
+
+def _design_section(a: _Analysis) -> list[Block]:
+    """The plan's quality as `trials design` measured it: efficiencies, power and the correlation map."""
+    data, d = a.data, a.data.diagnostics
+    if not d:
+        return []
+    blocks: list[Block] = [Heading("The design")]
+    efficiencies = [
+        ("D-efficiency", d.get("d_efficiency")),
+        ("D-efficiency bound (cvxpy, approximate design)", d.get("d_efficiency_bound")),
+        ("D-efficiency as % of the bound", d.get("d_efficiency_vs_bound")),
+        ("A-efficiency", d.get("a_efficiency")),
+        ("G-efficiency", d.get("g_efficiency")),
+        ("Average prediction variance", d.get("average_prediction_variance")),
+    ]
+    blocks.append(
+        Table(
+            ["Measure", "Value"],
+            [[name, number(float(value), 3)] for name, value in efficiencies if value is not None],
+            f"{d.get('n', len(data.runs))} runs, {d.get('p', data.model.p)} model columns; JMP's conventions (coded factors, sigma = 1).",
+            {1},
+        )
+    )
+    power = d.get("power")
+    if power:
+        convention = power.get("convention", "every anticipated coefficient +1 (a design.json made before JMP's convention was adopted)")
+        blocks.append(
+            Table(
+                ["Term", "df", "Power"],
+                [[t["term"], str(t["parameters"]), number(float(t["power"]), 3)] for t in power.get("terms", [])],
+                f"Power of each term's F test at alpha {power.get('alpha')} with signal-to-noise {power.get('snr')} and error df "
+                f"{power.get('error_df')}; anticipated coefficients by {convention}. This is the power of the least-squares fits of the "
+                "outcome metrics; the judgments are binary and their power is lower.",
+                {1, 2},
+            )
+        )
     columns, matrix = data.correlations
     if columns:
         labels = _open_labels(columns, data)
         values = np.array([[math.nan if v is None else v for v in row] for row in matrix], dtype=float)
-        blocks.append(Figure("correlation_map.png", correlation_map_png(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
+        blocks.append(Figure("correlation_map", correlation_map_figure(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
     return blocks
 
 
@@ -600,7 +646,8 @@ def _summary(a: _Analysis) -> list[str]:
         total = counts(s.final for s in a.scores.values())
         n = sum(total)
         shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
-        lines.append(f"Scores {shares}   [paper: 3: 86.7 %, 1: 0 %]")
+        paper = paper_score_shares(data.spec)
+        lines.append(f"Scores {shares}" + (f"   [paper: 3: {paper[3]:.1f} %, 1: {paper[1]:.0f} %]" if paper else ""))
     primary = _primary_result(a)
     if primary:
         lines.append(primary.replace("**", "").replace(" The table below counts judgments and is descriptive.", ""))

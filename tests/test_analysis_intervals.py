@@ -7,7 +7,7 @@ import math
 import pytest
 from statsmodels.stats.proportion import proportion_confint
 
-from analysis.figures import ab_shares_png
+from analysis.figures import shares_figure
 from analysis.intervals import Proportion, exact_difference, wilson
 
 
@@ -70,5 +70,5 @@ def test_shares_figure_draws_every_all_yes_and_all_no_arm() -> None:
     for n in range(1, 61):
         yes, no = wilson(n, n), wilson(0, n)
         rows.append((n, {"A": (yes.share, yes.low, yes.high), "B": (no.share, no.low, no.high)}))
-    png = ab_shares_png(rows, None, "all yes against all no")
-    assert png.startswith(b"\x89PNG")
+    image = shares_figure(rows, None, "all yes against all no")
+    assert image.png.startswith(b"\x89PNG") and b"<svg" in image.svg

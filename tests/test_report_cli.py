@@ -56,11 +56,20 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
-    assert "| Runs with | A: runs | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "| Runs with | A: runs | A: yes / judged |" in markdown
+    # The design section: the power under JMP's alternating coefficients, and no paper score shares on the A/B plan.
+    assert "| Direction | 2 | 0.675 |" in markdown and "anticipated coefficients by JMP's convention" in markdown
+    assert "86.7 %" not in markdown
     assert not (ab_study / "report" / "unblinding.json").exists()
-    assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {
-        "scores.png", "trajectories.png", "ab_shares.png", "min_distance.png", "correlation_map.png"
-    }
+    stems = ("scores", "trajectories", "ab_shares", "min_distance", "correlation_map")
+    assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {f"{stem}.{kind}" for stem in stems for kind in ("png", "svg")}
+    # Every table is also a CSV file: Table II's rows, with runs and judgments per arm.
+    with (ab_study / "report" / "tables" / "a_b_comparison_table_ii.csv").open() as handle:
+        table = list(csv.DictReader(handle))
+    assert [row["Runs with"] for row in table] == [">= 2 pedestrians", ">= 4 pedestrians", ">= 6 pedestrians"]
+    assert [int(row["A: runs"]) + int(row["B: runs"]) for row in table] == [18, 11, 6]
+    assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("Measure,Value\nD-efficiency,55.871\n")
 
 
 def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:

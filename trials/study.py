@@ -52,6 +52,8 @@ REPORT_MARKDOWN = f"{REPORT}/report.md"
 REPORT_HTML = f"{REPORT}/report.html"
 REPORT_RECORD = f"{REPORT}/report.json"
 REPORT_FIGURES = f"{REPORT}/figures"
+#: Every table of the report as CSV.
+REPORT_TABLES = f"{REPORT}/tables"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"

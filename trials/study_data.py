@@ -81,6 +81,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str) -> StudyData:
         responses=responses,
         blinding=blinding,
         correlations=(correlation.get("columns", []), correlation.get("matrix", [])),
+        diagnostics=design.get("diagnostics", {}),
         notes=notes,
     )
 

@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
         REPORT_HTML,
         REPORT_MARKDOWN,
         REPORT_RECORD,
+        REPORT_TABLES,
         RUBRIC,
         UNBLINDING,
         StudyFolder,
@@ -61,19 +62,21 @@ def run(args: argparse.Namespace) -> int:
     source = f"from {rubric_file}" if rubric_file is not None else "the documented defaults"
     report = build_report(data, rubric, source, now)
 
-    out, figures = folder.path(REPORT), folder.path(REPORT_FIGURES)
+    out, figures, tables = folder.path(REPORT), folder.path(REPORT_FIGURES), folder.path(REPORT_TABLES)
     files = {
         folder.path(REPORT_MARKDOWN): report.markdown().encode(),
         folder.path(REPORT_HTML): report.html().encode(),
         folder.path(REPORT_RECORD): (json.dumps(report.record, indent=1) + "\n").encode(),
-        **{figures / figure.name: figure.png for figure in report.figures},
+        **{figures / f"{figure.name}.png": figure.image.png for figure in report.figures},
+        **{figures / f"{figure.name}.svg": figure.image.svg for figure in report.figures},
+        **{tables / f"{name}.csv": text.encode() for name, text in report.tables().items()},
     }
     if data.blinding.revealed:
         files[folder.path(UNBLINDING)] = unblinding_record(data.blinding)
     write_files(files)
-    for stale in figures.glob("*.png"):
-        if figures / stale.name not in files:
+    for stale in [*figures.glob("*.png"), *figures.glob("*.svg"), *tables.glob("*.csv")]:
+        if stale not in files:
             stale.unlink()
     print("\n".join(report.summary))
-    print(f"Wrote report.md, report.html, report.json and {len(report.figures)} figures in {out.resolve()}")
+    print(f"Wrote report.md, report.html, report.json, {len(report.figures)} figures (PNG and SVG) and {len(report.tables())} tables (CSV) in {out.resolve()}")
     return 0
