@@ -155,3 +155,23 @@ def min_distance_figure(points: list[tuple[str, float, float]], arms: list[str],
     axes.set_title(title)
     figure.tight_layout()
     return _rendered(figure)
+
+
+def residuals_figure(panels: list[tuple[str, tuple[float, ...], tuple[float, ...], tuple[bool, ...]]]) -> Rendered:
+    """Residual against fitted value, one panel per fit: (title, fitted, residuals, flagged); flagged runs
+    (censored values) drawn as open red triangles."""
+    figure = Figure(figsize=(3.2 * max(len(panels), 1), 3.2))
+    for index, (title, fitted, residuals, flagged) in enumerate(panels):
+        axes = figure.add_subplot(1, max(len(panels), 1), index + 1)
+        x, y, marked = np.asarray(fitted), np.asarray(residuals), np.asarray(flagged, dtype=bool)
+        axes.plot(x[~marked], y[~marked], "o", color="#1f77b4", markersize=4)
+        if marked.any():
+            axes.plot(x[marked], y[marked], "^", markerfacecolor="none", markeredgecolor="#d62728", markersize=6, label="censored (timeout)")
+            axes.legend(fontsize=6)
+        axes.axhline(0.0, color="0.5", linewidth=0.8)
+        axes.set_title(title, fontsize=8)
+        axes.set_xlabel("fitted", fontsize=7)
+        axes.set_ylabel("residual", fontsize=7)
+        axes.tick_params(labelsize=6)
+    figure.tight_layout()
+    return _rendered(figure)

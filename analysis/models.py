@@ -83,6 +83,11 @@ class Fit:
     notes: list[str] = field(default_factory=list)
     #: Named figures of the whole fit (R^2, RMSE, the within-run correlation), in the order shown.
     summary: dict[str, float] = field(default_factory=dict)
+    #: Per run (least squares only): the fitted value, the residual, and whether the value is flagged
+    #: (censored at a limit), in the order of the runs fitted.
+    fitted: tuple[float, ...] = ()
+    residuals: tuple[float, ...] = ()
+    flagged: tuple[bool, ...] = ()
 
 
 def estimable_columns(x: np.ndarray) -> np.ndarray:
@@ -290,7 +295,11 @@ def fit_least_squares(dm: DesignMatrix, y: np.ndarray, response: str) -> Fit:
     effects = effect_tests(dm, keep, partial_f)
     total = float(np.sum((y - y.mean()) ** 2))
     summary = {"R^2": 1.0 - sse / total if total > 0.0 else math.nan, "RMSE": math.sqrt(sigma2)}
-    return Fit(response, "least squares", len(y), len(y), "t", f"partial F (error df {df_error})", parameters, effects, notes, summary)
+    fitted = x @ beta
+    return Fit(
+        response, "least squares", len(y), len(y), "t", f"partial F (error df {df_error})", parameters, effects, notes, summary,
+        tuple(fitted.tolist()), tuple((y - fitted).tolist()), (False,) * len(y),
+    )
 
 
 def parameter_rows(dm: DesignMatrix, keep: np.ndarray, beta: np.ndarray, se: np.ndarray, statistic: np.ndarray, p: np.ndarray) -> list[Parameter]:

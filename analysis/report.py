@@ -15,7 +15,15 @@ import numpy as np
 
 from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
 from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, table_names, to_csv, to_html, to_markdown
-from analysis.figures import arm_colours, correlation_map_figure, min_distance_figure, score_distribution_figure, shares_figure, trajectories_figure
+from analysis.figures import (
+    arm_colours,
+    correlation_map_figure,
+    min_distance_figure,
+    residuals_figure,
+    score_distribution_figure,
+    shares_figure,
+    trajectories_figure,
+)
 from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
@@ -415,6 +423,12 @@ def _models_section(a: _Analysis) -> list[Block]:
         )
         for fit in a.metric_fits:
             blocks += [Heading(f"{fit.response}", 4), *_fit_blocks(fit, effects=False)]
+        panels = [(fit.response, fit.fitted, fit.residuals, fit.flagged) for fit in a.metric_fits if fit.fitted]
+        if panels:
+            blocks.append(
+                Figure("residuals", residuals_figure(panels), "Residual against fitted value of each outcome metric's least-squares fit, one point per run; "
+                       "a pattern or a funnel says the model or its constant variance does not hold. Open triangles: durations censored by the time limit.")
+            )
     return blocks
 
 

@@ -74,12 +74,26 @@ def fit_run_shares(data: StudyData, judged: list[RunJudgments]) -> Fit:
     return relabel(fit_least_squares(dm, yes / total, "share of yes per run"), data.blinding)
 
 
+#: The metric a run that ran out of time has only as a lower bound: it stopped at the time limit.
+CENSORED_BY_TIMEOUT = "duration_s"
+TIMEOUT = "timeout"
+
+
 def fit_metrics(data: StudyData) -> list[Fit]:
-    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value."""
+    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value;
+    durations of runs that timed out are flagged as censored."""
     fits = []
     for column, name in METRICS:
         runs = [run for run in data.finished if getattr(run.outcome, column) is not None]
         dm = DesignMatrix.from_model(data.model, settings(data, runs))
         y = np.array([getattr(run.outcome, column) for run in runs], dtype=float)
-        fits.append(relabel(fit_least_squares(dm, y, name), data.blinding))
+        fit = relabel(fit_least_squares(dm, y, name), data.blinding)
+        censored = tuple(column == CENSORED_BY_TIMEOUT and run.outcome is not None and run.outcome.status == TIMEOUT for run in runs)
+        if any(censored):
+            note = (
+                f"{sum(censored)} of {len(runs)} runs timed out: their {name} is only the time limit, a lower bound (censored), "
+                "so least squares understates the effects on it; they are marked in the residual plot."
+            )
+            fit = replace(fit, flagged=censored, notes=[*fit.notes, note])
+        fits.append(fit)
     return fits
