@@ -50,10 +50,17 @@ def fit_gee(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respons
     model = sm.GEE(yes, x[runs], groups=runs, family=sm.families.Binomial(), cov_struct=sm.cov_struct.Exchangeable())
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = model.fit(cov_type="bias_reduced")
+        try:
+            result = model.fit(cov_type="bias_reduced")
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            notes.append(f"The GEE fit failed on these judgments ({exc}); read the run-level shares instead.")
+            return empty
     notes += sorted({f"statsmodels: {w.message}" for w in caught})
     beta = np.asarray(result.params)
     covariance = np.asarray(result.cov_params())
+    if not np.all(np.isfinite(beta)) or not np.all(np.isfinite(np.diag(covariance))):
+        notes.append("The GEE fit did not converge to finite estimates on these judgments; read the run-level shares instead.")
+        return empty
     se = np.sqrt(np.diag(covariance))
     z = beta / se
     parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))

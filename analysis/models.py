@@ -156,10 +156,11 @@ def _logistic(
         p, w, info = information(beta)
         score = x.T @ (successes - trials * p)
         if firth:
-            leverage = w * np.einsum("ij,jk,ik->i", x, np.linalg.inv(info), x)
+            # pinv: far out on a profile the fitted chances saturate and the information is numerically singular
+            leverage = w * np.einsum("ij,jk,ik->i", x, np.linalg.pinv(info), x)
             score = score + x.T @ (leverage * (0.5 - p))
         step = np.zeros_like(beta)
-        step[free] = np.linalg.solve(info[np.ix_(free, free)], score[free])
+        step[free] = np.linalg.lstsq(info[np.ix_(free, free)], score[free], rcond=None)[0]
         scale = 1.0
         while scale > 1e-10:
             candidate = objective(beta + scale * step)
@@ -170,7 +171,7 @@ def _logistic(
         current = objective(beta)
         if np.max(np.abs(scale * step)) < 1e-10:
             break
-    return beta, np.linalg.inv(information(beta)[2]), current
+    return beta, np.linalg.pinv(information(beta)[2]), current
 
 
 def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, response: str) -> Fit:

@@ -76,3 +76,18 @@ def test_clustered_interval_covers_and_naive_one_is_too_narrow() -> None:
     assert covered["naive"] / simulations < 0.85
     assert 0.91 <= covered["gee"] / simulations <= 0.98
     assert np.mean(correlations) == pytest.approx(correlation, abs=0.05)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8, 13, 29, 30, 35, 38, 39, 40, 60])
+def test_all_yes_and_all_no_arms_give_fits_not_crashes(n: int) -> None:
+    # Three runs per arm of n judgments each: arm A all yes, arm B all no, then arm B mixed.
+    dm = DesignMatrix(np.column_stack([np.ones(6), np.repeat([1.0, -1.0], 3)]), ARM.columns, ARM.terms)
+    trials = np.full(6, n)
+    for b_yes in (np.zeros(3, dtype=int), np.array([0, n // 2, n])):
+        successes = np.r_[np.full(3, n), b_yes]
+        gee = fit_gee(dm, successes, trials, "yes")
+        firth = fit_logistic(dm, successes, trials, "yes")
+        assert any("separated" in note for note in gee.notes) and all(np.isnan(p.estimate) for p in gee.parameters)
+        assert "Firth" in firth.method
+        arm = firth.parameters[1]
+        assert 0.0 < arm.estimate and arm.low < arm.estimate < arm.high and 0.0 <= arm.p_value <= 1.0
