@@ -237,3 +237,26 @@ def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> No
     rgb = image[..., :3]
     saturated = (rgb.max(axis=2) - rgb.min(axis=2)) > 0.3
     assert saturated.mean() > 0.005
+
+
+def test_all_yes_against_all_no_arms_report_without_crashing(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # Arm A judged yes by everyone, arm B by no one: Wilson ends at exactly 1 and 0, GEE has no
+    # estimates (separated), Firth's fit gives profile intervals; the report is written all the same.
+    with (ab_study / "plan.csv").open() as handle:
+        arm = {row["run_code"]: row["Controller"] for row in csv.DictReader(handle)}
+    responses = ab_study / "responses.csv"
+    lines = responses.read_text().splitlines()
+    cells = [line.split(",") for line in lines[1:]]
+    responses.write_text("\n".join([lines[0], *(",".join([c[0], c[1], "yes" if arm[c[0]] == "A" else "no", *c[3:]]) for c in cells)]) + "\n")
+    assert main(["report", "--study", str(ab_study)]) == 0
+    capsys.readouterr()
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    for row in record["table_ii"]:
+        assert row["arms"]["A"]["share"] == 1.0 and row["arms"]["A"]["high"] == 1.0
+        assert row["arms"]["B"]["share"] == 0.0 and row["arms"]["B"]["low"] == 0.0
+        assert row["difference"]["estimate"] == 1.0 and row["odds_ratio"]["low"] > 1.0
+    primary, _, judgment_level = record["fits"][:3]
+    assert all(p["estimate"] is None for p in primary["parameters"]) and any("separated" in n for n in primary["notes"])
+    assert "Firth" in judgment_level["method"]
+    assert (ab_study / "report" / "figures" / "ab_shares.svg").exists()
+    assert "**Primary result** (run as the unit): not estimable" in (ab_study / "report" / "report.md").read_text()
