@@ -1,11 +1,13 @@
 """The design's model fitted to results: logistic regression on judgments, least squares on metrics.
 
 Both fits use the model matrix of the plan (coded factors, effect-coded categories) and report,
-per column, the estimate, its standard error and a Wald p-value, and per term an effect test:
-a likelihood-ratio chi-square (logistic) or a partial F test (least squares) of dropping the term.
-A column the runs cannot estimate (aliased with earlier columns, or too few runs) is left out
-with a note. When judgments are perfectly separated the maximum-likelihood estimates do not
-exist; the logistic fit then uses Firth's bias-reduced (penalized) likelihood and says so.
+per column, the estimate, its standard error, a 95 % interval and a p-value (Wald z or t), and
+per term an effect test: a likelihood-ratio chi-square (logistic) or a partial F test (least
+squares) of the term's coefficients being zero. A column the runs cannot estimate (aliased with
+earlier columns, or too few runs) is left out with a note. When judgments are perfectly separated
+the maximum-likelihood estimates do not exist; the logistic fit then uses Firth's bias-reduced
+(penalized) likelihood, and its column tests and intervals come from the profile penalized
+likelihood (Heinze and Schemper 2002), since Wald ones misjudge penalized estimates.
 """
 
 from __future__ import annotations
@@ -187,8 +189,8 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
         involved = [dm.columns[j] for j, b in zip(np.flatnonzero(keep), direction) if abs(b) > 1e-6]
         notes.append(
             "The judgments are perfectly separated (along " + ", ".join(involved) + "): maximum-likelihood "
-            "estimates do not exist, so Firth's bias-reduced estimates are shown and the effect tests "
-            "use the penalized likelihood."
+            "estimates do not exist, so Firth's bias-reduced estimates are shown, with tests and intervals "
+            "from the profile penalized likelihood."
         )
     beta, covariance, objective = _logistic(x, successes, trials, firth)
     se = np.sqrt(np.diag(covariance))

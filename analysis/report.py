@@ -219,6 +219,9 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     human = {s.run_code for s in data.scores if s.run_code in a.scores}
     items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
     items.append(_judgment_line(a))
+    primary = _primary_result(a)
+    if primary:
+        items.append(primary.replace(" The table below counts judgments and is descriptive.", " Table II below is descriptive."))
     if blinding.unblinded_utc:
         late = [s for s in data.scores if s.recorded_utc and s.recorded_utc > blinding.unblinded_utc[0]]
         if late:
