@@ -62,7 +62,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     assert "| Direction | 2 | 0.675 |" in markdown and "anticipated coefficients by JMP's convention" in markdown
     assert "86.7 %" not in markdown
     assert not (ab_study / "report" / "unblinding.json").exists()
-    stems = ("scores", "trajectories", "ab_shares", "min_distance", "correlation_map")
+    stems = ("scores", "trajectories", "ab_shares", "min_distance", "residuals", "correlation_map")
     assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {f"{stem}.{kind}" for stem in stems for kind in ("png", "svg")}
     # Every table is also a CSV file: Table II's rows, with runs and judgments per arm.
     with (ab_study / "report" / "tables" / "a_b_comparison_table_ii.csv").open() as handle:
@@ -216,7 +216,7 @@ def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
     parser.feed(page)
     assert parser.references == []
     assert "url(" not in page and "@import" not in page
-    assert len(parser.images) == 5
+    assert len(parser.images) == 6  # scores, trajectories, shares, minimum gap, residuals, correlation map
     for source in parser.images:
         prefix = "data:image/png;base64,"
         assert source.startswith(prefix)
