@@ -1,16 +1,23 @@
 """The A/B table (the paper's Table II): the share of "socially compliant" judgments per arm among
-runs with at least k pedestrians, with Wilson 95 % intervals and Fisher's exact test per row.
+runs with at least k pedestrians, with Wilson 95 % intervals, and with two arms their difference,
+odds ratio and Fisher's exact test per row, Holm-adjusted across the rows.
 
-Judgments of one run share that run, so they are not independent; the intervals treat them as if
-they were, as the paper's percentages do.
+Judgments of one run share that run, so they are not independent; the intervals and tests treat
+them as if they were, as the paper's percentages do, so the table is descriptive and the run-level
+analysis (analysis/clustered.py) is the primary one. The rows are nested (every run with 6
+pedestrians is also in the row for 4), so their tests are dependent; Holm's step-down adjustment
+holds the family-wise error rate under any dependence.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from analysis.intervals import Proportion, exact_difference, wilson
+from statsmodels.stats.multitest import multipletests
+
+from analysis.intervals import NO_INTERVAL, Interval, Proportion, difference, exact_difference, odds_ratio, wilson
 from analysis.records import HUMAN, Response
 
 #: Table II of the paper: % judged socially compliant among runs with >= 2, 4, 6 pedestrians.
@@ -33,11 +40,16 @@ class RunJudgments:
 
 @dataclass(frozen=True)
 class TableRow:
-    """One row of Table II: each arm's share, and the exact test's p-value when there are two arms."""
+    """One row of Table II: each arm's runs and share; with two arms, the first minus the second share,
+    their odds ratio, the exact test's p-value and that p-value Holm-adjusted across the rows."""
 
     min_pedestrians: int
+    runs: dict[str, int]
     shares: dict[str, Proportion]
+    difference: Interval
+    odds_ratio: Interval
     p_value: float
+    holm_p: float
 
 
 def judgments_used(responses: Iterable[Response]) -> tuple[list[Response], str]:
@@ -65,10 +77,26 @@ def table_ii(judged: list[RunJudgments], arms: list[str]) -> list[TableRow]:
     """One row per pedestrian count k present: judgments of runs with at least k pedestrians."""
     rows = []
     for k in sorted({run.pedestrians for run in judged}):
-        shares = {}
+        runs, shares = {}, {}
         for arm in arms:
             chosen = [run for run in judged if run.arm == arm and run.pedestrians >= k]
+            runs[arm] = len(chosen)
             shares[arm] = wilson(sum(r.yes for r in chosen), sum(r.total for r in chosen))
-        p_value = exact_difference(*shares.values()) if len(arms) == 2 else float("nan")
-        rows.append(TableRow(k, shares, p_value))
+        if len(arms) == 2:
+            pair = shares[arms[0]], shares[arms[1]]
+            rows.append(TableRow(k, runs, shares, difference(*pair), odds_ratio(*pair), exact_difference(*pair), math.nan))
+        else:
+            rows.append(TableRow(k, runs, shares, NO_INTERVAL, NO_INTERVAL, math.nan, math.nan))
+    return holm(rows)
+
+
+def holm(rows: list[TableRow]) -> list[TableRow]:
+    """The rows with their p-values Holm-adjusted over the rows that have one."""
+    tested = [i for i, row in enumerate(rows) if not math.isnan(row.p_value)]
+    if not tested:
+        return rows
+    adjusted = multipletests([rows[i].p_value for i in tested], method="holm")[1]
+    rows = list(rows)
+    for i, p in zip(tested, adjusted):
+        rows[i] = replace(rows[i], holm_p=float(p))
     return rows

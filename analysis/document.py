@@ -1,4 +1,5 @@
-"""A report as a list of blocks, rendered to Markdown (figures as files) and to one self-contained HTML page.
+"""A report as a list of blocks, rendered to Markdown (figures as files), to one self-contained HTML page,
+and each table to CSV.
 
 Inline text may mark `code` with backticks and **bold** with double asterisks; both renderers understand them.
 """
@@ -6,9 +7,13 @@ Inline text may mark `code` with backticks and **bold** with double asterisks; b
 from __future__ import annotations
 
 import base64
+import csv
 import html
+import io
 import re
 from dataclasses import dataclass, field
+
+from analysis.figures import Rendered
 
 
 @dataclass(frozen=True)
@@ -37,10 +42,10 @@ class Table:
 
 @dataclass(frozen=True)
 class Figure:
-    """A PNG figure; `name` is its file name under report/figures/."""
+    """A figure; `name` is its file stem under report/figures/ (written as .png and .svg)."""
 
     name: str
-    png: bytes
+    image: Rendered
     caption: str
 
 
@@ -92,7 +97,7 @@ def to_markdown(title: str, blocks: list[Block], figure_dir: str = "figures") ->
             lines += ["| " + " | ".join(_cell_markdown(c) for c in row) + " |" for row in block.rows]
             lines += ([""] + [f"*{block.caption}*"] if block.caption else []) + [""]
         else:
-            lines += [f"![{block.caption}]({figure_dir}/{block.name})", "", f"*{block.caption}*", ""]
+            lines += [f"![{block.caption}]({figure_dir}/{block.name}.png)", "", f"*{block.caption}*", ""]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -121,10 +126,38 @@ def to_html(title: str, blocks: list[Block]) -> str:
             caption = f"<caption>{_inline_html(block.caption)}</caption>" if block.caption else ""
             parts.append(f"<table>{caption}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
         else:
-            data = base64.b64encode(block.png).decode("ascii")
+            data = base64.b64encode(block.image.png).decode("ascii")
             parts.append(
                 f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block.caption)}">'
                 f"<figcaption>{_inline_html(block.caption)}</figcaption></figure>"
             )
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _plain(text: str) -> str:
+    """Inline markup removed, for CSV cells."""
+    return _BOLD.sub(r"\1", _CODE.sub(r"\1", text))
+
+
+def to_csv(table: Table) -> str:
+    """A table as CSV: its header and rows, markup removed (the caption stays in the report)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow([_plain(h) for h in table.header])
+    writer.writerows([[_plain(c) for c in row] for row in table.rows])
+    return buffer.getvalue()
+
+
+def table_names(blocks: list[Block]) -> list[tuple[str, Table]]:
+    """Each table with a file stem from the heading above it (numbered when a heading has several):
+    stable names for report/tables/."""
+    named: list[tuple[str, Table]] = []
+    heading, count = "report", 0
+    for block in blocks:
+        if isinstance(block, Heading):
+            heading, count = re.sub(r"[^a-z0-9]+", "_", block.text.lower()).strip("_") or "section", 0
+        elif isinstance(block, Table):
+            count += 1
+            named.append((heading if count == 1 else f"{heading}_{count}", block))
+    return named

@@ -1,4 +1,5 @@
-"""Figures shared by `trials design` and `trials report`, rendered off-screen to PNG bytes."""
+"""Figures shared by `trials design` and `trials report`, rendered off-screen to PNG (for the page) and
+SVG (for print and editing) bytes."""
 
 from __future__ import annotations
 
@@ -6,14 +7,16 @@ import io
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_svg import FigureCanvasSVG
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 
-def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str) -> bytes:
+def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: str) -> Rendered:
     """JMP's colour map on correlations: |r| between model columns, white 0 to dark red 1."""
     size = 2.5 + 0.45 * len(columns)
     figure = Figure(figsize=(size + 1.5, size))
@@ -28,7 +31,7 @@ def correlation_map_png(columns: list[str], correlations: np.ndarray, title: str
     axes.set_title(title)
     with _quiet_glyphs():
         figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
 @contextmanager
@@ -39,11 +42,20 @@ def _quiet_glyphs() -> Iterator[None]:
         yield
 
 
-def _png(figure: Figure) -> bytes:
-    buffer = io.BytesIO()
+@dataclass(frozen=True)
+class Rendered:
+    """One figure as PNG and as SVG bytes."""
+
+    png: bytes
+    svg: bytes
+
+
+def _rendered(figure: Figure) -> Rendered:
+    png, svg = io.BytesIO(), io.BytesIO()
     with _quiet_glyphs():
-        FigureCanvasAgg(figure).print_png(buffer)
-    return buffer.getvalue()
+        FigureCanvasAgg(figure).print_png(png)
+        FigureCanvasSVG(figure).print_svg(svg, metadata={"Date": None})  # no date: the same figure gives the same bytes
+    return Rendered(png.getvalue(), svg.getvalue())
 
 
 def arm_colours(arms: list[str]) -> dict[str, str]:
@@ -52,7 +64,7 @@ def arm_colours(arms: list[str]) -> dict[str, str]:
     return {arm: palette[i % len(palette)] for i, arm in enumerate(arms)}
 
 
-def score_distribution_png(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> bytes:
+def score_distribution_figure(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> Rendered:
     """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]), with the paper's shares as markers."""
     figure = Figure(figsize=(6.5, 3.6))
     axes = figure.add_subplot()
@@ -72,10 +84,10 @@ def score_distribution_png(groups: dict[str, list[int]], paper: dict[int, float]
     axes.legend(fontsize=8, loc="upper left")
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
-def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> bytes:
+def trajectories_figure(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> Rendered:
     """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm."""
     columns = min(6, max(len(panels), 1))
     rows = max(1, -(-len(panels) // columns))
@@ -104,10 +116,10 @@ def trajectories_png(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]]
     handles.append(Line2D([], [], color="0.6", linewidth=0.8, label="pedestrian"))
     figure.subplots_adjust(left=left, right=right, bottom=bottom / height, top=1 - top / height, wspace=wspace, hspace=gap / (panel * aspect))
     figure.legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles), frameon=False)
-    return _png(figure)
+    return _rendered(figure)
 
 
-def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]], paper: dict[str, dict[int, float]] | None, title: str) -> bytes:
+def shares_figure(rows: list[tuple[int, dict[str, tuple[float, float, float]]]], paper: dict[str, dict[int, float]] | None, title: str) -> Rendered:
     """Share judged compliant (with its interval) per arm for runs with >= k pedestrians: rows of (k, arm -> (share, low, high))."""
     arms = list(rows[0][1]) if rows else []
     colours = arm_colours(arms)
@@ -119,7 +131,9 @@ def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]],
         share = np.array([100.0 * r[1][arm][0] for r in rows])
         low = np.array([100.0 * r[1][arm][1] for r in rows])
         high = np.array([100.0 * r[1][arm][2] for r in rows])
-        axes.errorbar(x, share, yerr=[share - low, high - share], fmt="o", color=colours[arm], capsize=4, label=f"{arm} (Wilson 95 %)")
+        # matplotlib refuses negative error bars; an interval always holds its share, so clip rounding
+        yerr = np.clip([share - low, high - share], 0.0, None)
+        axes.errorbar(x, share, yerr=yerr, fmt="o", color=colours[arm], capsize=4, label=f"{arm} (Wilson 95 %)")
         if paper is not None and arm in paper:
             axes.scatter(x, [paper[arm].get(k, np.nan) for k, _ in rows], marker="D", facecolors="none", edgecolors=colours[arm], label=f"{arm}: paper")
     axes.set_xticks(range(len(rows)), [f">= {k} pedestrians" for k, _ in rows])
@@ -128,10 +142,10 @@ def ab_shares_png(rows: list[tuple[int, dict[str, tuple[float, float, float]]]],
     axes.legend(fontsize=7, loc="lower left")
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
 
 
-def min_distance_png(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> bytes:
+def min_distance_figure(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> Rendered:
     """Minimum gap of each run against its pedestrian count, one colour per arm: points (arm, pedestrians, gap)."""
     colours = arm_colours(arms)
     figure = Figure(figsize=(6.5, 3.6))
@@ -153,4 +167,24 @@ def min_distance_png(points: list[tuple[str, float, float]], arms: list[str], ti
     axes.legend(fontsize=8)
     axes.set_title(title)
     figure.tight_layout()
-    return _png(figure)
+    return _rendered(figure)
+
+
+def residuals_figure(panels: list[tuple[str, tuple[float, ...], tuple[float, ...], tuple[bool, ...]]]) -> Rendered:
+    """Residual against fitted value, one panel per fit: (title, fitted, residuals, flagged); flagged runs
+    (censored values) drawn as open red triangles."""
+    figure = Figure(figsize=(3.2 * max(len(panels), 1), 3.2))
+    for index, (title, fitted, residuals, flagged) in enumerate(panels):
+        axes = figure.add_subplot(1, max(len(panels), 1), index + 1)
+        x, y, marked = np.asarray(fitted), np.asarray(residuals), np.asarray(flagged, dtype=bool)
+        axes.plot(x[~marked], y[~marked], "o", color="#1f77b4", markersize=4)
+        if marked.any():
+            axes.plot(x[marked], y[marked], "^", markerfacecolor="none", markeredgecolor="#d62728", markersize=6, label="censored (timeout)")
+            axes.legend(fontsize=6)
+        axes.axhline(0.0, color="0.5", linewidth=0.8)
+        axes.set_title(title, fontsize=8)
+        axes.set_xlabel("fitted", fontsize=7)
+        axes.set_ylabel("residual", fontsize=7)
+        axes.tick_params(labelsize=6)
+    figure.tight_layout()
+    return _rendered(figure)

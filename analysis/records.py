@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from designs.model import Model
 from designs.spec import StudySpec
@@ -138,6 +139,8 @@ class StudyData:
     responses: list[Response]
     blinding: Blinding
     correlations: tuple[list[str], list[list[float | None]]]
+    #: design.json's "diagnostics": efficiencies, the bound, power (empty when the file has none).
+    diagnostics: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
     @property

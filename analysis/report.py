@@ -14,21 +14,43 @@ from typing import Any
 import numpy as np
 
 from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
-from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, to_html, to_markdown
-from analysis.figures import ab_shares_png, arm_colours, correlation_map_png, min_distance_png, score_distribution_png, trajectories_png
-from analysis.intervals import wilson
+from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, table_names, to_csv, to_html, to_markdown
+from analysis.figures import (
+    arm_colours,
+    correlation_map_figure,
+    min_distance_figure,
+    residuals_figure,
+    score_distribution_figure,
+    shares_figure,
+    trajectories_figure,
+)
+from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.records import SIMULATED, Response, StudyData
 from analysis.run_log import RunLog
-from analysis.score_summary import PAPER_SCORE_SHARES, SCORES, RunScore, by_factor, counts, score_runs
+from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
 from analysis.scoring import Rubric
-from analysis.study_fits import fit_judgments, fit_metrics
+from analysis.study_fits import fit_judgments, fit_judgments_by_run, fit_metrics, fit_run_shares
 from designs.factors import CategoricalFactor, FixedFactor
 from robot_logs.errors import LogError
 from robot_logs.run_log import read_run
 
 FORMAT = "navtrials.report/1"
+#: How each kind of fit's parameter intervals and tests are made, by the name of its statistic.
+INTERVALS = {
+    "z": "Wald intervals and z tests.",
+    "t": "t intervals and t tests on the residual df.",
+    "penalized LR chi-square": "Profile penalized-likelihood intervals and penalized likelihood-ratio tests (Heinze and Schemper, Statistics in Medicine 2002).",
+}
+#: Why the clustered fit is the primary analysis, said once in the report.
+PRIMARY_WHY = (
+    "The experimental unit is the run: its judgments share one robot behaviour, so they are correlated, and a run with more "
+    "pedestrians would otherwise weigh more. The primary analysis fits the plan's logistic model to every judgment by "
+    "generalized estimating equations with each run a cluster (Liang and Zeger, Biometrika 1986), exchangeable within a run, "
+    "with sandwich standard errors corrected for few clusters (Mancl and DeRouen, Biometrics 2001). Participants are not "
+    "modelled as a second cluster."
+)
 PEDESTRIANS = "Pedestrians"
 NOT_AVAILABLE = "n/a"
 
@@ -45,6 +67,10 @@ class Report:
     @property
     def figures(self) -> list[Figure]:
         return [block for block in self.blocks if isinstance(block, Figure)]
+
+    def tables(self) -> dict[str, str]:
+        """Every table as CSV text, by file stem."""
+        return {name: to_csv(table) for name, table in table_names(self.blocks)}
 
     def markdown(self) -> str:
         return to_markdown(self.title, self.blocks)
@@ -85,7 +111,7 @@ class _Analysis:
     judgment_source: str
     judged: list[RunJudgments]
     table: list[TableRow]
-    judgment_fit: Fit | None
+    judgment_fits: list[Fit]
     metric_fits: list[Fit]
     notes: list[str]
 
@@ -96,6 +122,7 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
     title = f"Study report: {data.spec.name}"
     blocks = [
         *_overview(analysis, generated_utc),
+        *_design_section(analysis),
         *_scores_section(analysis),
         *_ab_section(analysis),
         *_figures_section(analysis),
@@ -135,9 +162,9 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     arms = _arm_order(data)
     judged = count_judgments(judgments, arm_of, pedestrians)
     table = table_ii(judged, arms) if judged else []
-    judgment_fit = fit_judgments(data, judged) if judged else None
+    judgment_fits = [fit(data, judged) for fit in (fit_judgments_by_run, fit_run_shares, fit_judgments)] if judged else []
     metric_fits = fit_metrics(data) if data.finished else []
-    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fit, metric_fits, notes)
+    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes)
 
 
 def _stale_results(data: StudyData) -> list[str]:
@@ -191,6 +218,9 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     human = {s.run_code for s in data.scores if s.run_code in a.scores}
     items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
     items.append(_judgment_line(a))
+    primary = _primary_result(a)
+    if primary:
+        items.append(primary.replace(" The table below counts judgments and is descriptive.", " Table II below is descriptive."))
     if blinding.unblinded_utc:
         late = [s for s in data.scores if s.recorded_utc and s.recorded_utc > blinding.unblinded_utc[0]]
         if late:
@@ -218,17 +248,18 @@ def _scores_section(a: _Analysis) -> list[Block]:
     final = {code: s.final for code, s in a.scores.items()}
     total = counts(final.values())
     n = sum(total)
+    paper = paper_score_shares(a.data.spec)
     rows = []
     for score, count in zip(SCORES, total):
         interval = wilson(count, n)
-        rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", f"{PAPER_SCORE_SHARES[score]:.1f} %"])
+        rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", *([f"{paper[score]:.1f} %"] if paper else [])])
     rubric_only = counts(s.auto.score for s in a.scores.values())
     blocks: list[Block] = [
         Heading("Scores"),
         Paragraph("1 = collision, 2 = no collision but unnatural (turning in place, backing up, stopping or hesitating, passing within intimate distance), 3 = natural and comfortable."),
         Table(
-            ["Score", "Runs", "Share", "Wilson 95 %", "Paper (Tsai & Oh)"],
-            rows + [["all", str(n), "", "", ""]],
+            ["Score", "Runs", "Share", "Wilson 95 %", *(["Paper (Tsai & Oh)"] if paper else [])],
+            rows + [["all", str(n), "", "", *([""] if paper else [])]],
             f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3.",
             {1, 2},
         ),
@@ -283,31 +314,47 @@ def _ab_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading(heading)]
     if not a.table:
         return blocks + [Paragraph("No judgments of finished runs yet: record them with `trials respond` (or `trials respond --simulate` for simulated runs).")]
+    primary = _primary_result(a)
+    if primary:
+        blocks.append(Paragraph(primary))
     paper = blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms)
     header = ["Runs with"]
     for arm in a.arms:
-        header += [f"{arm}: yes / judged", f"{arm}: % (Wilson 95 %)"]
+        header += [f"{arm}: runs", f"{arm}: yes / judged", f"{arm}: % (Wilson 95 %)"]
         if paper:
             header.append(f"{PAPER_NAMES[arm]} (paper)")
     two = len(a.arms) == 2
     if two:
-        header.append("Fisher's exact p")
+        header += ["Difference (95 % CI)", "Odds ratio (95 % CI)", "Fisher's exact p", "Holm p"]
     rows = []
     for row in a.table:
         cells = [f">= {row.min_pedestrians} pedestrians"]
         for arm in a.arms:
             share = row.shares[arm]
-            cells += [f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
+            cells += [str(row.runs[arm]), f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
             if paper:
                 cells.append(f"{PAPER_TABLE_II[arm].get(row.min_pedestrians, math.nan):.0f} %")
         if two:
-            cells.append(p_text(row.p_value))
+            d, r = row.difference, row.odds_ratio
+            cells += [
+                f"{_points(d.estimate)} ({_points(d.low)} to {_points(d.high)})",
+                f"{number(r.estimate, 2)} ({number(r.low, 2)} - {number(r.high, 2)})",
+                p_text(row.p_value),
+                p_text(row.holm_p),
+            ]
         rows.append(cells)
     source = "simulated participants" if a.judgment_source == SIMULATED else "participants"
-    caption = (
-        f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians. Wilson 95 % intervals; "
-        "two-sided Fisher's exact test of the difference between the two arms. Judgments of one run are not independent, "
-        "so the intervals are narrower than the runs alone would support."
+    caption = f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians, with Wilson 95 % intervals"
+    if two:
+        first, second = a.arms
+        caption += (
+            f". Difference: {first} minus {second} in percentage points, Newcombe's score interval; odds ratio of {first} to {second} "
+            "with 0.5 added to every cell (Woolf's interval); two-sided Fisher's exact test, and its p-value Holm-adjusted across the rows, "
+            "which are nested"
+        )
+    caption += (
+        ". Every judgment counts as independent here, so the intervals are narrower than the runs support: the table is descriptive, "
+        "the run-level analysis is the primary one."
     )
     blocks.append(Table(header, rows, caption, set(range(1, len(header)))))
     if blinding.blinded and not blinding.revealed:
@@ -317,12 +364,55 @@ def _ab_section(a: _Analysis) -> list[Block]:
     return blocks
 
 
+def _primary_result(a: _Analysis) -> str | None:
+    """The arm effect of the primary (run-level) analysis in one sentence, when there are two arms."""
+    factor = a.data.blinding.factor
+    if len(a.arms) != 2 or not a.judgment_fits or factor is None:
+        return None
+    fit = a.judgment_fits[0]
+    effect = next((e for e in fit.effects if e.term == factor), None)
+    column = next((p for p in fit.parameters if p.column.startswith(f"{factor}[") and "*" not in p.column), None)
+    if effect is None or column is None or math.isnan(column.estimate):
+        return "**Primary result** (run as the unit): not estimable from these judgments; see the notes under the model fits."
+    z = 1.959963984540054
+    ratio = [math.exp(2.0 * (column.estimate + k * z * column.std_error)) for k in (0.0, -1.0, 1.0)]
+    first, second = a.arms
+    return (
+        f"**Primary result** (run as the unit, {fit.runs} runs, {fit.observations} judgments): {first} against {second}, odds ratio "
+        f"{ratio[0]:.2f} (95 % CI {ratio[1]:.2f} - {ratio[2]:.2f}) at the centre of the design; effect test of {a.data.blinding.arm_word} "
+        f"chi-square {number(effect.statistic, 2)} on {effect.df} df, p {_equals(p_text(effect.p_value))} (logistic GEE clustered by run; "
+        "see the model fits). The table below counts judgments and is descriptive."
+    )
+
+
+def _interval_text(low: float, high: float) -> str:
+    if math.isnan(low) or math.isnan(high):
+        return NOT_AVAILABLE
+    return f"{number(low) if math.isfinite(low) else '-inf'} to {number(high) if math.isfinite(high) else 'inf'}"
+
+
+def _points(share_difference: float) -> str:
+    """A difference of two shares in percentage points, signed."""
+    return NOT_AVAILABLE if math.isnan(share_difference) else f"{100.0 * share_difference:+.1f}"
+
+
 def _models_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading("The design's model fitted to the results")]
     terms = ", ".join(a.data.model.term_names[1:]) or "intercept only"
     blocks.append(Paragraph(f"Model terms (from the plan): {terms}. Factors are coded as in the design: numeric ones on [-1, 1], categorical ones effect-coded (the last level is minus the sum of the others)."))
-    if a.judgment_fit is not None:
-        blocks += [Heading("Judgments: logistic regression", 3), *_fit_blocks(a.judgment_fit)]
+    if a.judgment_fits:
+        primary, shares, naive = a.judgment_fits
+        blocks += [
+            Heading("Judgments: the run as the unit (primary analysis)", 3),
+            Paragraph(PRIMARY_WHY),
+            *_fit_blocks(primary),
+            Heading("Judgments: each run's share of yes (least squares)", 3),
+            Paragraph("Every run counts once, whatever its number of judgments; a check on the primary analysis that needs no model of the correlation."),
+            *_fit_blocks(shares),
+            Heading("Judgments: logistic regression on every judgment (descriptive)", 3),
+            Paragraph("Treats the judgments as independent, as the paper's percentages do: its standard errors are too small when judgments of one run agree."),
+            *_fit_blocks(naive),
+        ]
     else:
         blocks.append(Paragraph("No judgments to fit yet."))
     if a.metric_fits:
@@ -335,11 +425,18 @@ def _models_section(a: _Analysis) -> list[Block]:
         )
         for fit in a.metric_fits:
             blocks += [Heading(f"{fit.response}", 4), *_fit_blocks(fit, effects=False)]
+        panels = [(fit.response, fit.fitted, fit.residuals, fit.flagged) for fit in a.metric_fits if fit.fitted]
+        if panels:
+            blocks.append(
+                Figure("residuals", residuals_figure(panels), "Residual against fitted value of each outcome metric's least-squares fit, one point per run; "
+                       "a pattern or a funnel says the model or its constant variance does not hold. Open triangles: durations censored by the time limit.")
+            )
     return blocks
 
 
 def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
-    blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations.")]
+    figures = "".join(f"; {name} {number(value)}" for name, value in fit.summary.items())
+    blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations{figures}.")]
     if effects:
         blocks.append(
             Table(
@@ -351,10 +448,10 @@ def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
         )
     blocks.append(
         Table(
-            ["Column", "Estimate", "Std error", fit.statistic, "p"],
-            [[p.column, number(p.estimate), number(p.std_error), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
-            "Parameter estimates (n/a: not estimable from these runs).",
-            {1, 2, 3, 4},
+            ["Column", "Estimate", "Std error", "95 % CI", fit.statistic, "p"],
+            [[p.column, number(p.estimate), number(p.std_error), _interval_text(p.low, p.high), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
+            "Parameter estimates (n/a: not estimable from these runs, or no interval). " + INTERVALS.get(fit.statistic, ""),
+            {1, 2, 3, 4, 5},
         )
     )
     if fit.notes:
@@ -370,7 +467,9 @@ def _figures_section(a: _Analysis) -> list[Block]:
     if a.scores:
         groups = {arm: counts(a.scores[r.code].final for r in data.finished if r.arm == arm) for arm in a.arms}
         groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(s.final for s in a.scores.values())}
-        blocks.append(Figure("scores.png", score_distribution_png(groups, PAPER_SCORE_SHARES, "Score distribution"), f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top) and the paper's shares (diamonds)."))
+        paper_shares = paper_score_shares(data.spec)
+        caption = f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
+        blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption))
     panels = []
     for run in data.finished:
         log = a.logs.get(run.code)
@@ -379,23 +478,61 @@ def _figures_section(a: _Analysis) -> list[Block]:
         title = f"{run.order}. {run.code} | {run.arm} | {a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
         panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
     if panels:
-        blocks.append(Figure("trajectories.png", trajectories_png(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
+        blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
     if a.table:
         rows = [(row.min_pedestrians, {arm: (row.shares[arm].share, row.shares[arm].low, row.shares[arm].high) for arm in a.arms}) for row in a.table]
         paper = PAPER_TABLE_II if data.blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms) else None
-        blocks.append(Figure("ab_shares.png", ab_shares_png(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
+        blocks.append(Figure("ab_shares" if len(a.arms) > 1 else "judged_shares", shares_figure(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
     points = [
         (run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m)
         for run in data.finished
         if run.outcome is not None and run.outcome.min_distance_m is not None
     ]
     if points:
-        blocks.append(Figure("min_distance.png", min_distance_png(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+        blocks.append(Figure("min_distance", min_distance_figure(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+    return blocks
+
+
+def _design_section(a: _Analysis) -> list[Block]:
+    """The plan's quality as `trials design` measured it: efficiencies, power and the correlation map."""
+    data, d = a.data, a.data.diagnostics
+    if not d:
+        return []
+    blocks: list[Block] = [Heading("The design")]
+    efficiencies = [
+        ("D-efficiency", d.get("d_efficiency")),
+        ("D-efficiency bound (cvxpy, approximate design)", d.get("d_efficiency_bound")),
+        ("D-efficiency as % of the bound", d.get("d_efficiency_vs_bound")),
+        ("A-efficiency", d.get("a_efficiency")),
+        ("G-efficiency", d.get("g_efficiency")),
+        ("Average prediction variance", d.get("average_prediction_variance")),
+    ]
+    blocks.append(
+        Table(
+            ["Measure", "Value"],
+            [[name, number(float(value), 3)] for name, value in efficiencies if value is not None],
+            f"{d.get('n', len(data.runs))} runs, {d.get('p', data.model.p)} model columns; JMP's conventions (coded factors, sigma = 1).",
+            {1},
+        )
+    )
+    power = d.get("power")
+    if power:
+        convention = power.get("convention", "every anticipated coefficient +1 (a design.json made before JMP's convention was adopted)")
+        blocks.append(
+            Table(
+                ["Term", "df", "Power"],
+                [[t["term"], str(t["parameters"]), number(float(t["power"]), 3)] for t in power.get("terms", [])],
+                f"Power of each term's F test at alpha {power.get('alpha')} with signal-to-noise {power.get('snr')} and error df "
+                f"{power.get('error_df')}; anticipated coefficients by {convention}. This is the power of the least-squares fits of the "
+                "outcome metrics; the judgments are binary and their power is lower.",
+                {1, 2},
+            )
+        )
     columns, matrix = data.correlations
     if columns:
         labels = _open_labels(columns, data)
         values = np.array([[math.nan if v is None else v for v in row] for row in matrix], dtype=float)
-        blocks.append(Figure("correlation_map.png", correlation_map_png(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
+        blocks.append(Figure("correlation_map", correlation_map_figure(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
     return blocks
 
 
@@ -419,19 +556,36 @@ def _methods_section(a: _Analysis, rubric_source: str, participants: Participant
         blocks += [Heading("Simulated participants", 3), Bullets(participants.describe())]
     blocks += [
         Heading("Statistics", 3),
-        Bullets(
-            [
-                "Shares: Wilson score intervals at 95 %.",
-                "Differences between two arms: two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments.",
-                "Judgments: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum likelihood "
-                "(Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are perfectly "
-                "separated, Firth's penalized likelihood replaces maximum likelihood (its tests use the penalized likelihood).",
-                "Outcome metrics: least squares on the same terms; t tests per column, partial F tests per term.",
-                "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
-            ]
-        ),
+        Bullets(_statistics(a)),
     ]
     return blocks
+
+
+def _statistics(a: _Analysis) -> list[str]:
+    """The methods behind the numbers this report shows, and only those."""
+    items = ["Shares: Wilson score intervals at 95 %."]
+    if a.judged:
+        items.append(
+            "Primary analysis of the judgments: the plan's logistic model by GEE with each run a cluster (statsmodels; exchangeable "
+            "working correlation; sandwich errors with Mancl and DeRouen's small-sample correction); Wald z tests and intervals per "
+            "column, Wald chi-square tests per term. Beside it, least squares on each run's share of yes."
+        )
+        if len(a.arms) == 2:
+            items.append(
+                "Two arms, per row of Table II: the difference with Newcombe's score interval, the odds ratio with 0.5 added to every cell "
+                "and Woolf's interval, two-sided Fisher's exact test on the 2 x 2 table of yes / no judgments, Holm-adjusted across the rows."
+            )
+        items.append(
+            "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
+            "likelihood (Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are "
+            "perfectly separated, Firth's penalized likelihood replaces maximum likelihood, with profile penalized-likelihood intervals "
+            "and penalized likelihood-ratio tests for columns and terms alike."
+        )
+    items += [
+        "Outcome metrics: least squares on the same terms; t tests and intervals per column, partial F tests per term, R^2 and RMSE.",
+        "A column that is a linear combination of earlier columns over the runs with data is aliased: it is left out and the report says so.",
+    ]
+    return items
 
 
 # ----------------------------------------------------------------------------------------- record and summary
@@ -462,12 +616,18 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
         "table_ii": [
             {
                 "min_pedestrians": row.min_pedestrians,
-                "arms": {arm: {"yes": p.k, "judged": p.n, "share": _json_number(p.share), "low": _json_number(p.low), "high": _json_number(p.high)} for arm, p in row.shares.items()},
+                "arms": {
+                    arm: {"runs": row.runs[arm], "yes": p.k, "judged": p.n, "share": _json_number(p.share), "low": _json_number(p.low), "high": _json_number(p.high)}
+                    for arm, p in row.shares.items()
+                },
+                "difference": _interval_record(row.difference),
+                "odds_ratio": _interval_record(row.odds_ratio),
                 "fisher_p": _json_number(row.p_value),
+                "holm_p": _json_number(row.holm_p),
             }
             for row in a.table
         ],
-        "fits": [_fit_record(fit) for fit in ([a.judgment_fit] if a.judgment_fit else []) + a.metric_fits],
+        "fits": [_fit_record(fit) for fit in a.judgment_fits + a.metric_fits],
         "notes": a.notes,
     }
 
@@ -476,12 +636,20 @@ def _json_number(value: float) -> float | None:
     return None if math.isnan(value) or math.isinf(value) else value
 
 
+def _interval_record(interval: Interval) -> dict[str, float | None]:
+    return {"estimate": _json_number(interval.estimate), "low": _json_number(interval.low), "high": _json_number(interval.high)}
+
+
 def _fit_record(fit: Fit) -> dict[str, Any]:
     return {
         "response": fit.response,
         "method": fit.method,
-        "parameters": [{"column": p.column, "estimate": _json_number(p.estimate), "std_error": _json_number(p.std_error), "p": _json_number(p.p_value)} for p in fit.parameters],
+        "parameters": [
+            {"column": p.column, **{name: _json_number(getattr(p, name)) for name in ("estimate", "std_error", "low", "high")}, "p": _json_number(p.p_value)}
+            for p in fit.parameters
+        ],
         "effects": [{"term": e.term, "df": e.df, "statistic": _json_number(e.statistic), "p": _json_number(e.p_value)} for e in fit.effects],
+        "summary": {name: _json_number(value) for name, value in fit.summary.items()},
         "notes": fit.notes,
     }
 
@@ -495,12 +663,16 @@ def _summary(a: _Analysis) -> list[str]:
         total = counts(s.final for s in a.scores.values())
         n = sum(total)
         shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
-        lines.append(f"Scores {shares}   [paper: 3: 86.7 %, 1: 0 %]")
+        paper = paper_score_shares(data.spec)
+        lines.append(f"Scores {shares}" + (f"   [paper: 3: {paper[3]:.1f} %, 1: {paper[1]:.0f} %]" if paper else ""))
+    primary = _primary_result(a)
+    if primary:
+        lines.append(primary.replace("**", "").replace(" The table below counts judgments and is descriptive.", ""))
     if a.table:
         lines.append(f"Judged socially compliant ({a.judgment_source}):")
         for row in a.table:
             cells = "   ".join(f"{arm} {percent(p.share)} ({p.k}/{p.n})" for arm, p in row.shares.items())
-            test = f"   Fisher p {_equals(p_text(row.p_value))}" if len(row.shares) == 2 else ""
+            test = f"   Fisher p {_equals(p_text(row.p_value))} (Holm {p_text(row.holm_p)})" if len(row.shares) == 2 else ""
             lines.append(f"  >= {row.min_pedestrians} pedestrians: {cells}{test}")
     if data.blinding.blinded:
         lines.append("Controllers named (unblinded)" if data.blinding.revealed else "Blinded: arms shown by label")

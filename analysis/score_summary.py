@@ -15,10 +15,19 @@ from analysis.records import HumanScore, StudyRun
 from analysis.run_log import RunLog
 from analysis.scoring import AutoScore, Rubric, score_run
 from designs.factors import CategoricalFactor, ContinuousFactor, Factor, FixedFactor, plain
+from designs.presets import qualitative
 from designs.spec import StudySpec
 
 #: The paper's qualitative result: share (%) of runs scored 1, 2 and 3.
 PAPER_SCORE_SHARES = {1: 0.0, 2: 13.3, 3: 86.7}
+
+
+def paper_score_shares(spec: StudySpec) -> dict[int, float] | None:
+    """The paper's score shares when the study is the paper's qualitative plan (its factors, model and
+    run count), else None: they describe that plan's runs and no other study's."""
+    paper = qualitative()
+    same = spec.design_factors == paper.design_factors and spec.model == paper.model and spec.runs == paper.runs
+    return PAPER_SCORE_SHARES if same else None
 SCORES = (1, 2, 3)
 _LEADING_NUMBER = re.compile(r"-?[0-9.]+")
 

@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.ab_table import RunJudgments
+from analysis.clustered import fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares, fit_logistic
 from analysis.records import Blinding, StudyData, StudyRun
 from designs.factors import CategoricalFactor
@@ -45,21 +46,54 @@ def relabel(fit: Fit, blinding: Blinding) -> Fit:
     return replace(fit, parameters=[replace(p, column=rename(p.column)) for p in fit.parameters])
 
 
-def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
-    """Logistic regression of each run's yes / total judgments on the plan's terms."""
+JUDGED = "judged socially compliant"
+
+
+def _judged_matrix(data: StudyData, judged: list[RunJudgments]) -> tuple[DesignMatrix, np.ndarray, np.ndarray]:
+    """The model rows of the judged runs, their yes counts and their judgment counts."""
     by_code = {run.code: run for run in data.runs}
-    runs = [by_code[j.code] for j in judged]
-    dm = DesignMatrix.from_model(data.model, settings(data, runs))
-    fit = fit_logistic(dm, np.array([j.yes for j in judged]), np.array([j.total for j in judged]), "judged socially compliant")
-    return relabel(fit, data.blinding)
+    dm = DesignMatrix.from_model(data.model, settings(data, [by_code[j.code] for j in judged]))
+    return dm, np.array([j.yes for j in judged], dtype=float), np.array([j.total for j in judged], dtype=float)
+
+
+def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """Logistic regression of every judgment on the plan's terms, as if judgments were independent (descriptive)."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_logistic(dm, yes, total, JUDGED), data.blinding)
+
+
+def fit_judgments_by_run(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """The primary analysis: the same logistic model by GEE, each run a cluster of judgments."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_gee(dm, yes, total, JUDGED), data.blinding)
+
+
+def fit_run_shares(data: StudyData, judged: list[RunJudgments]) -> Fit:
+    """Least squares of each run's share of yes on the plan's terms: every run weighs the same."""
+    dm, yes, total = _judged_matrix(data, judged)
+    return relabel(fit_least_squares(dm, yes / total, "share of yes per run"), data.blinding)
+
+
+#: The metric a run that ran out of time has only as a lower bound: it stopped at the time limit.
+CENSORED_BY_TIMEOUT = "duration_s"
+TIMEOUT = "timeout"
 
 
 def fit_metrics(data: StudyData) -> list[Fit]:
-    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value."""
+    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value;
+    durations of runs that timed out are flagged as censored."""
     fits = []
     for column, name in METRICS:
         runs = [run for run in data.finished if getattr(run.outcome, column) is not None]
         dm = DesignMatrix.from_model(data.model, settings(data, runs))
         y = np.array([getattr(run.outcome, column) for run in runs], dtype=float)
-        fits.append(relabel(fit_least_squares(dm, y, name), data.blinding))
+        fit = relabel(fit_least_squares(dm, y, name), data.blinding)
+        censored = tuple(column == CENSORED_BY_TIMEOUT and run.outcome is not None and run.outcome.status == TIMEOUT for run in runs)
+        if any(censored):
+            note = (
+                f"{sum(censored)} of {len(runs)} runs timed out: their {name} is only the time limit, a lower bound (censored), "
+                "so least squares understates the effects on it; they are marked in the residual plot."
+            )
+            fit = replace(fit, flagged=censored, notes=[*fit.notes, note])
+        fits.append(fit)
     return fits

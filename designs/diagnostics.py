@@ -5,7 +5,9 @@ With X the n x p model matrix and V = (X'X)^-1:
 - A-efficiency  100 p / (n trace V)
 - G-efficiency  100 sqrt(p / n) / sigma_M, sigma_M^2 the largest x'Vx over the design region
 - average prediction variance  trace(V M), M the moment matrix of the region
-- power of each term's F test at level alpha when each of its coefficients is `snr`
+- power of each term's F test at level alpha for JMP's anticipated coefficients: a term's
+  columns get +1, -1, +1, ... (so a categorical term's levels differ as JMP assumes), times the
+  term's anticipated coefficient (default 1), times `snr`, the signal-to-noise ratio
 
 The design region is the box [-1, 1] for continuous factors, the levels of discrete and
 categorical factors, all combinations equally likely.
@@ -14,14 +16,18 @@ categorical factors, all combinations equally likely.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import fdtri, ncfdtr
 
+from designs.errors import DesignError
 from designs.exchange import squared_continuous
 from designs.model import Model
 
+#: How the power's anticipated coefficients are set, as design.json and the report say it.
+POWER_CONVENTION = "JMP's convention: +c, -c, +c, ... over each term's columns, c the term's anticipated coefficient (default 1)"
 #: Levels per continuous factor of the grid searched for the largest prediction variance.
 _REGION_GRID = 21
 _MAX_REGION_POINTS = 200_000
@@ -56,10 +62,27 @@ class Diagnostics:
     error_df: int
     term_power: list[TermPower]
     parameter_power: dict[str, float]
+    #: The anticipated coefficient of each model column that the power assumes (snr included).
+    anticipated: dict[str, float] = field(default_factory=dict)
 
 
-def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: float = 1.0) -> Diagnostics:
-    """Diagnostics of the design with the given (n, k) factor settings."""
+def anticipated_coefficients(model: Model, snr: float = 1.0, per_term: Mapping[str, float] | None = None) -> np.ndarray:
+    """JMP's anticipated coefficients: over each term's columns +1, -1, +1, ..., times the term's own
+    coefficient (`per_term`, default 1) and `snr`. An unknown term name is a DesignError."""
+    per_term = dict(per_term or {})
+    unknown = sorted(set(per_term) - set(model.term_names))
+    if unknown:
+        raise DesignError(f"[anticipated] in the spec: {unknown[0]!r} is not a term of the model (terms: {', '.join(model.term_names)})")
+    beta = np.empty(model.p)
+    for name, columns in zip(model.term_names, model.term_slices):
+        width = columns.stop - columns.start
+        beta[columns] = snr * per_term.get(name, 1.0) * np.where(np.arange(width) % 2 == 0, 1.0, -1.0)
+    return beta
+
+
+def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: float = 1.0, anticipated: Mapping[str, float] | None = None) -> Diagnostics:
+    """Diagnostics of the design with the given (n, k) factor settings; `anticipated` maps term names to
+    their anticipated coefficient (default 1) for the power."""
     x = model.matrix(settings)
     n, p = x.shape
     info = x.T @ x
@@ -68,11 +91,12 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
     columns = model.columns
     max_var = max_prediction_variance(model, inv)
     error_df = max(n - p, 1)  # JMP sets the error df of a saturated design to 1
+    beta = anticipated_coefficients(model, snr, anticipated)
     term_power = [
-        TermPower(model.term_name(t), s.stop - s.start, _power(inv[s, s], snr, alpha, error_df))
+        TermPower(model.term_name(t), s.stop - s.start, _power(inv[s, s], beta[s], alpha, error_df))
         for t, s in zip(model.terms, model.term_slices)
     ]
-    parameter_power = {c: _power(inv[j : j + 1, j : j + 1], snr, alpha, error_df) for j, c in enumerate(columns)}
+    parameter_power = {c: _power(inv[j : j + 1, j : j + 1], beta[j : j + 1], alpha, error_df) for j, c in enumerate(columns)}
     return Diagnostics(
         n=n,
         p=p,
@@ -90,6 +114,7 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
         error_df=error_df,
         term_power=term_power,
         parameter_power=parameter_power,
+        anticipated=dict(zip(columns, beta.tolist())),
     )
 
 
@@ -138,10 +163,9 @@ def _polish(model: Model, inv: np.ndarray, start: np.ndarray, continuous: list[i
     return -float(result.fun)
 
 
-def _power(block: np.ndarray, snr: float, alpha: float, error_df: int) -> float:
-    """Power of the F test of H0: beta_L = 0 when every beta_L equals snr (sigma = 1)."""
+def _power(block: np.ndarray, beta: np.ndarray, alpha: float, error_df: int) -> float:
+    """Power of the F test of H0: beta_L = 0 when beta_L is `beta` (sigma = 1); `block` is (X'X)^-1 on L."""
     r = len(block)
-    beta = np.full(r, snr)
     noncentrality = float(beta @ np.linalg.solve(block, beta))
     critical = fdtri(r, error_df, 1.0 - alpha)
     return float(1.0 - ncfdtr(r, error_df, noncentrality, critical))

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from designs.blinding import WHOLE_KEY
+from designs.diagnostics import POWER_CONVENTION
 from designs.errors import DesignError
 from designs.exchange import candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
@@ -87,6 +88,8 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             "power": {
                 "alpha": d.alpha,
                 "snr": d.snr,
+                "convention": POWER_CONVENTION,
+                "anticipated": d.anticipated,
                 "error_df": d.error_df,
                 "terms": [{"term": t.term, "parameters": t.parameters, "power": t.power} for t in d.term_power],
                 "parameters": d.parameter_power,
@@ -131,7 +134,7 @@ def summary_lines(plan: StudyPlan) -> list[str]:
         f"  A-efficiency                 {d.a_efficiency:9.4f}",
         f"  G-efficiency                 {d.g_efficiency:9.4f}",
         f"  Average prediction variance  {d.average_prediction_variance:9.4f}",
-        f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}):",
+        f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}; {POWER_CONVENTION}):",
     ]
     width = max(len(t.term) for t in d.term_power)
     lines += [f"  {t.term:<{width}}  {t.parameters} df  power {t.power:.3f}" for t in d.term_power]

@@ -77,7 +77,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
     bound_job = solve_in_background(model.matrix(candidate_set(model)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
     design = d_optimal(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts)
-    diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr)
+    diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
     order = np.random.default_rng(order_seed).permutation(spec.runs)
     codes = run_codes(spec.runs, np.random.default_rng(code_seed))
     runs = tuple(

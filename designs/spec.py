@@ -9,6 +9,9 @@
     snr = 1.0                 # signal-to-noise ratio for the power table
     alpha = 0.05
 
+    [anticipated]             # optional: a term's anticipated coefficient for the power (default 1)
+    Controller = 0.5          # its columns get +c, -c, +c, ... as in JMP
+
     [[factors]]
     name = "Pedestrians"
     type = "discrete"         # continuous (low, high) | discrete (levels) | categorical (levels) | fixed (value)
@@ -23,7 +26,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from numbers import Real
 from pathlib import Path
 from typing import Any
@@ -80,6 +83,8 @@ class StudySpec:
     snr: float = 1.0
     alpha: float = 0.05
     arms_sealed: bool = False
+    #: Anticipated coefficient per model term for the power table; terms not named get 1.
+    anticipated: dict[str, float] = field(default_factory=dict)
 
     @property
     def design_factors(self) -> tuple[DesignFactor, ...]:
@@ -116,9 +121,9 @@ def read_spec(path: Path) -> StudySpec:
 def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     """Validate the parsed TOML tables of a spec."""
     study = _table(data, "study", source)
-    unknown = set(data) - {"study", "factors"}
+    unknown = set(data) - {"study", "factors", "anticipated"}
     if unknown:
-        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study] and [[factors]])")
+        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally [anticipated])")
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")
@@ -158,6 +163,7 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
         snr=snr,
         alpha=alpha,
         arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
+        anticipated=_anticipated(data, source),
     )
 
 
@@ -167,13 +173,24 @@ def check_search_size(spec: StudySpec) -> None:
         raise DesignError(f"runs x starts = {spec.runs} x {spec.starts} exceeds {MAX_SEARCH:,}; ask for fewer runs or starts")
 
 
+def _anticipated(data: dict[str, Any], source: str) -> dict[str, float]:
+    """The optional [anticipated] table: model term -> its anticipated coefficient (a number)."""
+    table = data.get("anticipated", {})
+    if not isinstance(table, dict):
+        raise DesignError(f"{source}: [anticipated] must be a table of term = coefficient, got {table!r}")
+    return {term: _number(table, term, f"{source}: [anticipated]") for term in table}
+
+
 def spec_to_toml(spec: StudySpec) -> str:
     """The spec as TOML; a blinded factor lists only its arm labels (`arms`)."""
     study: dict[str, Any] = {"name": spec.name, "runs": spec.runs, "model": spec.model}
     if spec.seed is not None:
         study["seed"] = spec.seed
     study.update(starts=spec.starts, snr=spec.snr, alpha=spec.alpha)
-    return tomli_w.dumps({"study": study, "factors": [factor_table(f) for f in spec.factors]})
+    tables: dict[str, Any] = {"study": study}
+    if spec.anticipated:
+        tables["anticipated"] = dict(spec.anticipated)
+    return tomli_w.dumps({**tables, "factors": [factor_table(f) for f in spec.factors]})
 
 
 def factor_table(factor: Factor) -> dict[str, Any]:

@@ -7,6 +7,7 @@ import math
 import pytest
 from statsmodels.stats.proportion import proportion_confint
 
+from analysis.figures import shares_figure
 from analysis.intervals import Proportion, exact_difference, wilson
 
 
@@ -48,3 +49,26 @@ def test_fisher_exact_by_hand() -> None:
 
 def test_fisher_exact_needs_both_arms() -> None:
     assert math.isnan(exact_difference(wilson(3, 4), Proportion(0, 0, math.nan, math.nan)))
+
+
+@pytest.mark.parametrize("n", range(1, 61))
+def test_all_yes_and_all_no_intervals_hold_their_share(n: int) -> None:
+    # Rounding once gave 0.9999999999999999 as the upper end of n of n (n = 29, 30, 35, ...),
+    # a negative error bar, and a report that crashed.
+    all_yes, all_no = wilson(n, n), wilson(0, n)
+    assert all_yes.high == 1.0 and all_yes.low < 1.0
+    assert all_no.low == 0.0 and all_no.high > 0.0
+    low, high = proportion_confint(n, n, alpha=0.05, method="wilson")
+    assert all_yes.low == pytest.approx(low, abs=1e-12) and high == pytest.approx(1.0, abs=1e-12)
+    for k in range(n + 1):
+        interval = wilson(k, n)
+        assert interval.low <= interval.share <= interval.high
+
+
+def test_shares_figure_draws_every_all_yes_and_all_no_arm() -> None:
+    rows = []
+    for n in range(1, 61):
+        yes, no = wilson(n, n), wilson(0, n)
+        rows.append((n, {"A": (yes.share, yes.low, yes.high), "B": (no.share, no.low, no.high)}))
+    image = shares_figure(rows, None, "all yes against all no")
+    assert image.png.startswith(b"\x89PNG") and b"<svg" in image.svg

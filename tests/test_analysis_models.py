@@ -7,7 +7,9 @@ import math
 import numpy as np
 import pytest
 import statsmodels.api as sm
+from scipy.optimize import minimize
 from scipy.special import logit
+from scipy.stats import chi2
 
 from analysis.models import DesignMatrix, fit_least_squares, fit_logistic, separation
 from designs.factors import CategoricalFactor, DiscreteFactor
@@ -114,3 +116,44 @@ def test_too_few_runs_are_reported() -> None:
     assert fit.notes[0].startswith("Too few runs: 3 runs with data for 4 model columns")
     assert any("No residual degrees of freedom" in note for note in fit.notes)
     assert all(math.isnan(e.p_value) for e in fit.effects)
+
+
+def _penalized(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, beta: np.ndarray) -> float:
+    """Firth's penalized log-likelihood, written out independently: l(b) + log det(X'WX) / 2."""
+    eta = x @ beta
+    p = 1.0 / (1.0 + np.exp(-eta))
+    information = x.T @ ((trials * p * (1 - p))[:, None] * x)
+    return float(np.sum(successes * eta - trials * np.logaddexp(0.0, eta)) + 0.5 * np.linalg.slogdet(information)[1])
+
+
+def _profile(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, column: int, value: float) -> float:
+    """The penalized log-likelihood maximised over the other columns with one held at `value` (scipy's BFGS)."""
+    others = [j for j in range(x.shape[1]) if j != column]
+
+    def negative(free: np.ndarray) -> float:
+        beta = np.empty(x.shape[1])
+        beta[others], beta[column] = free, value
+        return -_penalized(x, successes, trials, beta)
+
+    return -float(minimize(negative, np.zeros(len(others)), method="BFGS", options={"gtol": 1e-10}).fun)
+
+
+def test_firth_parameters_use_the_profile_penalized_likelihood() -> None:
+    # Arm A all yes in every run (separated); arm B mixed. Checked against a separate maximisation.
+    x = np.column_stack([np.ones(8), np.repeat([1.0, -1.0], 4), np.tile([-1.0, 1.0], 4)])
+    dm = DesignMatrix(x, ["Intercept", "Arm[A]", "Peds"], [("Intercept", [0]), ("Arm", [1]), ("Peds", [2])])
+    successes, trials = np.array([4, 6, 4, 6, 1, 3, 2, 4]), np.array([4, 6, 4, 6, 4, 6, 4, 6])
+    fit = fit_logistic(dm, successes, trials, "yes")
+    assert "Firth" in fit.method and fit.statistic == "penalized LR chi-square"
+    best = -minimize(lambda b: -_penalized(x, successes, trials, b), np.zeros(3), method="BFGS", options={"gtol": 1e-10}).fun
+    arm = fit.parameters[1]
+    # The test of Arm = 0 and the effect test of the term are the same penalized LR statistic.
+    assert arm.statistic == pytest.approx(2 * (best - _profile(x, successes, trials, 1, 0.0)), rel=1e-5)
+    assert arm.p_value == pytest.approx(chi2.sf(arm.statistic, 1), rel=1e-9)
+    assert next(e for e in fit.effects if e.term == "Arm").statistic == pytest.approx(arm.statistic, rel=1e-9)
+    # The interval's ends are where the profile deviance reaches chi-square(1, 0.95) = 3.841.
+    assert arm.low < arm.estimate < arm.high and math.isfinite(arm.high)
+    for end in (arm.low, arm.high):
+        assert 2 * (best - _profile(x, successes, trials, 1, end)) == pytest.approx(chi2.ppf(0.95, 1), abs=1e-4)
+    # The profile interval is not the symmetric Wald one.
+    assert arm.high - arm.estimate > 1.2 * (arm.estimate - arm.low)

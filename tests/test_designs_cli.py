@@ -211,3 +211,24 @@ def test_console_command_help_and_usage_errors():
     assert bad.returncode == 2
     assert bad.stderr.startswith("error: argument --runs: expected a whole number from 1 to 1000, got 'many'") and bad.stderr.count("\n") == 1
     assert "Traceback" not in bad.stderr
+
+
+def test_anticipated_coefficients_from_the_spec_reach_design_json(tmp_path):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(GENERIC_SPEC + '\n[anticipated]\nLayout = 2.0\n"Speed*Layout" = 0.5\n')
+    folder = tmp_path / "study"
+    assert design(folder, "--spec", str(spec)) == 0
+    power = json.loads((folder / "design.json").read_text())["diagnostics"]["power"]
+    assert power["convention"].startswith("JMP's convention")
+    assert power["anticipated"]["Layout[corridor]"] == 2.0 and power["anticipated"]["Layout[hall]"] == -2.0
+    assert power["anticipated"]["Speed*Layout[hall]"] == -0.5 and power["anticipated"]["Speed"] == 1.0
+    assert "[anticipated]" in (folder / "study.toml").read_text()
+
+
+def test_anticipated_coefficient_of_an_unknown_term_is_an_error(tmp_path, capsys):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(GENERIC_SPEC + "\n[anticipated]\nDensity2 = 2.0\n")
+    assert design(tmp_path / "study", "--spec", str(spec)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: [anticipated] in the spec: 'Density2' is not a term of the model") and err.count("\n") == 1
+    assert not (tmp_path / "study").exists()

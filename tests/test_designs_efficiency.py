@@ -11,6 +11,7 @@ from scipy import stats
 
 from designs.bound import approximate_d_optimal
 from designs.diagnostics import diagnose
+from designs.errors import DesignError
 from designs.exchange import candidate_set, d_optimal
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
 from designs.model import parse_model
@@ -122,15 +123,38 @@ def test_saturated_design_gets_one_error_df_as_jmp_does():
 
 
 def test_categorical_term_power_tests_the_whole_effect():
+    """JMP's convention: the anticipated coefficients of D[a], D[b] are +1, -1, so the levels' means are
+    +1, -1 and 0; 4 runs each give lambda = 4 (1 + 1 + 0) = 8 on (2, 9) df."""
     factor = CategoricalFactor("D", ("a", "b", "c"))
     model = parse_model("main", (factor,))
     settings = np.repeat([0.0, 1.0, 2.0], 4)[:, None]
     d = diagnose(model, settings)
-    inv = np.linalg.inv(model.matrix(settings).T @ model.matrix(settings))
-    block = inv[1:3, 1:3]
-    noncentrality = np.ones(2) @ np.linalg.solve(block, np.ones(2))
-    expected = stats.ncf.sf(stats.f.ppf(0.95, 2, 9), 2, 9, noncentrality)
+    expected = stats.ncf.sf(stats.f.ppf(0.95, 2, 9), 2, 9, 8.0)
     assert {t.term: t.power for t in d.term_power}["D"] == pytest.approx(expected, rel=1e-9)
+    assert d.anticipated == {"Intercept": 1.0, "D[a]": 1.0, "D[b]": -1.0}
+    # A term's own coefficient scales its columns: c = 0.5 quarters lambda.
+    half = diagnose(model, settings, anticipated={"D": 0.5})
+    assert {t.term: t.power for t in half.term_power}["D"] == pytest.approx(stats.ncf.sf(stats.f.ppf(0.95, 2, 9), 2, 9, 2.0), rel=1e-9)
+    assert half.anticipated["D[b]"] == -0.5
+    with pytest.raises(DesignError, match=r"\[anticipated\] in the spec: 'E' is not a term of the model"):
+        diagnose(model, settings, anticipated={"E": 1.0})
+
+
+def test_ab_plan_power_with_jmp_coefficients():
+    """The 18-run A/B plan: each term's power from scipy.stats' noncentral F on (X'X)^-1 with the
+    alternating coefficients; every coefficient +1 gave 0.991, 0.947, 0.991 for the three two-column terms."""
+    model = _model(ab(CONTROLLERS))
+    settings = d_optimal(model, 18, seed=0).settings
+    x = model.matrix(settings)
+    inv = np.linalg.inv(x.T @ x)
+    power = {t.term: t.power for t in diagnose(model, settings).term_power}
+    for name, columns in zip(model.term_names, model.term_slices):
+        width = columns.stop - columns.start
+        beta = np.array([1.0, -1.0][:width])
+        noncentrality = beta @ np.linalg.solve(inv[columns, columns], beta)
+        assert power[name] == pytest.approx(stats.ncf.sf(stats.f.ppf(0.95, width, 7), width, 7, noncentrality), rel=1e-9)
+    assert (power["Direction"], power["Pedestrians*Direction"], power["Direction*Controller"]) == pytest.approx((0.675, 0.547, 0.675), abs=5e-4)
+    assert power["Controller"] == pytest.approx(0.945, abs=5e-4)
 
 
 def _brute_force_best_det(model, runs: int) -> float:

@@ -56,11 +56,20 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
-    assert "| Runs with | A: yes / judged |" in (ab_study / "report" / "report.md").read_text()
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "| Runs with | A: runs | A: yes / judged |" in markdown
+    # The design section: the power under JMP's alternating coefficients, and no paper score shares on the A/B plan.
+    assert "| Direction | 2 | 0.675 |" in markdown and "anticipated coefficients by JMP's convention" in markdown
+    assert "86.7 %" not in markdown
     assert not (ab_study / "report" / "unblinding.json").exists()
-    assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {
-        "scores.png", "trajectories.png", "ab_shares.png", "min_distance.png", "correlation_map.png"
-    }
+    stems = ("scores", "trajectories", "ab_shares", "min_distance", "residuals", "correlation_map")
+    assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {f"{stem}.{kind}" for stem in stems for kind in ("png", "svg")}
+    # Every table is also a CSV file: Table II's rows, with runs and judgments per arm.
+    with (ab_study / "report" / "tables" / "a_b_comparison_table_ii.csv").open() as handle:
+        table = list(csv.DictReader(handle))
+    assert [row["Runs with"] for row in table] == [">= 2 pedestrians", ">= 4 pedestrians", ">= 6 pedestrians"]
+    assert [int(row["A: runs"]) + int(row["B: runs"]) for row in table] == [18, 11, 6]
+    assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("Measure,Value\nD-efficiency,55.871\n")
 
 
 def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
@@ -91,7 +100,15 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
         assert {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} == counted
         (y1, n1), (y2, n2) = counted.values()
         assert row["fisher_p"] == pytest.approx(fisher_exact([[y1, n1 - y1], [y2, n2 - y2]]).pvalue)
+        assert row["fisher_p"] <= row["holm_p"] <= 1.0
+        assert row["difference"]["estimate"] == pytest.approx(y1 / n1 - y2 / n2)
+    # The D-optimal plan is unbalanced within rows: 9, 6, 3 runs for one arm and 9, 5, 3 for the other.
+    runs = sorted([row["arms"][arm]["runs"] for row in record["table_ii"]] for arm in ("NaviGAN-R", "Lattice"))
+    assert runs == [[9, 5, 3], [9, 6, 3]]
+    assert record["fits"][0]["method"].startswith("logistic GEE clustered by run")
+    assert out.index("Primary result (run as the unit") < out.index("Judged socially compliant")
     markdown = (ab_study / "report" / "report.md").read_text()
+    assert markdown.index("**Primary result**") < markdown.index("| Runs with |")
     assert "SBPL (paper)" in markdown and "| >= 6 pedestrians |" in markdown
     row_four = next(line for line in markdown.splitlines() if line.startswith("| >= 4 pedestrians |"))
     assert "| 64 % |" in row_four and "| 75 % |" in row_four  # the paper's SBPL and NaviGAN-R
@@ -228,7 +245,7 @@ def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
     parser.feed(page)
     assert parser.references == []
     assert "url(" not in page and "@import" not in page
-    assert len(parser.images) == 5
+    assert len(parser.images) == 6  # scores, trajectories, shares, minimum gap, residuals, correlation map
     for source in parser.images:
         prefix = "data:image/png;base64,"
         assert source.startswith(prefix)
@@ -249,3 +266,26 @@ def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> No
     rgb = image[..., :3]
     saturated = (rgb.max(axis=2) - rgb.min(axis=2)) > 0.3
     assert saturated.mean() > 0.005
+
+
+def test_all_yes_against_all_no_arms_report_without_crashing(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # Arm A judged yes by everyone, arm B by no one: Wilson ends at exactly 1 and 0, GEE has no
+    # estimates (separated), Firth's fit gives profile intervals; the report is written all the same.
+    with (ab_study / "plan.csv").open() as handle:
+        arm = {row["run_code"]: row["Controller"] for row in csv.DictReader(handle)}
+    responses = ab_study / "responses.csv"
+    lines = responses.read_text().splitlines()
+    cells = [line.split(",") for line in lines[1:]]
+    responses.write_text("\n".join([lines[0], *(",".join([c[0], c[1], "yes" if arm[c[0]] == "A" else "no", *c[3:]]) for c in cells)]) + "\n")
+    assert main(["report", "--study", str(ab_study)]) == 0
+    capsys.readouterr()
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    for row in record["table_ii"]:
+        assert row["arms"]["A"]["share"] == 1.0 and row["arms"]["A"]["high"] == 1.0
+        assert row["arms"]["B"]["share"] == 0.0 and row["arms"]["B"]["low"] == 0.0
+        assert row["difference"]["estimate"] == 1.0 and row["odds_ratio"]["low"] > 1.0
+    primary, _, judgment_level = record["fits"][:3]
+    assert all(p["estimate"] is None for p in primary["parameters"]) and any("separated" in n for n in primary["notes"])
+    assert "Firth" in judgment_level["method"]
+    assert (ab_study / "report" / "figures" / "ab_shares.svg").exists()
+    assert "**Primary result** (run as the unit): not estimable" in (ab_study / "report" / "report.md").read_text()

@@ -57,6 +57,8 @@ REPORT_RECORD = f"{REPORT}/report.json"
 REPORT_FIGURES = f"{REPORT}/figures"
 #: The blinded report as it was before the first `--unblind` replaced it.
 REPORT_BLINDED = f"{REPORT}/blinded"
+#: Every table of the report as CSV.
+REPORT_TABLES = f"{REPORT}/tables"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
@@ -192,10 +194,10 @@ class StudyFolder:
         return sealed, check
 
     def keep_blinded_report(self) -> Path | None:
-        """Move the blinded report (report.md, .html, .json, figures/) to report/blinded/ before an
+        """Move the blinded report (report.md, .html, .json, figures/, tables/) to report/blinded/ before an
         unblinded one is written; an earlier report/blinded/ moves to superseded/<UTC time>/.
         Returns report/blinded/ if a report moved."""
-        names = [name for name in (REPORT_MARKDOWN, REPORT_HTML, REPORT_RECORD, REPORT_FIGURES) if self.path(name).exists()]
+        names = [name for name in (REPORT_MARKDOWN, REPORT_HTML, REPORT_RECORD, REPORT_FIGURES, REPORT_TABLES) if self.path(name).exists()]
         if not names:
             return None
         self.supersede((REPORT_BLINDED,))

@@ -82,6 +82,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         responses=responses,
         blinding=blinding,
         correlations=(correlation.get("columns", []), correlation.get("matrix", [])),
+        diagnostics=design.get("diagnostics", {}),
         notes=notes,
     )
 

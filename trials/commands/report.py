@@ -15,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Score every finished run with the rubric (human scores override it), tabulate the score "
             "distribution and the A/B table (Table II) with Wilson intervals and Fisher's exact tests, fit "
-            "the design's model to the judgments and outcome metrics, and write report/report.md, a "
+            "the design's model to the judgments (primary: logistic GEE clustered by run) and outcome metrics, and write report/report.md, a "
             "self-contained report/report.html, report/report.json and report/figures/. A blinded study is "
             "reported by arm label unless --unblind is given."
         ),
@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         REPORT_HTML,
         REPORT_MARKDOWN,
         REPORT_RECORD,
+        REPORT_TABLES,
         RUBRIC,
         UNBLINDING,
         StudyFolder,
@@ -71,12 +72,14 @@ def run(args: argparse.Namespace) -> int:
     source = f"from {rubric_file}" if rubric_file is not None else "the documented defaults"
     report = build_report(data, rubric, source, now)
 
-    out, figures = folder.path(REPORT), folder.path(REPORT_FIGURES)
+    out, figures, tables = folder.path(REPORT), folder.path(REPORT_FIGURES), folder.path(REPORT_TABLES)
     files = {
         folder.path(REPORT_MARKDOWN): report.markdown().encode(),
         folder.path(REPORT_HTML): report.html().encode(),
         folder.path(REPORT_RECORD): (json.dumps(report.record, indent=1) + "\n").encode(),
-        **{figures / figure.name: figure.png for figure in report.figures},
+        **{figures / f"{figure.name}.png": figure.image.png for figure in report.figures},
+        **{figures / f"{figure.name}.svg": figure.image.svg for figure in report.figures},
+        **{tables / f"{name}.csv": text.encode() for name, text in report.tables().items()},
     }
     kept = None
     if data.blinding.revealed:
@@ -84,11 +87,11 @@ def run(args: argparse.Namespace) -> int:
         if not _unblinded(folder.path(REPORT_RECORD)):
             kept = folder.keep_blinded_report()
     write_files(files)
-    for stale in figures.glob("*.png"):
-        if figures / stale.name not in files:
+    for stale in [*figures.glob("*.png"), *figures.glob("*.svg"), *tables.glob("*.csv")]:
+        if stale not in files:
             stale.unlink()
     print("\n".join(report.summary))
-    print(f"Wrote report.md, report.html, report.json and {len(report.figures)} figures in {out.resolve()}")
+    print(f"Wrote report.md, report.html, report.json, {len(report.figures)} figures (PNG and SVG) and {len(report.tables())} tables (CSV) in {out.resolve()}")
     if data.blinding.revealed:
         print(data.blinding.check)
     if kept is not None:
