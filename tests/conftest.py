@@ -10,6 +10,9 @@ from navigan.data import SHIPPED_DATA
 
 DATA = Path(__file__).resolve().parent / "data"
 
+#: Fixtures shared by several test files: the lattice controller in its trial scene (`controller`, `fresh`).
+pytest_plugins = ["tests.support.lattice_scene"]
+
 
 @pytest.fixture(scope="session")
 def eth_ucy_dir() -> Path:

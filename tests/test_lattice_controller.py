@@ -8,33 +8,11 @@ import numpy as np
 import pytest
 
 from robot_logs.physical import ROBOT_FOOTPRINT, STEP_S, T_OBS, T_PRED
-from trials.controllers.base import Observation
+from tests.support.lattice_scene import observe
 from trials.controllers.lattice import TRIAL_EXPANSIONS, LatticeController
 from trials.lattice.costmap import INSCRIBED, LETHAL, Window, pedestrian_costmap, predicted_centres
 from trials.lattice.crowd import inscribed_radius
 from trials.lattice.errors import LatticeError
-
-GOAL = (10.0, 0.0)
-
-
-def observe(robot=(0.0, 0.0, 0.0), goal=GOAL, peds=(), time=0.0) -> Observation:
-    """An observation; `peds` are (position now, velocity) pairs walked back over T_OBS steps."""
-    steps = np.arange(-(T_OBS - 1), 1)[:, None] * STEP_S
-    history = np.array([np.asarray(p) + steps * np.asarray(v) for p, v in peds]).reshape(len(peds), T_OBS, 2)
-    robot = np.asarray(robot, dtype=float)
-    return Observation(time, robot, np.zeros(2), np.asarray(goal, dtype=float), np.repeat(robot[None, :2], T_OBS, 0),
-                       tuple(range(len(peds))), history)
-
-
-@pytest.fixture(scope="module")
-def controller():
-    return LatticeController()
-
-
-@pytest.fixture
-def fresh(controller):
-    controller.reset(7)
-    return controller
 
 
 def test_open_floor_drives_straight_at_nominal_speed(fresh):

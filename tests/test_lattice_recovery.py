@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robot_logs.physical import ROBOT_FOOTPRINT, T_PRED
-from tests.test_lattice_controller import observe
+from tests.support.lattice_scene import observe
 from trials.cli import main
 from trials.controllers.lattice import LatticeController
 from trials.controllers.registry import LATTICE
@@ -23,17 +23,6 @@ from trials.study import RUNS, StudyFolder
 
 #: A row of people 1.2 m in front of a robot that faces +y, with its goal 10 m along +x.
 ROW_AHEAD = [((x, 1.2), (0.0, 0.0)) for x in np.arange(-2.0, 2.01, 0.4)]
-
-
-@pytest.fixture(scope="module")
-def controller():
-    return LatticeController()
-
-
-@pytest.fixture
-def fresh(controller):
-    controller.reset(7)
-    return controller
 
 
 def test_a_path_that_starts_by_turning_in_place_moves_at_once(fresh):
