@@ -180,18 +180,19 @@ def test_a_transcription_of_the_paper_is_printed_beside_ours(eth_ucy_dir, tmp_pa
     assert "| C, paper |  | 0.750 |" in markdown
     assert "The paper's rows: Tsai & Oh 2020, Table I (hand copy)." in markdown
 
-    # the shipped file: every cell still n/a, and the table says how to supply them
+    # the shipped file: the paper's own values, and no hint that a transcription is missing
     assert playback(eth_ucy_dir, out, "--models", "navigan-r-shield,human") == 0
     markdown = (out / "table1.md").read_text()
-    assert "| C, paper |  | n/a |" in markdown and "`trials playback --paper FILE`" in markdown
+    assert "| C, paper |  | 0.960 |" in markdown and "`trials playback --paper FILE`" not in markdown
 
 
 def test_the_shipped_transcription_is_well_formed():
     from navigan.playback.paper import PAPER_COLUMNS, load_paper
 
     paper = load_paper()
-    assert "Tsai & Oh" in paper.source and paper.transcribed == 0
+    assert "Tsai & Oh" in paper.source and paper.transcribed == 24
     assert {m: sorted(row) for m, row in paper.values.items()} == {m: sorted(PAPER_COLUMNS) for m in "SCA"}
+    assert paper.values["C"]["R"] == 0.97 and paper.values["A"]["R"] == 0.85 and paper.values["S"]["human"] == 0.44
 
 
 @pytest.mark.parametrize(

@@ -1,7 +1,7 @@
 """The paper's Table I values, read from a transcription file and checked cell by cell.
 
-The shipped file (`paper_table1.json`) leaves every cell null until someone with the paper fills it
-in; `trials playback --paper FILE` takes another transcription without editing the package.
+The shipped file (`paper_table1.json`) holds the paper's 24 values, read from its LaTeX source;
+`trials playback --paper FILE` takes another transcription (null for a cell left out) without editing the package.
 """
 
 from __future__ import annotations
