@@ -41,10 +41,10 @@ TABLE1_ROWS = (
     ("C", "C (comfort rate)"),
     ("A", "A (arrival rate)"),
     ("collision_rate", "collision rate (< 0.1 m)"),
-    ("min_distance_median", "closest approach, median (m)"),
-    ("time_to_goal", "time to goal (s, arrivals)"),
-    ("irregularity", "path irregularity (rad/m)"),
-    ("ade", "ADE to the recorded path (m)"),
+    ("min_distance_median_m", "closest approach, median (m)"),
+    ("time_to_goal_s", "time to goal (s, arrivals)"),
+    ("irregularity_rad_per_m", "path irregularity (rad/m)"),
+    ("ade_m", "ADE to the recorded path (m)"),
 )
 
 HEADER = """# Measured results
@@ -181,31 +181,75 @@ def ab_study() -> str:
     ])
 
 
+#: Why ours and the paper's differ, for the cells where the paper's value lies outside our 95 %
+#: interval: (metric, column) -> reason; a cell without its own reason takes the metric's ("*").
+TABLE1_REASONS = {
+    ("S", "*"): "protocol: S's reward and discount are CrowdNav's with settings the paper does not give "
+                "(collision distance, v_pref, per-second discount); ours is lower for every column, the recordings too",
+    ("C", "*"): "model: our networks without a resistance-trained social force (and R's intention alone, "
+                "R-dagger) walk through people, pooled collision rate about 0.4; the paper's keep C near 0.8 without it",
+    ("C", "R"): "model and aggregation: our NaviGAN-R keeps its distance less often than the paper's; "
+                "averaging over splits, where univ weighs a fifth, brings it nearer",
+    ("C", "human"): "aggregation and data: the recordings' own comfort depends on which pedestrians "
+                    "qualify as targets; univ's crowd carries the pooled value",
+    ("A", "*"): "protocol: our networks get a sub-goal 12 steps ahead at the recorded pace, which likely makes "
+                "arrival easier than handing them the far goal as the paper describes (--subgoal-speed 0)",
+}
+
+
+def _outside(cells: dict[tuple[str, str], dict[str, str]], metric: str, column: str) -> bool:
+    """Whether the paper's value of a cell lies outside our 95 % interval."""
+    paper = cells[metric, "paper"][column]
+    if not paper:
+        return False
+    return not float(cells[metric, "ours_low"][column]) <= float(paper) <= float(cells[metric, "ours_high"][column])
+
+
 def table1() -> str:
-    """Table I of the long-term playback, all five ETH/UCY splits pooled, shipped weights, seed 0."""
+    """Table I of the long-term playback over the five ETH/UCY splits, pooled and averaged over splits,
+    with 95 % intervals, beside the paper's; shipped weights, seed 0."""
     with tempfile.TemporaryDirectory() as folder:
         trials(["playback", "--out", "playback", "--quiet"], Path(folder))
         with (Path(folder) / "playback" / "table1.csv").open(newline="", encoding="utf-8") as handle:
-            cells = [row for row in csv.DictReader(handle) if row["scope"] == "all"]
-    columns = [name for name in cells[0] if name not in ("scope", "metric", "source")]
-    ours = {row["metric"]: row for row in cells if row["source"] == "ours"}
-    paper = {row["metric"]: row for row in cells if row["source"] == "paper"}
-    rows = [[label, *(ours[metric][c] for c in columns)] for metric, label in TABLE1_ROWS]
-    rows += [[f"paper's {metric}", *(paper[metric][c] or "" for c in columns)] for metric in ("S", "C", "A") if metric in paper]
-    return "\n".join([
+            rows = list(csv.DictReader(handle))
+    from navigan.playback.table import COLUMNS, CSV_NAMES
+
+    labels = {CSV_NAMES[m]: label for m, label in COLUMNS.items()}
+    columns = [name for name in rows[0] if name not in ("scope", "metric", "source")]
+    lines = [
         "## Table I: long-term playback on ETH/UCY",
         "",
         "```bash",
         "trials playback",
         "```",
         "",
-        f"All five splits pooled ({ours['episodes'][columns[0]]} episodes), the shipped per-split weights,",
-        "fluctuation-noise seed 0, sub-goals at each recorded person's pace; metrics and columns are",
-        "described in [playback.md](playback.md). The paper's row reads",
-        "`navigan/playback/paper_table1.json` (n/a where it is not transcribed).",
-        "",
-        table(["", *columns], rows),
-    ])
+        "The shipped per-split weights, fluctuation-noise seed 0, sub-goals at each recorded person's pace;",
+        "metrics and columns are described in [playback.md](playback.md). The paper's rows are its Table I",
+        "(`navigan/playback/paper_table1.json`); it does not say whether it pools the episodes or averages",
+        "the five splits, so both are shown. 95 % intervals: Wilson for C and A, a seeded bootstrap for S.",
+    ]
+    differences = []
+    for scope, title in (("all", "All splits pooled"), ("split_mean", "Mean over the five splits")):
+        cells = {(r["metric"], r["source"]): r for r in rows if r["scope"] == scope}
+        counts = ", ".join(f"{r['scope']} {r[columns[0]]}" for r in rows
+                           if r["metric"] == "episodes" and r["scope"] not in ("all", "split_mean"))
+        body = []
+        for metric, label in TABLE1_ROWS:
+            body.append([label, *(cells[metric, "ours"][c] for c in columns)])
+            if (metric, "ours_low") in cells:
+                body.append([f"{metric}, 95 % interval",
+                             *(f"{cells[metric, 'ours_low'][c]}-{cells[metric, 'ours_high'][c]}" for c in columns)])
+            if (metric, "paper") in cells:
+                body.append([f"paper's {metric}", *(cells[metric, "paper"][c] for c in columns)])
+                differences += [(title, metric, c, cells[metric, "ours"][c], cells[metric, "paper"][c])
+                                for c in columns if _outside(cells, metric, c)]
+        lines += ["", f"### {title} ({cells['episodes', 'ours'][columns[0]]} episodes: {counts})", "",
+                  table(["", *(labels[c] for c in columns)], body)]
+    lines += ["", "### Where the paper's value lies outside our interval", ""]
+    lines += [f"- {title}, {metric} {labels[column]}: ours {ours}, paper {paper}. "
+              f"{TABLE1_REASONS.get((metric, column), TABLE1_REASONS[metric, '*'])}."
+              for title, metric, column, ours, paper in differences]
+    return "\n".join(lines)
 
 
 #: The five leave-one-scene-out splits and the four models of the family, as `trials evaluate` names them.

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 
+from navigan.playback.table import METRICS
 from trials.cli import main
 
 QUICK = ["--split", "zara1", "--episodes", "3", "--threads", "1", "--quiet"]
@@ -58,12 +59,18 @@ def test_the_printed_table_is_the_pooled_table_of_the_csv_and_markdown(walked):
     out, printed = walked
     with (out / "table1.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0])[3:] == ["R", "R-dagger", "human"] and {r["scope"] for r in rows} == {"all", "zara1"}
+    assert list(rows[0])[3:] == ["R", "R_dagger", "human"]
+    assert {r["scope"] for r in rows} == {"all", "split_mean", "zara1"}
     pooled = {(r["metric"], r["source"]): list(r.values())[3:] for r in rows if r["scope"] == "all"}
-    assert {("S", "paper"), ("C", "paper"), ("A", "paper"), ("ade", "ours")} <= set(pooled)
-    assert pooled["episodes", "ours"][2] == "3" and pooled["A", "ours"][2] == "1.000" and pooled["C", "paper"][0] == "n/a"
+    assert {("S", "paper"), ("C", "ours_low"), ("A", "ours_high"), ("ade_m", "ours")} <= set(pooled)
+    assert pooled["episodes", "ours"][2] == "3" and pooled["A", "ours"][2] == "1.000"
+    assert pooled["C", "paper"] == ["0.970", "0.850", "0.960"] and pooled["A", "ours_low"][2] == "0.439"  # Wilson, 3 of 3
+    split_mean = {(r["metric"], r["source"]): list(r.values())[3:] for r in rows if r["scope"] == "split_mean"}
+    assert split_mean == pooled  # one split: the two aggregations agree
     shown = table_rows(printed)[1:]  # below the header
-    assert [cells[1:] for cells in shown] == [values for (_, source), values in pooled.items() if source == "ours"]
+    assert ["A, 95 % interval", "0.439-1.000", "0.439-1.000", "0.439-1.000"] in shown
+    ours = [cells[1:] for cells in shown if not cells[0].endswith(("interval", "paper")) and cells[0] != ""]
+    assert ours[: len(METRICS)] == [values for (_, source), values in pooled.items() if source == "ours"]
     markdown = table_rows((out / "table1.md").read_text())
     assert all(cells in markdown for cells in shown)
     assert ["zara1", "crowds_zara01.txt", "3", "0"] in markdown  # episodes per split: recordings, kept, left out
@@ -75,6 +82,9 @@ def test_every_episode_and_figure_is_written(walked):
     with (out / "episodes.csv").open() as f:
         episodes = list(csv.DictReader(f))
     assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
+    assert {"min_distance_m", "time_to_goal_s", "irregularity_rad_per_m", "ade_m"} <= set(episodes[0])
+    assert {e[k] for e in episodes for k in ("arrived", "comfortable", "collided")} <= {"0", "1"}
+    assert not {v for e in episodes for v in e.values()} & {"n/a", "None", "True", "False", "inf"}
     for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
         assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     record = stored_result(out, "navigan-r")
@@ -117,7 +127,7 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", "navigan-r,navigan-r-shield", "--shield", "0.6") == 0
     with (out / "table1.csv").open() as f:
-        assert list(next(csv.DictReader(f)))[3:] == ["R", "R+shield"]
+        assert list(next(csv.DictReader(f)))[3:] == ["R", "R_shield"]
     assert "it would come within 0.6 m of anyone's constant-velocity forecast" in (out / "table1.md").read_text()
     record = json.loads((out / "episodes" / "zara1" / "navigan-r-shield.json").read_text())
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["shield"] == 0.6
@@ -173,8 +183,8 @@ def test_a_transcription_of_the_paper_is_printed_beside_ours(eth_ucy_dir, tmp_pa
     with (out / "table1.csv").open() as f:
         rows = {(r["scope"], r["metric"], r["source"]): r for r in csv.DictReader(f)}
     assert rows["all", "C", "paper"]["human"] == "0.750" and rows["all", "S", "paper"]["human"] == "-0.125"
-    assert rows["all", "A", "paper"]["human"] == "n/a"  # not transcribed
-    assert rows["all", "C", "paper"]["R+shield"] == ""  # not a column of the paper's
+    assert rows["all", "A", "paper"]["human"] == ""  # not transcribed: an empty cell
+    assert rows["all", "C", "paper"]["R_shield"] == ""  # not a column of the paper's
     assert ("zara1", "C", "paper") not in rows
     markdown = (out / "table1.md").read_text()
     assert "| C, paper |  | 0.750 |" in markdown

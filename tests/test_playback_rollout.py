@@ -148,5 +148,5 @@ def test_human_row_is_the_recording_itself(eth_ucy_dir, zara1, tmp_path):
     playback = Playback(data=eth_ucy_dir, out=tmp_path / "out", checkpoints=tmp_path / "none",
                         settings=Settings(limit=5))
     table = playback.evaluate(["zara1"], ["human"], progress=False)[0]
-    assert table.values["human"]["A"] == 1.0 and table.values["human"]["ade"] == 0.0
+    assert table.values["human"]["A"] == 1.0 and table.values["human"]["ade_m"] == 0.0
     assert table.values["human"]["path_ratio"] == pytest.approx(1.0)

@@ -2,7 +2,8 @@
 
     OUT/episodes/<split>/<model>.json  each episode's scores and walked path, with the settings,
                                        the checkpoint's digest and the episode names that made them
-    OUT/table1.md, OUT/table1.csv      Table I pooled over the splits, then per split, beside the paper's
+    OUT/table1.md, OUT/table1.csv      Table I pooled over the splits and averaged over them, each
+                                       beside the paper's with 95 % intervals, then per split
     OUT/episodes.csv                   every episode's scores, one row per split, model and episode
     OUT/figures/                       fig4_<split>.png, forces_<split>.png, min_distance.png
 
@@ -35,8 +36,11 @@ from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
     COLUMNS,
+    POOLED,
+    SPLIT_MEAN,
     SceneCount,
     Table,
+    aggregate,
     csv_text,
     document,
     episodes_csv,
@@ -248,8 +252,8 @@ class Playback:
                      results: dict[tuple[str, str], dict[str, Any]], paper: PaperTable) -> list[Table]:
         """table1.md, table1.csv and episodes.csv from the results, the paper's values beside them."""
         columns = tuple(models)
-        pooled = {m: summarize([r for s in splits for r in results[s, m]["results"]]) for m in models}
-        tables = [Table("all", columns, pooled)]
+        per_split = {m: [results[s, m]["results"] for s in splits] for m in models}
+        tables = [aggregate(scope, columns, per_split, self.settings.seed) for scope in (POOLED, SPLIT_MEAN)]
         tables += [Table(s, columns, {m: summarize(results[s, m]["results"]) for m in models}) for s in splits]
         scenes = [SceneCount(s, loaded[s][1], len(loaded[s][0]), loaded[s][0].standing) for s in splits]
         weights = {(s, m): results[s, m]["checkpoint"] for s in splits for m in models}

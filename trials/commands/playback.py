@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.errors import NaviganError
     from navigan.playback.evaluate import Playback, Settings
     from navigan.playback.metrics import Scoring
-    from navigan.playback.paper import PAPER_FILE
+    from navigan.playback.paper import PAPER_FILE, load_paper
 
     speed = subgoal_speed(args.subgoal_speed)
     torch.set_num_threads(args.threads)
@@ -109,8 +109,12 @@ def run(args: argparse.Namespace) -> int:
         paper=args.paper or PAPER_FILE,
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
-    print(tables[0].markdown(None).rstrip())
-    counts = ", ".join(f"{t.scope} {int(next(iter(t.values.values()))['episodes'])}" for t in tables[1:])
+    paper = load_paper(args.paper or PAPER_FILE)
+    print("All splits pooled:")
+    print(tables[0].markdown(paper).rstrip())
+    print("\nMean over splits (each weighted equally):")
+    print(tables[1].markdown(paper).rstrip())
+    counts = ", ".join(f"{t.scope} {int(next(iter(t.values.values()))['episodes'])}" for t in tables[2:])
     print(f"episodes per split: {counts}")
     print(f"wrote {args.out / 'table1.md'}, table1.csv, episodes.csv, figures/")
     return 0
