@@ -133,6 +133,10 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["shield"] == 0.6
     plain = json.loads((out / "episodes" / "zara1" / "navigan-r.json").read_text())
     assert [r["path"] for r in record["results"]] != [r["path"] for r in plain["results"]]
+    # Fig. 4 and the forces are drawn without the dagger column asked for, which is walked but not stored
+    for name in ("fig4_zara1.png", "forces_zara1.png"):
+        assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (out / "episodes" / "zara1").iterdir()) == ["navigan-r-shield.json", "navigan-r.json"]
 
 
 @pytest.mark.parametrize(

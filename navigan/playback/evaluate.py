@@ -51,7 +51,7 @@ MODELS: tuple[str, ...] = tuple(COLUMNS)
 HUMAN = "human"
 #: The shielded columns' margin by default (m): the paper's d_safe between people.
 SHIELD_MARGIN = 0.5
-#: Which model's full and dagger paths Fig. 4 shows: the first of these evaluated with its dagger.
+#: Which model's full and dagger paths Fig. 4 shows: the first of these that a requested column walks with.
 FIGURE_MODELS = ("navigan-r", "navigan", "navil2")
 
 
@@ -263,22 +263,30 @@ class Playback:
                      episodes_csv({(s, m): results[s, m]["results"] for s in splits for m in models}).encode())
         return tables
 
+    def scored(self, split: str, model: str, episodes: Episodes, results: dict[tuple[str, str], dict[str, Any]]
+               ) -> list[dict[str, Any]]:
+        """A column's episode records on a split: the evaluated ones, else walked now for the figure
+        (not stored: the tables show only the columns asked for)."""
+        if (split, model) in results:
+            return results[split, model]["results"]
+        return score_rollout(episodes, self.walk(split, model, episodes, None)[0], self.settings.scoring)
+
     def write_figures(self, splits: Sequence[str], models: Sequence[str],
                       loaded: dict[str, tuple[Episodes, list[str]]],
                       results: dict[tuple[str, str], dict[str, Any]]) -> None:
-        """Fig. 4 and the force plot per split (for the first of FIGURE_MODELS evaluated with its
-        dagger variant), and the distribution of closest approaches."""
+        """Fig. 4 and the force plot per split, for the first of FIGURE_MODELS any column walks with
+        (itself, its dagger or its shielded variant), and the distribution of closest approaches."""
         folder = self.out / "figures"
         closest = {COLUMNS[m]: [np.inf if r["min_distance"] is None else r["min_distance"]
                                 for s in splits for r in results[s, m]["results"]] for m in models}
         write_atomic(folder / "min_distance.png",
                      figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)})"))
-        model = next((m for m in FIGURE_MODELS if m in models and f"{m}-dagger" in models), None)
+        model = next((m for m in FIGURE_MODELS if any(base_model(c) == m for c in models)), None)
         if model is None:
             return
         for split in splits:
             episodes = loaded[split][0]
-            full, dagger = results[split, model]["results"], results[split, f"{model}-dagger"]["results"]
+            full, dagger = (self.scored(split, variant, episodes, results) for variant in (model, f"{model}-dagger"))
             e = choose_episode(full, dagger)
             one = episodes.subset([e])
             path = checkpoint_file(model, split, self.checkpoints)

@@ -21,11 +21,13 @@ from robot_logs.physical import STEP_S
 
 #: Fig. 4 shows the footprints of the agents that come this close (m) to either walked path.
 NEAR = 2.0
+#: Fig. 4's margin (m) around everything it shows: room for the goal circle and the markers.
+MARGIN = 0.75
 
 
 def _png(figure: Figure) -> bytes:
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=130)
+    figure.savefig(buffer, format="png", dpi=130, bbox_inches="tight")  # cropped to what is drawn
     return buffer.getvalue()
 
 
@@ -43,12 +45,14 @@ def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray,
     others = episodes.others(e)[:steps]
     history = episodes.history()[e]
     recorded = episodes.recorded(e)
-    view = np.concatenate([full, dagger, history, episodes.goal[e][None]])
-    centre, half = (view.min(axis=0) + view.max(axis=0)) / 2, np.ptp(view, axis=0).max() / 2 + 2.0
     walked = np.full((steps, 2, 2), np.nan)
     walked[: len(full), 0], walked[: len(dagger), 1] = full, dagger
     gap = np.linalg.norm(others[:, :, None] - walked[:, None], axis=-1)  # (steps, others, 2)
     near = np.nanmin(np.where(np.isnan(gap), np.inf, gap), axis=(0, 2)) < NEAR
+    # the view: the episode's own extent (its paths, observation, goal and the nearby others while it lasts)
+    shown = others[:, near].reshape(-1, 2)
+    view = np.concatenate([full, dagger, history, episodes.goal[e][None], shown[np.isfinite(shown).all(axis=1)]])
+    low, high = view.min(axis=0) - MARGIN, view.max(axis=0) + MARGIN
     for j in np.flatnonzero(near):
         track = others[:, j]
         ax.plot(track[:, 0], track[:, 1], color="0.7", lw=0.8, marker=".", ms=4, mfc="0.55", mec="none", zorder=1)
@@ -63,13 +67,13 @@ def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray,
               scale_units="xy", scale=0.2, width=0.004, zorder=4, label="social force (x5)")
     ax.add_patch(Circle(tuple(episodes.goal[e]), GOAL_RADIUS, fill=False, ls=":", color="tab:red"))
     ax.scatter(*episodes.goal[e], marker="*", s=180, color="tab:red", zorder=5, label="goal")
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_xlim(low[0], high[0])
+    ax.set_ylim(low[1], high[1])
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
     figure.tight_layout()
     return _png(figure)
 
