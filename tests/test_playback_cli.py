@@ -91,6 +91,7 @@ def test_every_episode_and_figure_is_written(walked):
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt"
     settings = record["identity"]["settings"]
     assert (settings["seed"], settings["gamma"], settings["v_pref"], settings["subgoal_speed"]) == (0, 0.9, 1.0, "recorded")
+    assert settings["protocol"] == "observed"
     assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
 
 
@@ -167,6 +168,17 @@ def test_missing_checkpoint_is_named(eth_ucy_dir, tmp_path, capsys):
     assert playback(eth_ucy_dir, out, "--models", "navil2-dagger,human", "--checkpoints", str(empty)) == 2
     assert f"missing checkpoint: {empty / 'navil2-zara1.pt'}" in error_line(capsys)
     assert not out.exists()
+
+
+def test_the_present_protocol_takes_fewer_targets_and_is_never_mixed_with_the_other(eth_ucy_dir, tmp_path, capsys):
+    out = tmp_path / "pb"
+    assert main(["playback", "--data", str(eth_ucy_dir), "--out", str(out), "--split", "zara1", "--models", "human",
+                 "--protocol", "present", "--quiet"]) == 0
+    assert "episodes per split: zara1 19" in capsys.readouterr().out
+    assert "(protocol `present`: pedestrians present for 44 consecutive frames)" in (out / "table1.md").read_text()
+    assert main(["playback", "--data", str(eth_ucy_dir), "--out", str(out), "--split", "zara1", "--models", "human",
+                 "--quiet"]) == 2
+    assert "human.json was made with other settings and episodes" in error_line(capsys)
 
 
 def test_missing_data_folder(tmp_path, capsys):

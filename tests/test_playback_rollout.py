@@ -8,7 +8,7 @@ import pytest
 from navigan import checkpoint as ckpt
 from navigan.data import load_split
 from navigan.goals import toward
-from navigan.playback.episodes import GOAL_STEPS, SceneGrid, episodes_of, load_episodes
+from navigan.playback.episodes import GOAL_STEPS, OBSERVED, PRESENT, SceneGrid, episodes_of, load_episodes
 from navigan.playback.evaluate import Playback, Settings, score_rollout
 from navigan.playback.metrics import Scoring
 from navigan.playback.rollout import RECORDED, Policy, neighbours, recorded_rollout, roll_out
@@ -53,6 +53,24 @@ def test_who_makes_an_episode():
     assert episodes.ids == ["toy.txt:1"] and episodes.standing == 1
     assert episodes.start[0] == 7 and episodes.steps[0] == min(60, frames - 1 - 7)
     np.testing.assert_allclose(episodes.goal[0], [(7 + 36) * 0.4, 0.0])
+    assert episodes.goal_steps[0] == 36 and episodes.pace[0] == pytest.approx(1.0)  # 0.4 m per 0.4 s
+
+
+def test_the_observed_protocol_takes_targets_that_leave_early_with_their_last_position_as_goal():
+    frames = 50
+    positions = np.full((frames, 4, 2), np.nan, dtype=np.float32)
+    positions[:, 0] = np.stack([np.arange(frames) * 0.4, np.zeros(frames)], axis=1)  # walks all along
+    positions[10:40, 1] = np.stack([np.arange(30) * 0.2, np.ones(30)], axis=1)  # leaves after 30 frames
+    positions[5:24, 2] = (2.0, 2.0)  # 19 frames: one short of T_obs + T_pred
+    positions[30:, 3] = np.stack([np.zeros(20), np.arange(20) * 0.4], axis=1)  # there until the recording ends
+    episodes = episodes_of([SceneGrid("toy.txt", np.array([1, 2, 3, 4]), positions)], OBSERVED)
+    assert episodes.ids == ["toy.txt:1", "toy.txt:2", "toy.txt:4"] and episodes.standing == 0
+    assert episodes.start.tolist() == [7, 17, 37] and episodes.goal_steps.tolist() == [36, 22, 12]
+    np.testing.assert_allclose(episodes.goal[1], [29 * 0.2, 1.0])  # its last recorded position, frame 39
+    np.testing.assert_allclose(episodes.goal[2], [0.0, 19 * 0.4])  # the recording's last frame
+    assert episodes.pace[1] == pytest.approx(22 * 0.2 / (22 * 0.4))  # its own pace to where it left
+    # the default protocol keeps only the pedestrian present for 44 frames
+    assert episodes_of([SceneGrid("toy.txt", np.array([1, 2, 3, 4]), positions)], PRESENT).ids == ["toy.txt:1"]
 
 
 @pytest.mark.slow

@@ -1,10 +1,13 @@
 """Playback episodes: one per pedestrian of a test scene who stays long enough to set a goal.
 
-A target observed for T_OBS steps (its first appearance) gets as goal its own recorded position
-GOAL_STEPS = 3 * T_PRED steps (14.4 s) after the last observed step, and the episode is cut
-CUTOFF_STEPS = 5 * T_PRED steps (24 s) after it, or at the end of the recording if sooner.
-A pedestrian whose goal lies within the goal radius of where it starts (someone standing) has
-nothing to navigate and makes no episode; the count is kept.
+Two protocols (PROTOCOLS) choose the targets. Under PRESENT (the default) a pedestrian present for
+T_OBS + GOAL_STEPS consecutive frames is a target from its first such stretch: observed for T_OBS
+steps, its goal its own recorded position GOAL_STEPS = 3 * T_PRED steps (14.4 s) later. Under
+OBSERVED, T_OBS + T_PRED consecutive frames suffice, and a target that leaves before GOAL_STEPS
+gets its last recorded position of that stretch as goal. Either way the episode is cut
+CUTOFF_STEPS = 5 * T_PRED steps (24 s) after the last observed step, or at the end of the
+recording if sooner. A pedestrian whose goal lies within the goal radius of where it starts
+(someone standing) has nothing to navigate and makes no episode; the count is kept.
 """
 
 from __future__ import annotations
@@ -23,6 +26,12 @@ GOAL_STEPS = 3 * T_PRED
 CUTOFF_STEPS = 5 * T_PRED
 #: An episode ends with success once the target is this close to its goal (m).
 GOAL_RADIUS = 0.5
+#: The episode protocols: targets present until their goal 36 steps ahead (the default), or
+#: observed for T_obs + T_pred frames with the goal where they leave if that is sooner.
+PRESENT, OBSERVED = "present", "observed"
+PROTOCOLS = (PRESENT, OBSERVED)
+#: Consecutive frames a target must be present under each protocol.
+NEEDED_FRAMES = {PRESENT: T_OBS + GOAL_STEPS, OBSERVED: T_OBS + T_PRED}
 #: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
 RECORDED = "recorded"
 
@@ -71,6 +80,8 @@ class Episodes:
         start: (E,) frame of the target's last observed position (time 0 of the episode).
         steps: (E,) steps before the cut-off.
         goal: (E, 2) the goal (m).
+        goal_steps: (E,) steps from time 0 to when the recorded target was at its goal
+            (GOAL_STEPS, or fewer under OBSERVED for a target that left sooner).
         standing: pedestrians left out because their goal was within GOAL_RADIUS of the start.
     """
 
@@ -80,6 +91,7 @@ class Episodes:
     start: np.ndarray
     steps: np.ndarray
     goal: np.ndarray
+    goal_steps: np.ndarray
     standing: int = 0
 
     def __len__(self) -> int:
@@ -92,9 +104,9 @@ class Episodes:
 
     @property
     def pace(self) -> np.ndarray:
-        """(E,) each target's straight-line speed (m/s) from its start to its goal in GOAL_STEPS
-        steps: the pace that arrives when the recorded person was there."""
-        return np.linalg.norm(self.goal - self.history()[:, -1], axis=-1) / (GOAL_STEPS * STEP_S)
+        """(E,) each target's straight-line speed (m/s) from its start to its goal in its goal_steps:
+        the pace that arrives when the recorded person was there."""
+        return np.linalg.norm(self.goal - self.history()[:, -1], axis=-1) / (self.goal_steps * STEP_S)
 
     def history(self) -> np.ndarray:
         """(E, T_OBS, 2) each target's observed positions, oldest first."""
@@ -115,13 +127,13 @@ class Episodes:
         """The same scenes with only some episodes."""
         index = np.asarray(index, dtype=np.int64)
         return Episodes(self.scenes, self.scene[index], self.agent[index], self.start[index],
-                        self.steps[index], self.goal[index], self.standing)
+                        self.steps[index], self.goal[index], self.goal_steps[index], self.standing)
 
 
-def episodes_of(scenes: Sequence[SceneGrid]) -> Episodes:
-    """Every episode of some scenes, in scene then pedestrian order."""
-    need = T_OBS + GOAL_STEPS
-    rows: list[tuple[int, int, int, int]] = []
+def episodes_of(scenes: Sequence[SceneGrid], protocol: str = PRESENT) -> Episodes:
+    """Every episode of some scenes under a protocol (PROTOCOLS), in scene then pedestrian order."""
+    need = NEEDED_FRAMES[protocol]
+    rows: list[tuple[int, int, int, int, int]] = []
     goals: list[np.ndarray] = []
     standing = 0
     for s, grid in enumerate(scenes):
@@ -131,29 +143,32 @@ def episodes_of(scenes: Sequence[SceneGrid]) -> Episodes:
         long_enough = np.lib.stride_tricks.sliding_window_view(present, need, axis=0).all(axis=-1)
         for agent in np.flatnonzero(long_enough.any(axis=0)):
             start = int(np.argmax(long_enough[:, agent])) + T_OBS - 1
-            goal = grid.positions[start + GOAL_STEPS, agent]
+            ahead = present[start : start + GOAL_STEPS + 1, agent]
+            # GOAL_STEPS ahead, or (OBSERVED only) the last frame before the target leaves or the recording ends
+            goal_steps = len(ahead) - 1 if ahead.all() else int(np.argmin(ahead)) - 1
+            goal = grid.positions[start + goal_steps, agent]
             if np.linalg.norm(goal - grid.positions[start, agent]) <= GOAL_RADIUS:
                 standing += 1
                 continue
             steps = min(CUTOFF_STEPS, grid.positions.shape[0] - 1 - start)
-            rows.append((s, int(agent), start, steps))
+            rows.append((s, int(agent), start, steps, goal_steps))
             goals.append(goal)
-    table = np.asarray(rows, dtype=np.int64).reshape(-1, 4)
+    table = np.asarray(rows, dtype=np.int64).reshape(-1, 5)
     return Episodes(
         scenes=tuple(scenes), scene=table[:, 0], agent=table[:, 1], start=table[:, 2], steps=table[:, 3],
-        goal=np.asarray(goals, dtype=np.float32).reshape(-1, 2), standing=standing,
+        goal=np.asarray(goals, dtype=np.float32).reshape(-1, 2), goal_steps=table[:, 4], standing=standing,
     )
 
 
-def load_episodes(files: Sequence[str | Path]) -> Episodes:
-    """The episodes of a split's test recordings.
+def load_episodes(files: Sequence[str | Path], protocol: str = PRESENT) -> Episodes:
+    """The episodes of a split's test recordings under a protocol (PROTOCOLS).
 
     Raises:
         NaviganError: a file cannot be read, or no pedestrian stays long enough.
     """
-    episodes = episodes_of([scene_grid(read_recording(f)) for f in files])
+    episodes = episodes_of([scene_grid(read_recording(f)) for f in files], protocol)
     if not len(episodes):
         names = ", ".join(Path(f).name for f in files)
         raise NaviganError(f"no playback episodes in {names}: no pedestrian is present for "
-                           f"{T_OBS + GOAL_STEPS} consecutive frames")
+                           f"{NEEDED_FRAMES[protocol]} consecutive frames")
     return episodes

@@ -30,7 +30,7 @@ from navigan import checkpoint as ckpt
 from navigan.data import SPLITS, load_split
 from navigan.errors import NaviganError
 from navigan.playback import figures
-from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
+from navigan.playback.episodes import CUTOFF_STEPS, OBSERVED, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
 from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
@@ -67,6 +67,8 @@ class Settings:
             toward the goal: RECORDED (each target's own) or m/s; None hands them the goal itself
             (see `rollout.roll_out`).
         shield: the margin (m) of the shielded columns' check (`navigan.shield`).
+        protocol: which pedestrians become targets and where their goals lie (`episodes.PROTOCOLS`);
+            OBSERVED by default, whose human column is nearer the paper's (docs/playback.md).
     """
 
     scoring: Scoring = field(default_factory=Scoring)
@@ -74,10 +76,11 @@ class Settings:
     limit: int | None = None
     subgoal_speed: float | str | None = RECORDED
     shield: float = SHIELD_MARGIN
+    protocol: str = OBSERVED
 
     def record(self) -> dict[str, Any]:
         return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed,
-                                       "shield": self.shield}
+                                       "shield": self.shield, "protocol": self.protocol}
 
     def policy(self, model: str, record: ckpt.Checkpoint, path: Path) -> Policy:
         """The policy a learned column walks with: its checkpoint's, its dagger or shield, our seed."""
@@ -169,7 +172,7 @@ class Playback:
     def episodes(self, split: str) -> tuple[Episodes, list[str]]:
         """A split's episodes (the first `limit` of them) and its test files."""
         files = load_split(self.data, split).test
-        episodes = load_episodes(files)
+        episodes = load_episodes(files, self.settings.protocol)
         if self.settings.limit is not None:
             episodes = episodes.subset(range(min(self.settings.limit, len(episodes))))
         return episodes, [f.name for f in files]

@@ -216,7 +216,7 @@ def document(
     Args:
         tables: the pooled table, the mean over splits, then one per split.
         weights: (split, model) -> the checkpoint's description (None for the recordings).
-        settings: gamma, v_pref, collision, seed, limit, subgoal_speed and shield.
+        settings: gamma, v_pref, collision, seed, limit, subgoal_speed, shield and protocol.
     """
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
@@ -229,8 +229,11 @@ def document(
     lines = [
         "# Table I: long-term playback navigation", "",
         "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
-        "observed) toward its recorded position 36 steps (14.4 s) later, among the other pedestrians "
-        f"as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
+        "observed) toward its recorded position 36 steps (14.4 s) later"
+        + (" (protocol `observed`: every pedestrian present for 20 consecutive frames, its goal where it "
+           "leaves if sooner)" if settings.get("protocol") == "observed" else
+           " (protocol `present`: pedestrians present for 44 consecutive frames)")
+        + f", among the other pedestrians as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
         "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
         "human column is the recorded path itself."
         + (f" R+shield walks NaviGAN-R's plan with its first step checked: if, held for {HORIZON} "

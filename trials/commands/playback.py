@@ -50,6 +50,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--shield", type=types.number(0, MAX_SHIELD_M, above=True), default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
                              "constant-velocity forecast over 1.6 s (default 0.5)")
+    parser.add_argument("--protocol", choices=("observed", "present"), default="observed",
+                        help="which pedestrians become episodes: observed (default), present for 20 consecutive "
+                             "frames, the goal 36 steps ahead or where they leave if sooner; present: for 44 frames, "
+                             "the goal 36 steps ahead")
     parser.add_argument("--paper", type=Path, metavar="FILE",
                         help="the paper's Table I values to print beside ours, as JSON {\"source\": text, "
                              "\"values\": {\"S\"|\"C\"|\"A\": {column: number or null}}} (default: the shipped "
@@ -105,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     playback = Playback(
         data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
-                          speed, args.shield),
+                          speed, args.shield, args.protocol),
         paper=args.paper or PAPER_FILE,
     )
     tables = playback.evaluate(splits, models, progress=not args.quiet)
