@@ -23,6 +23,7 @@ from navigan import checkpoint as ckpt
 from navigan.data import SHIPPED_DATA, SPLITS, load_split
 from navigan.playback.episodes import load_episodes
 from navigan.playback.evaluate import HUMAN, MODELS, Playback, Settings, checkpoint_file
+from navigan.playback.protocols import DEFAULT_PROTOCOL
 from navigan.playback.rollout import roll_out
 from navigan.playback.table import COLUMNS
 
@@ -48,7 +49,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     print(f"torch threads {args.threads}, {os.cpu_count()} CPU cores")
 
-    episodes = load_episodes(load_split(args.data, args.split).test)
+    episodes = load_episodes(load_split(args.data, args.split).test, DEFAULT_PROTOCOL)
     have, _ = available(MODELS, (args.split,))
     print(f"\nroll-outs on {args.split}: {len(episodes)} episodes, one batch per step")
     for model in have:

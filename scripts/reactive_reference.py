@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from navigan.data import SHIPPED_DATA, SPLITS, load_split
-from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, OBSERVED, PROTOCOLS, Episodes, load_episodes
+from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes, load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
+from navigan.playback.protocols import DEFAULT_PROTOCOL, PROTOCOLS
 from navigan.playback.rollout import Rollout
 from navigan.shield import clearance, forecast
 from robot_logs.physical import STEP_S
@@ -67,8 +68,8 @@ def main() -> None:
     parser.add_argument("--data", type=Path, default=SHIPPED_DATA, help="the ETH/UCY folder (default: the shipped copy)")
     parser.add_argument("--split", default="all", help="a split or all five (default)")
     parser.add_argument("--margin", type=float, default=0.5, help="predicted distance kept from others (m)")
-    parser.add_argument("--protocol", choices=PROTOCOLS, default=OBSERVED,
-                        help="which pedestrians become episodes, as trials playback --protocol (default observed)")
+    parser.add_argument("--protocol", choices=PROTOCOLS, default=DEFAULT_PROTOCOL,
+                        help=f"which pedestrians become episodes, as trials playback --protocol (default {DEFAULT_PROTOCOL})")
     parser.add_argument("--horizon", type=int, default=3, help="steps of 0.4 s the prediction looks ahead")
     args = parser.parse_args()
     splits = [s for s in SPLITS if s != "all"] if args.split == "all" else [args.split]

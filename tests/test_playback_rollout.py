@@ -8,9 +8,10 @@ import pytest
 from navigan import checkpoint as ckpt
 from navigan.data import load_split
 from navigan.goals import toward
-from navigan.playback.episodes import GOAL_STEPS, OBSERVED, PRESENT, SceneGrid, episodes_of, load_episodes
+from navigan.playback.episodes import GOAL_STEPS, SceneGrid, episodes_of, load_episodes
 from navigan.playback.evaluate import Playback, Settings, score_rollout
 from navigan.playback.metrics import Scoring
+from navigan.playback.protocols import OBSERVED, PRESENT
 from navigan.playback.rollout import RECORDED, Policy, neighbours, recorded_rollout, roll_out
 from navigan.shield import shielded_steps
 
@@ -22,7 +23,7 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 @pytest.fixture(scope="module")
 def zara1(eth_ucy_dir):
-    return load_episodes(load_split(eth_ucy_dir, "zara1").test)
+    return load_episodes(load_split(eth_ucy_dir, "zara1").test, PRESENT)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +50,7 @@ def test_who_makes_an_episode():
     positions[:, 0] = np.stack([np.arange(frames) * 0.4, np.zeros(frames)], axis=1)  # walks all along
     positions[:, 1] = (5.0, 5.0)  # stands all along
     positions[10:40, 2] = (1.0, 1.0)  # leaves before its goal time
-    episodes = episodes_of([SceneGrid("toy.txt", np.array([1, 2, 3]), positions)])
+    episodes = episodes_of([SceneGrid("toy.txt", np.array([1, 2, 3]), positions)], PRESENT)
     assert episodes.ids == ["toy.txt:1"] and episodes.standing == 1
     assert episodes.start[0] == 7 and episodes.steps[0] == min(60, frames - 1 - 7)
     np.testing.assert_allclose(episodes.goal[0], [(7 + 36) * 0.4, 0.0])

@@ -9,6 +9,7 @@ from navigan.data import load_split
 from navigan.playback.episodes import load_episodes
 from navigan.playback.evaluate import score_rollout
 from navigan.playback.metrics import Scoring
+from navigan.playback.protocols import PRESENT
 from tests.support.scripts import load_script
 
 
@@ -25,7 +26,7 @@ def rates(reference, episodes, margin: float) -> tuple[float, float]:
 
 @pytest.mark.slow
 def test_the_reactive_walker_arrives_and_keeps_clear_only_when_asked_to(reference, eth_ucy_dir):
-    episodes = load_episodes(load_split(eth_ucy_dir, "zara2").test)
+    episodes = load_episodes(load_split(eth_ucy_dir, "zara2").test, PRESENT)
     comfort, arrival = rates(reference, episodes, 0.5)
     assert len(episodes) == 33 and arrival == 1.0 and comfort == pytest.approx(31 / 33)  # the present protocol (load_episodes default)
     blind_comfort, blind_arrival = rates(reference, episodes, 0.0)  # no margin: straight at the goal

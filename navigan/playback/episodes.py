@@ -1,9 +1,9 @@
 """Playback episodes: one per pedestrian of a test scene who stays long enough to set a goal.
 
-Two protocols (PROTOCOLS) choose the targets. Under PRESENT (the default) a pedestrian present for
-T_OBS + GOAL_STEPS consecutive frames is a target from its first such stretch: observed for T_OBS
+Two protocols (`navigan.playback.protocols`) choose the targets. Under PRESENT a pedestrian present
+for T_OBS + GOAL_STEPS consecutive frames is a target from its first such stretch: observed for T_OBS
 steps, its goal its own recorded position GOAL_STEPS = 3 * T_PRED steps (14.4 s) later. Under
-OBSERVED, T_OBS + T_PRED consecutive frames suffice, and a target that leaves before GOAL_STEPS
+OBSERVED (the default), T_OBS + T_PRED consecutive frames suffice, and a target that leaves before GOAL_STEPS
 gets its last recorded position of that stretch as goal. Either way the episode is cut
 CUTOFF_STEPS = 5 * T_PRED steps (24 s) after the last observed step, or at the end of the
 recording if sooner. A pedestrian whose goal lies within the goal radius of where it starts
@@ -20,16 +20,13 @@ import numpy as np
 
 from navigan.data import Recording, read_recording
 from navigan.errors import NaviganError
+from navigan.playback.protocols import OBSERVED, PRESENT
 from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 GOAL_STEPS = 3 * T_PRED
 CUTOFF_STEPS = 5 * T_PRED
 #: An episode ends with success once the target is this close to its goal (m).
 GOAL_RADIUS = 0.5
-#: The episode protocols: targets present until their goal 36 steps ahead (the default), or
-#: observed for T_obs + T_pred frames with the goal where they leave if that is sooner.
-PRESENT, OBSERVED = "present", "observed"
-PROTOCOLS = (PRESENT, OBSERVED)
 #: Consecutive frames a target must be present under each protocol.
 NEEDED_FRAMES = {PRESENT: T_OBS + GOAL_STEPS, OBSERVED: T_OBS + T_PRED}
 #: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
@@ -130,7 +127,7 @@ class Episodes:
                         self.steps[index], self.goal[index], self.goal_steps[index], self.standing)
 
 
-def episodes_of(scenes: Sequence[SceneGrid], protocol: str = PRESENT) -> Episodes:
+def episodes_of(scenes: Sequence[SceneGrid], protocol: str) -> Episodes:
     """Every episode of some scenes under a protocol (PROTOCOLS), in scene then pedestrian order."""
     need = NEEDED_FRAMES[protocol]
     rows: list[tuple[int, int, int, int, int]] = []
@@ -160,7 +157,7 @@ def episodes_of(scenes: Sequence[SceneGrid], protocol: str = PRESENT) -> Episode
     )
 
 
-def load_episodes(files: Sequence[str | Path], protocol: str = PRESENT) -> Episodes:
+def load_episodes(files: Sequence[str | Path], protocol: str) -> Episodes:
     """The episodes of a split's test recordings under a protocol (PROTOCOLS).
 
     Raises:

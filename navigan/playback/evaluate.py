@@ -30,9 +30,10 @@ from navigan import checkpoint as ckpt
 from navigan.data import SPLITS, load_split
 from navigan.errors import NaviganError
 from navigan.playback import figures
-from navigan.playback.episodes import CUTOFF_STEPS, OBSERVED, Episodes, load_episodes
+from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
 from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
+from navigan.playback.protocols import DEFAULT_PROTOCOL
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
     COLUMNS,
@@ -76,7 +77,7 @@ class Settings:
     limit: int | None = None
     subgoal_speed: float | str | None = RECORDED
     shield: float = SHIELD_MARGIN
-    protocol: str = OBSERVED
+    protocol: str = DEFAULT_PROTOCOL
 
     def record(self) -> dict[str, Any]:
         return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed,

@@ -6,6 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
+from navigan.playback.protocols import DEFAULT_PROTOCOL, PROTOCOLS
 from trials import option_types as types
 from trials.option_types import MAX_THREADS
 
@@ -50,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--shield", type=types.number(0, MAX_SHIELD_M, above=True), default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
                              "constant-velocity forecast over 1.6 s (default 0.5)")
-    parser.add_argument("--protocol", choices=("observed", "present"), default="observed",
+    parser.add_argument("--protocol", choices=PROTOCOLS, default=DEFAULT_PROTOCOL,
                         help="which pedestrians become episodes: observed (default), present for 20 consecutive "
                              "frames, the goal 36 steps ahead or where they leave if sooner; present: for 44 frames, "
                              "the goal 36 steps ahead")
