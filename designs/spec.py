@@ -44,6 +44,7 @@ from designs.factors import (
     plain,
     validate_factor,
 )
+from designs.questionnaire import LikertItem, questionnaire_from_tables, questionnaire_tables
 
 FACTOR_TYPES = ("continuous", "discrete", "categorical", "fixed")
 DEFAULT_STARTS = 100
@@ -85,6 +86,8 @@ class StudySpec:
     arms_sealed: bool = False
     #: Anticipated coefficient per model term for the power table; terms not named get 1.
     anticipated: dict[str, float] = field(default_factory=dict)
+    #: Likert items participants answer after each run beside the compliance question ([[questionnaire]]).
+    questionnaire: tuple[LikertItem, ...] = ()
 
     @property
     def design_factors(self) -> tuple[DesignFactor, ...]:
@@ -121,9 +124,9 @@ def read_spec(path: Path) -> StudySpec:
 def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     """Validate the parsed TOML tables of a spec."""
     study = _table(data, "study", source)
-    unknown = set(data) - {"study", "factors", "anticipated"}
+    unknown = set(data) - {"study", "factors", "anticipated", "questionnaire"}
     if unknown:
-        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally [anticipated])")
+        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]])")
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")
@@ -164,6 +167,7 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
         alpha=alpha,
         arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
         anticipated=_anticipated(data, source),
+        questionnaire=questionnaire_from_tables(data.get("questionnaire"), source),
     )
 
 
@@ -190,6 +194,8 @@ def spec_to_toml(spec: StudySpec) -> str:
     tables: dict[str, Any] = {"study": study}
     if spec.anticipated:
         tables["anticipated"] = dict(spec.anticipated)
+    if spec.questionnaire:
+        tables["questionnaire"] = questionnaire_tables(spec.questionnaire)
     return tomli_w.dumps({**tables, "factors": [factor_table(f) for f in spec.factors]})
 
 

@@ -141,12 +141,17 @@ def table_text(header: Sequence[str], rows: Iterable[Sequence[str]], with_header
     return buffer.getvalue()
 
 
-def append_rows(path: Path, header: Sequence[str], rows: Iterable[Sequence[str]]) -> None:
-    """Add rows to a CSV file (creating it with `header`), rewriting it atomically."""
+def append_rows(path: Path, header: Sequence[str], rows: Iterable[Sequence[str]], widen: bool = False) -> None:
+    """Add rows to a CSV file (creating it with `header`), rewriting it atomically. With `widen`, a file
+    whose columns are the first ones of `header` gets the new columns, empty in its earlier rows."""
     existing = path.read_text(encoding="utf-8") if path.exists() else ""
     if existing:
         found = next(csv.reader(io.StringIO(existing)), [])
-        if tuple(found) != tuple(header):
+        if widen and len(found) < len(header) and tuple(found) == tuple(header[:len(found)]):
+            _, earlier = read_rows(path, same_width=False)
+            padding = [""] * (len(header) - len(found))
+            existing = table_text(header, (cells + padding for _, cells in earlier))
+        elif tuple(found) != tuple(header):
             raise StudyError(f"{path} has columns {', '.join(found)}; expected {', '.join(header)}")
     separator = "" if not existing or existing.endswith("\n") else "\n"
     write_text(path, existing + separator + table_text(header, rows, with_header=not existing))

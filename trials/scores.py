@@ -15,7 +15,9 @@ from trials.csv_table import (
     record_row,
     utc_cell,
 )
-from trials.study import SCORES, StudyFolder
+from trials.errors import StudyError
+from trials.outcomes import check_run_codes, finished_codes
+from trials.study import SCORES, StudyFolder, utc_now
 
 SCORES_ALLOWED = (1, 2, 3)
 #: What a file of scores must have; scorer, note and recorded_utc may be absent.
@@ -38,6 +40,20 @@ def append_scores(folder: StudyFolder, scores: Sequence[HumanScore]) -> None:
     """Add scores to the study's scores.csv."""
     header = record_columns(HumanScore)
     append_rows(folder.path(SCORES), header, (record_row(s, header) for s in scores))
+
+
+def record_score(folder: StudyFolder, code: str, score: str, scorer: str, note: str) -> HumanScore:
+    """Check and append one evaluator's score of a finished run (`trials score CODE SCORE`, the console's
+    score form); StudyError for a score other than 1, 2 or 3, or a run not in the plan or not finished."""
+    plan_codes, finished = [row["run_code"] for row in folder.read_plan()], finished_codes(folder)
+    try:
+        value = parse_score(score)
+    except ValueError as exc:
+        raise StudyError(str(exc)) from None
+    check_run_codes([code], plan_codes, finished, "a score")
+    record = HumanScore(code, value, scorer, note, utc_now())
+    append_scores(folder, [record])
+    return record
 
 
 def _score(row: dict[str, str]) -> HumanScore:

@@ -5,6 +5,7 @@ This module is the one place that names the study's files (docs/study_folder.md,
 each other file has one module: study.toml `designs.spec`, rubric.toml `analysis.scoring`,
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
 runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
+run_events.csv `trials.run_events`, logs/ `trials.attached_logs`, console/access.json `trials.console.access`,
 report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
@@ -62,9 +63,15 @@ REPORT_TABLES = f"{REPORT}/tables"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
+#: The experimenter's record of each run on the field day: started, finished, aborted, notes (`trials.run_events`).
+RUN_EVENTS = "run_events.csv"
+#: Robot logs uploaded through `trials serve`, one per run (`trials.attached_logs`).
+LOGS = "logs"
+#: The console's owner-only access keys: the experimenter's token and the key that signs links and cookies.
+CONSOLE_ACCESS = "console/access.json"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:

@@ -57,24 +57,14 @@ def run(args: argparse.Namespace) -> int:
         return _import(folder, args.import_file, plan_codes, finished)
     if not all(positional):
         raise StudyError("give a run code, a participant and yes or no (e.g. `trials respond NGAC3 P07 yes`), --import FILE or --simulate")
-    return _record_one(folder, args.run_code, args.participant, args.answer, plan_codes, finished)
+    return _record_one(folder, args.run_code, args.participant, args.answer)
 
 
-def _record_one(folder: StudyFolder, code: str, participant: str, answer: str, plan_codes: list[str], finished: list[str]) -> int:
-    from analysis.records import HUMAN, Response
-    from trials.errors import StudyError
-    from trials.outcomes import check_run_codes
-    from trials.responses import append_responses, parse_answer, read_responses
-    from trials.study import RESPONSES, utc_now
+def _record_one(folder: StudyFolder, code: str, participant: str, answer: str) -> int:
+    from trials.responses import record_response
 
-    try:
-        compliant = parse_answer(answer)
-    except ValueError as exc:
-        raise StudyError(str(exc)) from None
-    check_run_codes([code], plan_codes, finished, "a judgment")
-    earlier = [r for r in read_responses(folder.path(RESPONSES)) if r.run_code == code and r.participant == participant and r.source == HUMAN]
-    append_responses(folder, [Response(code, participant, compliant, HUMAN, utc_now())])
-    judged = "socially compliant" if compliant else "not socially compliant"
+    response, earlier = record_response(folder, code, participant, answer)
+    judged = "socially compliant" if response.compliant else "not socially compliant"
     print(f"Recorded: {participant} judged run {code} {judged}" + ("; this replaces their earlier judgment." if earlier else "."))
     return 0
 

@@ -32,10 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from analysis.records import HumanScore
     from trials.errors import StudyError
     from trials.outcomes import check_run_codes, finished_codes
-    from trials.scores import append_scores, parse_score, read_scores
+    from trials.scores import append_scores, read_scores, record_score
     from trials.study import SCORES, StudyFolder, utc_now
 
     folder = StudyFolder(args.study)
@@ -43,19 +42,14 @@ def run(args: argparse.Namespace) -> int:
         raise StudyError("give either CODE and SCORE or --import FILE, not both")
     if args.import_file is None and not (args.run_code and args.score):
         raise StudyError("give a run code and a score 1, 2 or 3 (e.g. `trials score NGAC3 3`), or --import FILE")
-    plan_codes = [row["run_code"] for row in folder.read_plan()]
-    finished = finished_codes(folder)
     scorer = args.by or _login()
-    now = utc_now()
     if args.import_file is None:
-        try:
-            value = parse_score(args.score)
-        except ValueError as exc:
-            raise StudyError(str(exc)) from None
-        check_run_codes([args.run_code], plan_codes, finished, "a score")
-        append_scores(folder, [HumanScore(args.run_code, value, scorer, args.note, now)])
+        value = record_score(folder, args.run_code, args.score, scorer, args.note).score
         print(f"Recorded score {value} for run {args.run_code} by {scorer}; it overrides the rubric's score in the report.")
         return 0
+    plan_codes = [row["run_code"] for row in folder.read_plan()]
+    finished = finished_codes(folder)
+    now = utc_now()
     if not args.import_file.is_file():
         raise StudyError(f"no scores file at {args.import_file}")
     new = [replace(s, scorer=s.scorer or scorer, recorded_utc=s.recorded_utc or now) for s in read_scores(args.import_file)]
