@@ -1,0 +1,57 @@
+"""`trials serve`: the field-day web console on this machine (loopback unless --host says otherwise)."""
+
+from __future__ import annotations
+
+import argparse
+
+from trials import option_types as types
+
+DEFAULT_PORT = 8765
+#: Requests served at once: a few phones and the experimenter's laptop.
+THREADS = 8
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "serve",
+        help="the field-day web console: run sheet, run pages, score form, participants' questionnaire, progress",
+        description=(
+            "Serve the study's web console: the run sheet, each run's page (start, finish, abort, notes, attach the "
+            "robot's log, played as `trials run --from-log` plays it), the evaluator's score form, the participants' "
+            "questionnaire (a link and QR code per run) and the progress so far. The first line printed is the "
+            "experimenter's link, with its token; it opens the run sheet. Everything is written into the study "
+            "folder as the other commands write it. Ctrl-C stops it."
+        ),
+    )
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                        help="address to listen on (default 127.0.0.1, this machine only; 0.0.0.0 lets phones on the network in)")
+    parser.add_argument("--port", type=types.whole(0, 65535), default=DEFAULT_PORT, metavar="N", help=f"port (default {DEFAULT_PORT}; 0: any free one)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from waitress import create_server
+
+    from trials.console.access import console_access
+    from trials.console.actions import Console
+    from trials.console.app import create_app
+    from trials.errors import StudyError
+    from trials.study import StudyFolder
+
+    folder = StudyFolder(args.study)
+    console = Console(folder)
+    console.sheet()  # a study the console cannot show is refused before it listens
+    access = console_access(folder)
+    try:
+        server = create_server(create_app(console, access), host=args.host, port=args.port, threads=THREADS)
+    except OSError as exc:
+        raise StudyError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
+    shown = f"[{args.host}]" if ":" in args.host else args.host
+    print(f"http://{shown}:{server.effective_port}/?token={access.experimenter_token}", flush=True)
+    print("The link above opens the run sheet (keep it to yourself: it lets its holder record runs). Ctrl-C stops the console.", flush=True)
+    try:
+        server.run()
+    finally:
+        server.close()
+    return 0

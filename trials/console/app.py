@@ -1,0 +1,180 @@
+"""The console's pages (Flask, server-rendered Jinja2 templates, one CSS file of its own; no scripts,
+fonts or styles from elsewhere, so it works offline).
+
+Experimenter pages (run sheet, run page, score form, progress) need the experimenter's token once
+(`/?token=...`, kept in the signed session cookie); a participant's questionnaire link opens only its
+run's form, and the participant's code, entered once, stays in their cookie. Every form carries a
+CSRF token (Flask-WTF). Nothing from the study folder is served: pages are rendered from it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import segno
+from flask import Flask, abort, flash, redirect, render_template, request, session, url_for
+from flask_wtf.csrf import CSRFError, CSRFProtect
+from markupsafe import Markup
+from werkzeug.exceptions import HTTPException
+from werkzeug.wrappers import Response as HttpResponse
+
+from trials.attached_logs import MAX_UPLOAD_BYTES
+from trials.console.access import ConsoleAccess
+from trials.console.actions import Console, LogRequest, UnknownRun
+from trials.console.progress import progress
+from trials.errors import USER_ERRORS
+from trials.run_events import ABORT, EVENTS, FINISH, NOTE, START
+
+#: Field names of the participant's code and compliance answer.
+PARTICIPANT, COMPLIANT = "participant", "compliant"
+#: What a form's bad value raises: a field's ValueError, or a user error from the owning module.
+FORM_ERRORS = (ValueError, *USER_ERRORS)
+
+
+def create_app(console: Console, access: ConsoleAccess) -> Flask:
+    """The console's WSGI app for one study folder."""
+    app = Flask(__name__)
+    app.config.update(SECRET_KEY=access.secret_key, MAX_CONTENT_LENGTH=MAX_UPLOAD_BYTES, WTF_CSRF_TIME_LIMIT=None,
+                      SESSION_COOKIE_SAMESITE="Lax", SESSION_COOKIE_NAME="trials_console")
+    CSRFProtect(app)
+
+    def experimenter() -> None:
+        if not session.get("experimenter"):
+            abort(403, "this page needs the experimenter's link: the first line `trials serve` printed (http://...?token=...)")
+
+    def fail(message: str, status: int, template: str = "message.html", **context: Any) -> tuple[str, int]:
+        return render_template(template, error=message, title=context.pop("title", "Not done"), **context), status
+
+    @app.errorhandler(CSRFError)
+    def csrf_failed(error: CSRFError) -> tuple[str, int]:
+        return fail("the form was not sent from this console's own page (or the page is too old): reload the page and send it again", 400)
+
+    @app.errorhandler(HTTPException)
+    def http_failed(error: HTTPException) -> tuple[str, int]:
+        if error.code == 413:
+            return fail(f"the upload is larger than the {MAX_UPLOAD_BYTES // 2**20} MiB a log may have", 413)
+        return fail(error.description or error.name, error.code or 500)
+
+    @app.errorhandler(UnknownRun)
+    def unknown_run(error: UnknownRun) -> tuple[str, int]:
+        return fail(str(error), 404)
+
+    @app.get("/")
+    def sheet() -> str | HttpResponse:
+        token = request.args.get("token")
+        if token is not None:
+            if not access.is_experimenter(token):
+                abort(403, "this experimenter link's token is not this study's")
+            session["experimenter"] = True
+            return redirect(url_for("sheet"))
+        experimenter()
+        return render_template("sheet.html", sheet=console.sheet(), title="Run sheet")
+
+    @app.get("/runs/<code>")
+    def run_page(code: str) -> str:
+        experimenter()
+        return _run_page(code, 200)[0]
+
+    def _run_page(code: str, status: int, error: str = "") -> tuple[str, int]:
+        sheet, row = console.run(code)
+        link = url_for("questionnaire", token=access.participant_token(code), _external=True)
+        qr = Markup(segno.make(link, error="m").svg_inline(scale=4))
+        return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}",
+                               events=(START, FINISH, ABORT, NOTE)), status
+
+    @app.post("/runs/<code>/event")
+    def run_event(code: str) -> tuple[str, int] | HttpResponse:
+        experimenter()
+        event = request.form.get("event", "")
+        if event not in EVENTS:
+            return _run_page(code, 400, f"unknown action {event!r}")
+        try:
+            console.record_event(code, event, request.form.get("detail", ""))
+        except USER_ERRORS as exc:
+            return _run_page(code, 400, str(exc))
+        flash(f"Run {code}: {event} recorded.")
+        return redirect(url_for("run_page", code=code))
+
+    @app.post("/runs/<code>/log")
+    def attach_log(code: str) -> tuple[str, int] | HttpResponse:
+        experimenter()
+        upload = request.files.get("log")
+        try:
+            goal = (_number(request.form, "goal_x"), _number(request.form, "goal_y"))
+            if (goal[0] is None) != (goal[1] is None):
+                raise ValueError("give both goal x and goal y, or neither")
+            start = _number(request.form, "start") or 0.0
+            duration = _number(request.form, "duration")
+            if start < 0 or (duration is not None and duration <= 0):
+                raise ValueError("start must be 0 or more seconds, and duration more than 0")
+            log = LogRequest(upload.filename or "" if upload else "", upload.read() if upload and upload.filename else b"",
+                             request.form.get("path", ""), goal if goal[0] is not None else None, start, duration)  # type: ignore[arg-type]
+            done = console.attach_log(code, log)
+        except FORM_ERRORS as exc:
+            return _run_page(code, 400, str(exc))
+        flash(f"Run {code}: its log was played; outcome {done.outcome.status}.")
+        return redirect(url_for("run_page", code=code))
+
+    @app.route("/runs/<code>/score", methods=["GET", "POST"])
+    def score(code: str) -> tuple[str, int] | HttpResponse:
+        experimenter()
+        _, row = console.run(code)
+        if request.method == "GET":
+            return render_template("score.html", row=row, title=f"Score run {code}", form={}), 200
+        form = request.form
+        session["scorer"] = form.get("scorer", "").strip()
+        try:
+            console.score(code, form.get("score", ""), form.get("scorer", ""), form.get("note", ""))
+        except USER_ERRORS as exc:
+            return render_template("score.html", row=row, title=f"Score run {code}", error=str(exc), form=form), 400
+        flash(f"Run {code}: score {form['score']} by {form['scorer'].strip()} recorded.")
+        return redirect(url_for("run_page", code=code))
+
+    @app.get("/progress")
+    def progress_page() -> str:
+        experimenter()
+        sheet = console.sheet()
+        return render_template("progress.html", sheet=sheet, progress=progress(console.folder, sheet), title="Progress", percent=_percent)
+
+    @app.route("/q/<token>", methods=["GET", "POST"])
+    def questionnaire(token: str) -> tuple[str, int] | HttpResponse:
+        sheet = console.sheet()
+        code = access.run_of(token, sheet.codes)
+        if code is None:
+            abort(404, "this questionnaire link is not valid; ask the experimenter for the run's link")
+        row = sheet.row(code)
+        participant = session.get(PARTICIPANT, "")
+        context = {"row": row, "sheet": sheet, "participant": participant, "title": "Questionnaire", "form": request.form,
+                   "answered": bool(participant) and console.answered(code, participant)}
+        if request.method == "GET":
+            return render_template("questionnaire.html", change="change" in request.args, **context), 200
+        participant = request.form.get(PARTICIPANT, participant).strip()
+        ratings = {item.name: request.form.get(item.name, "") for item in sheet.questionnaire}
+        try:
+            console.respond(code, participant, request.form.get(COMPLIANT, ""), ratings)
+        except USER_ERRORS as exc:
+            return render_template("questionnaire.html", error=str(exc), change=not participant, **context), 400
+        session[PARTICIPANT] = participant
+        flash("Thank you: your answer is recorded.")
+        return redirect(url_for("questionnaire", token=token))
+
+    return app
+
+
+def _number(form: Any, name: str) -> float | None:
+    """An optional finite number from a form field (None when blank); ValueError naming the field otherwise."""
+    text = form.get(name, "").strip()
+    if not text:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{name} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {text!r}")
+    return value
+
+
+def _percent(share: float) -> str:
+    return "-" if math.isnan(share) else f"{100 * share:.0f}%"
