@@ -1,0 +1,171 @@
+"""A blinded field-day study for the console's tests and screenshots, the console as a Flask test client,
+`trials serve` as a process, and Debian's Chromium driven through Selenium."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from analysis.records import Outcome
+from trials.cli import main
+from trials.outcomes import Outcomes
+from trials.study import StudyFolder
+
+#: Two runs, the controller blinded as arms A and B, and one Likert item.
+SPEC = """
+[study]
+name = "field-day"
+runs = 2
+model = "main"
+seed = 21
+
+[[factors]]
+name = "Pedestrians"
+type = "fixed"
+value = 2
+
+[[factors]]
+name = "Controller"
+type = "categorical"
+blind = true
+levels = ["NaviGAN-R", "Lattice"]
+
+[[questionnaire]]
+name = "comfort"
+question = "How comfortable did you feel near the robot?"
+scale = 5
+low = "very uncomfortable"
+high = "very comfortable"
+"""
+#: The part of the sample bag a run plays: 6 s from 15 s in (people walk past the sensor then).
+WINDOW = {"start": "15", "duration": "6"}
+CHROMIUM, CHROMEDRIVER = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
+#: A phone's window, for the participants' questionnaire.
+PHONE = (390, 844)
+CSRF = re.compile(r'name="csrf_token" value="([^"]+)"')
+
+
+def design_study(folder: Path, spec: str = SPEC) -> Path:
+    """`trials design` of `spec` into `folder`."""
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    source = folder.parent / f"{folder.name}.toml"
+    source.write_text(spec)
+    assert main(["design", "--spec", str(source), "--study", str(folder)]) == 0
+    return folder
+
+
+def add_outcome(folder: Path, code: str) -> None:
+    """An outcome row for run `code` through outcomes.csv's owner, as if its log had been played."""
+    outcomes = Outcomes(StudyFolder(folder), blind=True)
+    outcomes.append(Outcome(run_code=code, status="goal", seed=7, perception="log", duration_s=12.0, time_to_goal_s=12.0,
+                            path_length_m=9.5, min_distance_m=0.8, time_within_0_5m_s=0.0, time_within_1_2m_s=1.2, collisions=0,
+                            max_deceleration_mps2=0.4, max_jerk_mps3=1.0, path_irregularity_rad_per_m=0.1, turn_in_place_s=0.0,
+                            backing_up_s=0.0, stopped_s=0.0, finished_utc="2026-05-01T10:00:00+00:00"))
+
+
+def chromium_ready() -> bool:
+    """Whether Debian's chromium and chromium-driver are installed (apt-get install chromium chromium-driver)."""
+    return CHROMIUM.exists() and CHROMEDRIVER.exists()
+
+
+@contextmanager
+def browser(size: tuple[int, int] = (1280, 900)) -> Iterator:
+    """A headless Chromium with a fresh profile (its own cookies: one person's browser), offline-minded flags."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    profile = tempfile.mkdtemp(prefix="console-browser-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run", "--hide-scrollbars", f"--user-data-dir={profile}", f"--window-size={size[0]},{size[1]}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(options=options, service=Service(str(CHROMEDRIVER)))
+    try:
+        yield driver
+    finally:
+        driver.quit()
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+@contextmanager
+def served(study: Path) -> Iterator[str]:
+    """`trials serve` on the study at a free loopback port; yields the experimenter's URL it prints first."""
+    process = subprocess.Popen([sys.executable, "-m", "trials.cli", "serve", "--study", str(study), "--port", "0"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout is not None
+        first = process.stdout.readline().strip()
+        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[\w-]{32}", first), first + (process.stderr.read() if process.poll() is not None else "")
+        yield first
+    finally:
+        process.terminate()
+        process.wait(timeout=30)
+
+
+def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None = None) -> list[str]:
+    """Work through the study in real browsers as its field day would: the experimenter starts, finishes and
+    attaches the log of each run (run 1 by upload, run 2 by its path), an evaluator scores both, three
+    participants, each in their own browser, answer both runs' questionnaires (P01 and P02 say yes to
+    the first run, P03 no; all no to the second). Returns the source of every page seen; with `shots`,
+    saves screenshots of the main pages there."""
+    from selenium.webdriver.common.by import By
+
+    pages: list[str] = []
+
+    def seen(driver, name: str | None = None) -> None:
+        pages.append(driver.title + "\n" + driver.current_url + "\n" + driver.page_source)
+        if shots is not None and name is not None:
+            height = driver.execute_script("return document.body.scrollHeight")
+            driver.set_window_size(driver.get_window_size()["width"], max(height + 20, 400))
+            driver.save_screenshot(str(shots / f"{name}.png"))
+
+    links = []
+    with browser() as experimenter:
+        experimenter.get(experimenter_url)
+        seen(experimenter)
+        codes = [row.get_attribute("id").removeprefix("run-") for row in experimenter.find_elements(By.CSS_SELECTOR, "table.sheet tbody tr")]
+        for i, code in enumerate(codes):
+            experimenter.find_element(By.CSS_SELECTOR, f"#run-{code} a").click()
+            experimenter.find_element(By.ID, "start").click()
+            experimenter.find_element(By.ID, "note").send_keys(f"run {i + 1}: two people walked past")
+            experimenter.find_element(By.ID, "add-note").click()
+            experimenter.find_element(By.ID, "finish").click()
+            if i == 0:
+                experimenter.find_element(By.ID, "log-file").send_keys(str(log))
+            else:
+                experimenter.find_element(By.ID, "log-path").send_keys(str(log))
+            experimenter.find_element(By.ID, "log-start").send_keys(WINDOW["start"])
+            experimenter.find_element(By.ID, "log-duration").send_keys(WINDOW["duration"])
+            experimenter.find_element(By.ID, "attach").click()
+            seen(experimenter, "run_page" if i == 0 else None)
+            links.append(experimenter.find_element(By.ID, "participant-link").get_attribute("href"))
+            experimenter.find_element(By.ID, "score-link").click()
+            experimenter.find_element(By.CSS_SELECTOR, f"input[name=score][value='{3 - i}']").click()
+            experimenter.find_element(By.ID, "scorer").send_keys("evaluator-1")
+            seen(experimenter, "score_form" if i == 0 else None)
+            experimenter.find_element(By.ID, "record-score").click()
+            experimenter.find_element(By.LINK_TEXT, "Run sheet").click()
+            seen(experimenter)
+        for participant, answers in (("P01", ("yes", "no")), ("P02", ("yes", "no")), ("P03", ("no", "no"))):
+            with browser(PHONE) as phone:
+                for k, (link, answer) in enumerate(zip(links, answers)):
+                    phone.get(link)
+                    if k == 0:
+                        phone.find_element(By.ID, "participant").send_keys(participant)
+                    phone.find_element(By.ID, f"compliant-{answer}").click()
+                    phone.find_element(By.ID, "comfort-4").click()
+                    seen(phone, "questionnaire_phone" if participant == "P01" and k == 0 else None)
+                    phone.find_element(By.ID, "send").click()
+                    seen(phone)
+        experimenter.get(experimenter_url.split("?")[0])
+        seen(experimenter, "run_sheet")
+        experimenter.find_element(By.LINK_TEXT, "Progress").click()
+        seen(experimenter, "progress")
+    return pages
