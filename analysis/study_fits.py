@@ -85,6 +85,8 @@ def fit_metrics(data: StudyData) -> list[Fit]:
     fits = []
     for column, name in METRICS:
         runs = [run for run in data.finished if getattr(run.outcome, column) is not None]
+        if not runs:  # no finished run has this metric (time to goal when none arrived): nothing to fit
+            continue
         dm = DesignMatrix.from_model(data.model, settings(data, runs))
         y = np.array([getattr(run.outcome, column) for run in runs], dtype=float)
         fit = relabel(fit_least_squares(dm, y, name), data.blinding)

@@ -116,8 +116,16 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
     the first run, P03 no; all no to the second). Returns the source of every page seen; with `shots`,
     saves screenshots of the main pages there."""
     from selenium.webdriver.common.by import By
+    from selenium.webdriver.support import expected_conditions
+    from selenium.webdriver.support.ui import WebDriverWait
 
     pages: list[str] = []
+
+    def go(driver, by: str, value: str) -> None:
+        """Click what opens or submits a page, and wait until the next page has replaced this one."""
+        old = driver.find_element(By.TAG_NAME, "html")
+        driver.find_element(by, value).click()
+        WebDriverWait(driver, 120).until(expected_conditions.staleness_of(old))
 
     def seen(driver, name: str | None = None) -> None:
         pages.append(driver.title + "\n" + driver.current_url + "\n" + driver.page_source)
@@ -132,26 +140,29 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
         seen(experimenter)
         codes = [row.get_attribute("id").removeprefix("run-") for row in experimenter.find_elements(By.CSS_SELECTOR, "table.sheet tbody tr")]
         for i, code in enumerate(codes):
-            experimenter.find_element(By.CSS_SELECTOR, f"#run-{code} a").click()
-            experimenter.find_element(By.ID, "start").click()
+            go(experimenter, By.CSS_SELECTOR, f"#run-{code} a")
+            go(experimenter, By.ID, "start")
             experimenter.find_element(By.ID, "note").send_keys(f"run {i + 1}: two people walked past")
-            experimenter.find_element(By.ID, "add-note").click()
-            experimenter.find_element(By.ID, "finish").click()
+            go(experimenter, By.ID, "add-note")
+            go(experimenter, By.ID, "finish")
             if i == 0:
                 experimenter.find_element(By.ID, "log-file").send_keys(str(log))
             else:
                 experimenter.find_element(By.ID, "log-path").send_keys(str(log))
             experimenter.find_element(By.ID, "log-start").send_keys(WINDOW["start"])
             experimenter.find_element(By.ID, "log-duration").send_keys(WINDOW["duration"])
-            experimenter.find_element(By.ID, "attach").click()
+            go(experimenter, By.ID, "attach")
             seen(experimenter, "run_page" if i == 0 else None)
             links.append(experimenter.find_element(By.ID, "participant-link").get_attribute("href"))
-            experimenter.find_element(By.ID, "score-link").click()
+            go(experimenter, By.ID, "score-link")
             experimenter.find_element(By.CSS_SELECTOR, f"input[name=score][value='{3 - i}']").click()
-            experimenter.find_element(By.ID, "scorer").send_keys("evaluator-1")
+            scorer = experimenter.find_element(By.ID, "scorer")
+            assert scorer.get_attribute("value") == ("" if i == 0 else "evaluator-1")  # remembered from the first score
+            scorer.clear()
+            scorer.send_keys("evaluator-1")
             seen(experimenter, "score_form" if i == 0 else None)
-            experimenter.find_element(By.ID, "record-score").click()
-            experimenter.find_element(By.LINK_TEXT, "Run sheet").click()
+            go(experimenter, By.ID, "record-score")
+            go(experimenter, By.LINK_TEXT, "Run sheet")
             seen(experimenter)
         for participant, answers in (("P01", ("yes", "no")), ("P02", ("yes", "no")), ("P03", ("no", "no"))):
             with browser(PHONE) as phone:
@@ -162,10 +173,10 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
                     phone.find_element(By.ID, f"compliant-{answer}").click()
                     phone.find_element(By.ID, "comfort-4").click()
                     seen(phone, "questionnaire_phone" if participant == "P01" and k == 0 else None)
-                    phone.find_element(By.ID, "send").click()
+                    go(phone, By.ID, "send")
                     seen(phone)
         experimenter.get(experimenter_url.split("?")[0])
         seen(experimenter, "run_sheet")
-        experimenter.find_element(By.LINK_TEXT, "Progress").click()
+        go(experimenter, By.LINK_TEXT, "Progress")
         seen(experimenter, "progress")
     return pages
