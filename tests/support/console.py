@@ -126,13 +126,16 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
         old = driver.find_element(By.TAG_NAME, "html")
         driver.find_element(by, value).click()
         WebDriverWait(driver, 120).until(expected_conditions.staleness_of(old))
+        WebDriverWait(driver, 30).until(lambda d: d.execute_script("return document.readyState") == "complete")
 
     def seen(driver, name: str | None = None) -> None:
         pages.append(driver.title + "\n" + driver.current_url + "\n" + driver.page_source)
         if shots is not None and name is not None:
-            height = driver.execute_script("return document.body.scrollHeight")
-            driver.set_window_size(driver.get_window_size()["width"], max(height + 20, 400))
+            width, height = driver.get_window_size()["width"], driver.get_window_size()["height"]
+            content = driver.execute_script("return document.documentElement.scrollHeight")
+            driver.set_window_size(width, content + height - driver.execute_script("return window.innerHeight"))
             driver.save_screenshot(str(shots / f"{name}.png"))
+            driver.set_window_size(width, height)
 
     links = []
     with browser() as experimenter:

@@ -135,7 +135,7 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def progress_page() -> str:
         experimenter()
         sheet = console.sheet()
-        return render_template("progress.html", sheet=sheet, progress=progress(console.folder, sheet), title="Progress", percent=_percent)
+        return render_template("progress.html", sheet=sheet, progress=progress(console.folder, sheet), title="Progress", percent=_percent, points=_points)
 
     @app.route("/q/<token>", methods=["GET", "POST"])
     def questionnaire(token: str) -> tuple[str, int] | HttpResponse:
@@ -178,3 +178,7 @@ def _number(form: Any, name: str) -> float | None:
 
 def _percent(share: float) -> str:
     return "-" if math.isnan(share) else f"{100 * share:.0f}%"
+
+
+def _points(difference: float) -> str:
+    return "-" if math.isnan(difference) else f"{100 * difference:+.0f} points"
