@@ -273,3 +273,41 @@ def test_a_busy_port_is_a_one_line_error(study):
                                 capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     assert re.fullmatch(rf"error: cannot listen on 127\.0\.0\.1:{port}: .+\n", result.stderr)
+
+
+def test_answers_sent_at_once_from_many_phones_are_all_kept(app, study, codes):
+    from concurrent.futures import ThreadPoolExecutor
+
+    add_outcome(study, codes[0])
+    link = f"/q/{console_access(StudyFolder(study)).participant_token(codes[0])}"
+
+    def answer(k: int) -> int:
+        phone = app.test_client()
+        token = CSRF.search(phone.get(link).text).group(1)
+        return phone.post(link, data={"csrf_token": token, "participant": f"P{k:02d}", "compliant": "yes" if k % 2 else "no",
+                                      "comfort": str(1 + k % 5)}).status_code
+
+    with ThreadPoolExecutor(8) as pool:
+        assert list(pool.map(answer, range(16))) == [302] * 16
+    answers = rows(study / RESPONSES)
+    assert sorted((r["participant"], r["compliant"], r["comfort"]) for r in answers) == [
+        (f"P{k:02d}", "yes" if k % 2 else "no", str(1 + k % 5)) for k in range(16)]
+
+
+def test_the_console_never_opens_the_sealed_key(app, study, codes, experimenter, monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("the console opened the sealed key")
+
+    monkeypatch.setattr(StudyFolder, "open_sealed", refuse)
+    monkeypatch.setattr(StudyFolder, "read_sealed", refuse)
+    code = codes[0]
+    token = csrf(experimenter, f"/runs/{code}")
+    for event in ("start", "finish"):
+        assert experimenter.post(f"/runs/{code}/event", data={"event": event, "csrf_token": token}).status_code == 302
+    add_outcome(study, code)
+    assert experimenter.post(f"/runs/{code}/score", data={"score": "2", "scorer": "eva", "csrf_token": token}).status_code == 302
+    link = f"/q/{console_access(StudyFolder(study)).participant_token(code)}"
+    assert experimenter.post(link, data={"participant": "P01", "compliant": "yes", "csrf_token": token}).status_code == 302
+    for path in ("/", f"/runs/{code}", f"/runs/{code}/score", "/progress", link):
+        page = experimenter.get(path)
+        assert page.status_code == 200 and not NAMES.search(page.data)

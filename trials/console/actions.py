@@ -24,8 +24,8 @@ from trials.scores import read_scores, record_score
 from trials.study import PLAN, RESPONSES, RUN_EVENTS, SCORES, StudyFolder, to_the_minute
 
 
-class UnknownRun(LookupError):
-    """A run code (or questionnaire link) that the plan does not have."""
+class UnknownRun(StudyError):
+    """A run code that the plan does not have (its page: not found)."""
 
 
 @dataclass(frozen=True)
