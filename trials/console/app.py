@@ -108,8 +108,9 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
             duration = _number(request.form, "duration")
             if start < 0 or (duration is not None and duration <= 0):
                 raise ValueError("start must be 0 or more seconds, and duration more than 0")
-            log = LogRequest(upload.filename or "" if upload else "", upload.read() if upload and upload.filename else b"",
-                             request.form.get("path", ""), goal if goal[0] is not None else None, start, duration)  # type: ignore[arg-type]
+            name = upload.filename or "" if upload is not None else ""
+            log = LogRequest(name, upload.read() if upload is not None and name else b"", request.form.get("path", ""),
+                             (goal[0], goal[1]) if goal[0] is not None and goal[1] is not None else None, start, duration)
             done = console.attach_log(code, log)
         except FORM_ERRORS as exc:
             return _run_page(code, 400, str(exc))

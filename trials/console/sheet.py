@@ -13,7 +13,7 @@ from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
 from trials.outcomes import read_outcomes
 from trials.responses import read_responses
-from trials.run_events import ABORT, FINISH, LOG, NOTE, PENDING, START, RunEvent, read_run_events, statuses
+from trials.run_events import ABORT, ABORTED, FINISH, LOG, NOTE, PENDING, RUNNING, START, RunEvent, read_run_events, statuses
 from trials.scenario import CONTROLLER
 from trials.scores import read_scores
 from trials.study import OUTCOMES, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
@@ -76,8 +76,8 @@ class RunSheet:
     @property
     def next_code(self) -> str | None:
         """The first run in plan order that is not finished (running ones first)."""
-        running = [row.code for row in self.rows if row.status == "running"]
-        waiting = [row.code for row in self.rows if row.status in (PENDING, "aborted")]
+        running = [row.code for row in self.rows if row.status == RUNNING]
+        waiting = [row.code for row in self.rows if row.status in (PENDING, ABORTED)]
         return (running or waiting or [None])[0]
 
     def row(self, code: str) -> SheetRow | None:
