@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import csv
 import re
-import subprocess
-import sys
 import urllib.request
 from pathlib import Path
 
@@ -262,17 +260,17 @@ def test_trials_serve_prints_the_experimenters_link_first(study):
         assert refused.value.code == 403
 
 
-def test_a_busy_port_is_a_one_line_error(study):
+def test_a_busy_port_is_a_one_line_error(study, capsys):
     import socket
+
+    from trials.cli import main
 
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        result = subprocess.run([sys.executable, "-m", "trials.cli", "serve", "--study", str(study), "--port", str(port)],
-                                capture_output=True, text=True, timeout=60)
-    assert result.returncode == 2
-    assert re.fullmatch(rf"error: cannot listen on 127\.0\.0\.1:{port}: .+\n", result.stderr)
+        assert main(["serve", "--study", str(study), "--port", str(port)]) == 2
+    assert re.fullmatch(rf"error: cannot listen on 127\.0\.0\.1:{port}: .+\n", capsys.readouterr().err)
 
 
 def test_answers_sent_at_once_from_many_phones_are_all_kept(app, study, codes):
