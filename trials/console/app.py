@@ -24,7 +24,7 @@ from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
 from trials.console.progress import progress
 from trials.errors import USER_ERRORS
-from trials.run_events import ABORT, EVENTS, FINISH, NOTE, START
+from trials.run_events import EVENTS
 
 #: Field names of the participant's code and compliance answer.
 PARTICIPANT, COMPLIANT = "participant", "compliant"
@@ -80,8 +80,7 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
         sheet, row = console.run(code)
         link = url_for("questionnaire", token=access.participant_token(code), _external=True)
         qr = Markup(segno.make(link, error="m").svg_inline(scale=4))
-        return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}",
-                               events=(START, FINISH, ABORT, NOTE)), status
+        return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}"), status
 
     @app.post("/runs/<code>/event")
     def run_event(code: str) -> tuple[str, int] | HttpResponse:
