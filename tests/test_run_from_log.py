@@ -29,6 +29,7 @@ from robot_logs.records import Odometry, Transform
 from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.bag_writer import BagWriter
 from tests.support.blinding import NAMES, mcap_text
+from tests.support.mcap_schemas import validate_channels
 from trials.cli import main
 
 pytestmark = pytest.mark.slow  # logged trials: bags tracked and studies run end to end
@@ -130,6 +131,7 @@ def test_the_ros1_and_ros2_bags_give_equivalent_run_logs(played):
     assert differ == {"log", "log_format"}
     assert one.metadata["replay"] == two.metadata["replay"]
     assert untimed(one) == untimed(two)
+    assert validate_channels(ros1 / "runs" / f"{first}.mcap")["navtrials.ReplayComparison"] > 5
 
 
 def untimed(log: FoxgloveReader) -> list[tuple[str, int, dict]]:
