@@ -279,6 +279,21 @@ class FoxgloveReader:
         schemas = self._summary.schemas
         return {c.topic: schemas[c.schema_id].name if c.schema_id else "" for c in self._summary.channels.values()}
 
+    @property
+    def schemas(self) -> dict[str, tuple[str, tuple[str, ...]]]:
+        """Schema name -> its encoding and, for a JSON schema, the top-level fields it declares (what
+        Foxglove's panels offer); a schema in another encoding, or one that is not valid JSON, lists none."""
+        found: dict[str, tuple[str, tuple[str, ...]]] = {}
+        for schema in self._summary.schemas.values():
+            fields: tuple[str, ...] = ()
+            if schema.encoding == "jsonschema":
+                try:
+                    fields = tuple(json.loads(schema.data).get("properties", {}))
+                except (ValueError, AttributeError):
+                    fields = ()
+            found[schema.name] = (schema.encoding, fields)
+        return found
+
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
         """Messages in time order, all or those of the given topics."""
         wanted = None if topics is None else list(topics)

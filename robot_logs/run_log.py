@@ -20,6 +20,8 @@ from robot_logs.errors import LogError
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.foxglove_schemas import Schema
 
+#: A Foxglove layout for run logs (scene, robot velocity plot, events), built by scripts/foxglove_layout.py.
+LAYOUT = Path(__file__).with_name("run_log_layout.json")
 #: The fixed frame of every run log's 3-D scene.
 FRAME = "map"
 #: Metadata records: the run's settings, a logged trial's plans against the log, and the log times' origin.

@@ -4,6 +4,7 @@ the foxglove.* schemas are Foxglove's own, and --wall-clock moves the log times 
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import time
 from pathlib import Path
@@ -107,3 +108,15 @@ def test_wall_clock_moves_log_times_and_nothing_else(runs):
     one, two = read_run(study / "runs" / f"{code}.mcap"), read_run(clocked / "runs" / f"{code}.mcap")
     assert (one.time == two.time).all() and (one.pose == two.pose).all() and one.events == two.events
     assert json.dumps(one.metadata, sort_keys=True) == json.dumps(two.metadata, sort_keys=True)
+
+
+def test_inspect_lists_the_schemas_and_show_names_the_layout(runs, capsys):
+    study, _, codes = runs
+    path = study / "runs" / f"{codes['Lattice']}.mcap"
+    assert main(["log", "inspect", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "schemas (JSON schemas: the fields Foxglove's panels offer):" in out
+    assert re.search(r"navtrials\.RobotState +jsonschema +t, x, y, theta, v, w, v_cmd, w_cmd\n", out)
+    assert re.search(r"foxglove\.SceneUpdate +jsonschema +deletions, entities\n", out)
+    assert main(["log", "show", str(path)]) == 0
+    assert f"Foxglove: open {path} with the layout {fmt.LAYOUT} (scene, robot velocity, events)" in capsys.readouterr().out

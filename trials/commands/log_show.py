@@ -14,7 +14,8 @@ def register(group: argparse._SubParsersAction) -> None:
         help="summarise a trial run from its MCAP log and draw its trajectories",
         description="Print a run's settings, seed, events and metrics, recomputed from runs/<code>.mcap, and "
         "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it. A blinded "
-        "run's log holds no controller output; --unblind adds it from the sealed record.",
+        "run's log holds no controller output; --unblind adds it from the sealed record. It also names the Foxglove "
+        "layout shipped for run logs (the scene, the robot's velocity in a plot, the events).",
     )
     parser.add_argument("run", metavar="RUN", help="a run code of the study, or the path of a run's .mcap")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
@@ -26,7 +27,7 @@ def register(group: argparse._SubParsersAction) -> None:
 
 
 def show(args: argparse.Namespace) -> int:
-    from robot_logs.run_log import read_run
+    from robot_logs.run_log import LAYOUT, read_run
     from trials.atomic import write_files
     from trials.errors import StudyError
     from trials.metrics import measure
@@ -88,5 +89,6 @@ def show(args: argparse.Namespace) -> int:
     picture = path.with_suffix(RUN_FIGURE_SUFFIX)
     write_files({picture: run_png(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE)})
     lines.append(f"trajectories: {picture}")
+    lines.append(f"Foxglove: open {path} with the layout {LAYOUT} (scene, robot velocity, events)")
     print("\n".join(lines))
     return 0
