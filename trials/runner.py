@@ -221,7 +221,7 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
     files: dict[Path, bytes] = {old: outcomes_text(read_outcomes(old, outcomes.blind) + moved, outcomes.blind).encode()}
     originals, private = [], set()
     for code in codes:
-        for source, base in ((folder.run_log(code), target / RUNS), (folder.run_figure(code), target / RUNS),
+        for source, base in ((folder.run_log(code), target / RUNS), *((figure, target / RUNS) for figure in folder.run_figures(code)),
                              (folder.sealed_run(code), secret / RUNS), (folder.older_sealed_run(code), secret / RUNS)):
             if source.exists():
                 files[base / source.name] = source.read_bytes()
