@@ -34,7 +34,7 @@ def quiet_glyphs() -> Iterator[None]:
 
 
 def figure_bytes(figure: Figure, suffix: str, dpi: int = DEFAULT_DPI) -> bytes:
-    """`figure` as PNG (at `dpi`) or SVG bytes, cropped to what is drawn (a legend outside the axes included),
+    """`figure` as PNG or SVG bytes at `dpi`, cropped to what is drawn (a legend outside the axes included),
     with no date in the file, so the same figure gives the same bytes."""
     from matplotlib import rc_context
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -51,9 +51,20 @@ def figure_bytes(figure: Figure, suffix: str, dpi: int = DEFAULT_DPI) -> bytes:
 
 @dataclass(frozen=True)
 class Rendered:
-    """One drawn figure, saved on demand in every format."""
+    """One drawn figure, saved on demand in every format.
+
+    Its layout is settled once, when it is made, at the default resolution; so every format and every
+    --dpi show the same picture, and saving in one never moves what another shows."""
 
     figure: Figure
+
+    def __post_init__(self) -> None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        with quiet_glyphs():
+            FigureCanvasAgg(self.figure)
+            self.figure.draw_without_rendering()
+        self.figure.set_layout_engine("none")
 
     def png(self, dpi: int = DEFAULT_DPI) -> bytes:
         return figure_bytes(self.figure, ".png", dpi)
@@ -62,5 +73,5 @@ class Rendered:
         return figure_bytes(self.figure, ".svg")
 
     def files(self, stem: Path, dpi: int = DEFAULT_DPI) -> dict[Path, bytes]:
-        """`stem` with each suffix of `FORMATS` -> its bytes, to write together (`trials.atomic.write_files`)."""
-        return {stem.with_name(stem.name + suffix): figure_bytes(self.figure, suffix, dpi) for suffix in FORMATS}
+        """stem.png (at `dpi`) and stem.svg -> their bytes, to write together (`trials.atomic.write_files`)."""
+        return {stem.with_name(stem.name + ".png"): self.png(dpi), stem.with_name(stem.name + ".svg"): self.svg()}

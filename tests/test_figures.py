@@ -44,6 +44,11 @@ def test_one_saving_function_gives_png_at_the_dpi_and_a_stable_svg(tmp_path: Pat
     low, high = size(image.png(100)), size(image.png(200))
     assert high[0] == pytest.approx(2 * low[0], abs=3) and high[1] == pytest.approx(2 * low[1], abs=3)
     assert image.svg() == image.svg() and b"<dc:date>" not in image.svg()  # no date: the same bytes each time
+    panels = [(f"{i}. RUN\n4 ped", "A", np.zeros((2, 2)) + i, []) for i in range(5)]
+    laid_out = trajectories_figure(panels, {"A": "#1f77b4"}, "arm")  # constrained layout: settled once
+    before = laid_out.svg()
+    laid_out.png(300)
+    assert laid_out.svg() == before
     files = image.files(tmp_path / "scores", 150)
     assert list(files) == [tmp_path / f"scores{suffix}" for suffix in FORMATS]
     assert files[tmp_path / "scores.png"][:8] == b"\x89PNG\r\n\x1a\n" and b"<svg" in files[tmp_path / "scores.svg"]

@@ -72,6 +72,20 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("Measure,Value\nD-efficiency,55.871\n")
 
 
+def test_dpi_sets_the_png_resolution_and_the_html_keeps_its_own(ab_study: Path) -> None:
+    figures = ab_study / "report" / "figures"
+    assert main(["report", "--study", str(ab_study)]) == 0
+    default = {p.name: mpimg.imread(p).shape[:2] for p in figures.glob("*.png")}
+    page = (ab_study / "report" / "report.html").read_text(encoding="utf-8")
+    svgs = {p.name: p.read_bytes() for p in figures.glob("*.svg")}
+    assert main(["report", "--study", str(ab_study), "--dpi", "300"]) == 0
+    for name, (height, width) in default.items():
+        assert mpimg.imread(figures / name).shape[:2] == pytest.approx((3 * height, 3 * width), rel=0.01), name
+    assert {p.name: p.read_bytes() for p in figures.glob("*.svg")} == svgs  # SVG has no resolution
+    stamp = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")  # when the report was made
+    assert stamp.sub("", (ab_study / "report" / "report.html").read_text(encoding="utf-8")) == stamp.sub("", page)
+
+
 def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
     """Table II counted independently: plan, sealed key and responses.csv."""
     arms = json.loads((root / "sealed" / "allocation.json").read_text())["arms"]
