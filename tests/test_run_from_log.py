@@ -16,6 +16,7 @@ import re
 import shutil
 import subprocess
 import sys
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -143,6 +144,18 @@ def untimed(log: FoxgloveReader) -> list[tuple[str, int, dict]]:
             data = {**data, "record": {k: v for k, v in data["record"].items() if not k.endswith("_seconds")}}
         found.append((m.topic, m.stamp_ns, data))
     return found
+
+
+def test_wall_clock_stamps_a_logged_trial_when_its_log_was_recorded(template, robot_logs_dir, tmp_path):
+    study = Path(shutil.copytree(template, tmp_path / "study"))
+    first = table(study / "plan.csv")[0]["run_code"]
+    assert main(["run", "--study", str(study), "--from-log", str(robot_logs_dir / "stationary_ros1.bag"), *WINDOW,
+                 "--only", first, "--wall-clock"]) == 0
+    log = FoxgloveReader(study / "runs" / f"{first}.mcap")
+    start = int(log.metadata["clock"]["start_ns"])
+    assert start == int(Decimal(log.metadata["run"]["log_start_stamp"]) * 10**9)
+    state = next(log.messages(["/robot/state"]))
+    assert state.data["t"] == 0.0 and state.stamp_ns == start
 
 
 def test_plans_are_recorded_at_2_5_hz_next_to_the_recorded_robot(played):

@@ -386,7 +386,7 @@ class TrialWorker:
         else:
             perception = "log"
             metadata = self._metadata(task, level, {"perception": perception, **self._factors(task), **task.scene.metadata()})
-            with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind, start_ns=self._start_ns()) as log:
+            with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind, start_ns=self._start_ns(task.scene)) as log:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
             status, metrics = played.status, played.outcome
@@ -397,11 +397,14 @@ class TrialWorker:
                           controller=None if self.blind else level, finished_utc=utc_stamp(self.blind))
         return RunDone(task.code, outcome, task.scene is not None, replay)
 
-    def _start_ns(self) -> int:
-        """The log time of a run's start: 0, or with --wall-clock now (to the minute when blind, as every
-        time a blinded study records, so run times cannot tell the arms apart)."""
+    def _start_ns(self, scene: LoggedScene | None = None) -> int:
+        """The log time of a run's start: 0, or with --wall-clock the played log's own header stamp there (when
+        it was recorded), else now (to the minute when blind, as every time a blinded study records, so run
+        times cannot tell the arms apart)."""
         if not self.options.wall_clock:
             return 0
+        if scene is not None:
+            return int(scene.scan_ns[0])
         now = time.time_ns()
         return now - now % 60_000_000_000 if self.blind else now
 
