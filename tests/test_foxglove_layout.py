@@ -5,13 +5,11 @@ from __future__ import annotations
 
 import json
 import re
-import sys
-from pathlib import Path
 
 from robot_logs import run_log as fmt
+from tests.support.scripts import load_script
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from foxglove_layout import layout_text  # noqa: E402
+foxglove_layout = load_script("foxglove_layout")
 
 
 def panels(content: dict) -> list[dict]:
@@ -21,7 +19,7 @@ def panels(content: dict) -> list[dict]:
 
 
 def test_the_shipped_layout_is_what_the_sdk_builds():
-    assert fmt.LAYOUT.read_text(encoding="utf-8") == layout_text()
+    assert fmt.LAYOUT.read_text(encoding="utf-8") == foxglove_layout.layout_text()
 
 
 def test_the_layout_shows_the_scene_the_robots_fields_and_the_events():
