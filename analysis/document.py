@@ -13,7 +13,7 @@ import io
 import re
 from dataclasses import dataclass, field
 
-from analysis.figures import Rendered
+from analysis.figure_files import Rendered
 
 
 @dataclass(frozen=True)
@@ -126,7 +126,7 @@ def to_html(title: str, blocks: list[Block]) -> str:
             caption = f"<caption>{_inline_html(block.caption)}</caption>" if block.caption else ""
             parts.append(f"<table>{caption}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
         else:
-            data = base64.b64encode(block.image.png).decode("ascii")
+            data = base64.b64encode(block.image.png()).decode("ascii")
             parts.append(
                 f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block.caption)}">'
                 f"<figcaption>{_inline_html(block.caption)}</figcaption></figure>"

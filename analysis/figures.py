@@ -1,19 +1,17 @@
-"""Figures shared by `trials design` and `trials report`, rendered off-screen to PNG (for the page) and
-SVG (for print and editing) bytes."""
+"""Figures shared by `trials design` and `trials report`, drawn off-screen with matplotlib's object API and
+saved through `analysis.figure_files`."""
 
 from __future__ import annotations
 
-import io
-import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
-
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.backends.backend_svg import FigureCanvasSVG
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+
+from analysis.figure_files import Rendered, quiet_glyphs
+from analysis.intervals import wilson
+
+#: Panels a row in the report's trajectory figure.
+TRAJECTORY_COLUMNS = 4
 
 
 def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: str) -> Rendered:
@@ -29,33 +27,13 @@ def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: 
             axes.text(j, i, f"{abs(value):.2f}", ha="center", va="center", fontsize=6, color="white" if abs(value) > 0.6 else "black")
     figure.colorbar(image, ax=axes, label="|correlation|")
     axes.set_title(title)
-    with _quiet_glyphs():
+    with quiet_glyphs():
         figure.tight_layout()
     return _rendered(figure)
 
 
-@contextmanager
-def _quiet_glyphs() -> Iterator[None]:
-    """A name in a script the font lacks draws as boxes, without matplotlib's warning per missing glyph."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from")
-        yield
-
-
-@dataclass(frozen=True)
-class Rendered:
-    """One figure as PNG and as SVG bytes."""
-
-    png: bytes
-    svg: bytes
-
-
 def _rendered(figure: Figure) -> Rendered:
-    png, svg = io.BytesIO(), io.BytesIO()
-    with _quiet_glyphs():
-        FigureCanvasAgg(figure).print_png(png)
-        FigureCanvasSVG(figure).print_svg(svg, metadata={"Date": None})  # no date: the same figure gives the same bytes
-    return Rendered(png.getvalue(), svg.getvalue())
+    return Rendered(figure)
 
 
 def arm_colours(arms: list[str]) -> dict[str, str]:
@@ -65,57 +43,68 @@ def arm_colours(arms: list[str]) -> dict[str, str]:
 
 
 def score_distribution_figure(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> Rendered:
-    """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]), with the paper's shares as markers."""
+    """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]) with Wilson 95 % intervals, and the
+    paper's shares as markers."""
     figure = Figure(figsize=(6.5, 3.6))
     axes = figure.add_subplot()
     width = 0.8 / max(len(groups), 1)
     colours = arm_colours(list(groups))
     for i, (group, counts) in enumerate(groups.items()):
-        total = max(sum(counts), 1)
+        total = sum(counts)
         x = np.arange(3) + (i - (len(groups) - 1) / 2) * width
-        shares = [100.0 * c / total for c in counts]
-        bars = axes.bar(x, shares, width, color=colours[group], label=f"{group} (n = {sum(counts)})")
-        axes.bar_label(bars, [str(c) for c in counts], fontsize=8)
+        shares = [wilson(c, total) if total else None for c in counts]
+        heights = [100.0 * s.share if s else 0.0 for s in shares]
+        # an interval always holds its share; clip rounding so matplotlib never sees a negative bar
+        errors = np.clip([[100.0 * (s.share - s.low) if s else 0.0 for s in shares],
+                          [100.0 * (s.high - s.share) if s else 0.0 for s in shares]], 0.0, None)
+        axes.bar(x, heights, width, color=colours[group], yerr=errors, capsize=3, ecolor="0.25", label=f"{group} (n = {total})")
+        for where, count in zip(x, counts):  # counts under the bars, clear of the intervals
+            axes.text(where, -1.5, str(count), ha="center", va="top", fontsize=8, color=colours[group])
     if paper is not None:
         axes.scatter(range(3), [paper[s] for s in (1, 2, 3)], marker="D", color="black", zorder=3, label="paper")
     axes.set_xticks(range(3), ["1: collision", "2: unnatural", "3: natural"])
-    axes.set_ylabel("% of runs")
-    axes.set_ylim(0, 110)
-    axes.legend(fontsize=8, loc="upper left")
+    axes.tick_params(axis="x", pad=14)
+    axes.set_ylabel("% of runs (Wilson 95 % interval)")
+    axes.set_ylim(0, 105)
+    axes.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     axes.set_title(title)
     figure.tight_layout()
     return _rendered(figure)
 
 
 def trajectories_figure(panels: list[tuple[str, str, np.ndarray, list[np.ndarray]]], colours: dict[str, str], arm_word: str) -> Rendered:
-    """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm."""
-    columns = min(6, max(len(panels), 1))
+    """Small multiples, one panel per run: (title, arm, robot path (n, 2), pedestrian paths [(m, 2)]); robots coloured by arm.
+
+    Four panels a row at a size where tick labels and titles read at 8 pt; the panels share their axes, so
+    only the outer ones carry tick labels."""
+    columns = min(TRAJECTORY_COLUMNS, max(len(panels), 1))
     rows = max(1, -(-len(panels) // columns))
     every = [p for _, _, robot, peds in panels for p in [robot, *peds] if len(p)]
     points = np.vstack(every) if every else np.zeros((1, 2))
     low, high = points.min(axis=0) - 0.5, points.max(axis=0) + 0.5
     aspect = float(np.clip((high[1] - low[1]) / (high[0] - low[0]), 0.3, 1.5))
-    width, left, right, wspace, gap, top, bottom = 2.2 * columns, 0.03, 0.99, 0.3, 0.5, 0.6, 0.25
-    panel = width * (right - left) / (columns + (columns - 1) * wspace)
-    height = rows * panel * aspect + (rows - 1) * gap + top + bottom
-    figure = Figure(figsize=(width, height))
-    for index, (title, arm, robot, pedestrians) in enumerate(panels):
-        axes = figure.add_subplot(rows, columns, index + 1)
+    panel = 2.6
+    figure = Figure(figsize=(panel * columns + 0.6, rows * (panel * aspect + 0.45) + 0.9), layout="constrained")
+    grid = figure.subplots(rows, columns, sharex=True, sharey=True, squeeze=False)
+    for index, axes in enumerate(grid.flat):
+        if index >= len(panels):
+            axes.set_visible(False)
+            continue
+        title, arm, robot, pedestrians = panels[index]
         for path in pedestrians:
             axes.plot(path[:, 0], path[:, 1], color="0.6", linewidth=0.8)
-            axes.plot(path[-1:, 0], path[-1:, 1], "o", color="0.45", markersize=2)
+            axes.plot(path[-1:, 0], path[-1:, 1], "o", color="0.45", markersize=2.5)
         axes.plot(robot[:, 0], robot[:, 1], color=colours.get(arm, "black"), linewidth=1.6)
-        axes.plot(robot[-1:, 0], robot[-1:, 1], "s", color=colours.get(arm, "black"), markersize=3)
+        axes.plot(robot[-1:, 0], robot[-1:, 1], "s", color=colours.get(arm, "black"), markersize=3.5)
         axes.set_xlim(low[0], high[0])
         axes.set_ylim(low[1], high[1])
         axes.set_aspect("equal")
-        axes.set_title(title, fontsize=7)
-        axes.tick_params(labelsize=5)
-    figure.suptitle(f"Robot (colour: {arm_word}) and pedestrian (grey) paths, m; markers at the end", fontsize=9)
+        axes.set_title(title, fontsize=8, wrap=True)
+        axes.tick_params(labelsize=8)
+    figure.suptitle(f"Robot (colour: {arm_word}) and pedestrian (grey) paths, m; markers at the end", fontsize=10)
     handles = [Line2D([], [], color=colour, linewidth=1.6, label=arm) for arm, colour in colours.items()]
     handles.append(Line2D([], [], color="0.6", linewidth=0.8, label="pedestrian"))
-    figure.subplots_adjust(left=left, right=right, bottom=bottom / height, top=1 - top / height, wspace=wspace, hspace=gap / (panel * aspect))
-    figure.legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles), frameon=False)
+    figure.legend(handles=handles, loc="outside lower center", fontsize=8, ncol=len(handles), frameon=False)
     return _rendered(figure)
 
 
@@ -146,25 +135,32 @@ def shares_figure(rows: list[tuple[int, dict[str, tuple[float, float, float]]]],
 
 
 def min_distance_figure(points: list[tuple[str, float, float]], arms: list[str], title: str, intimate_m: float) -> Rendered:
-    """Minimum gap of each run against its pedestrian count, one colour per arm: points (arm, pedestrians, gap)."""
+    """Minimum gap of each run against its pedestrian count, one colour per arm: points (arm, pedestrians, gap).
+
+    The counts are categories (the design's levels), evenly spaced whatever their values, each arm's runs
+    side by side within a category."""
     colours = arm_colours(arms)
     figure = Figure(figsize=(6.5, 3.6))
     axes = figure.add_subplot()
-    offsets = np.linspace(-0.15, 0.15, len(arms)) if len(arms) > 1 else [0.0]
+    levels = sorted({int(p) for _, p, _ in points})
+    where = {level: i for i, level in enumerate(levels)}
+    offsets = np.linspace(-0.2, 0.2, len(arms)) if len(arms) > 1 else [0.0]
     for offset, arm in zip(offsets, arms):
-        mine = [(p, d) for a, p, d in points if a == arm]
+        mine = [(where[int(p)], d) for a, p, d in points if a == arm]
         if not mine:
             continue
-        peds, gaps = np.array(mine).T
-        axes.plot(peds + offset, gaps, "o", color=colours[arm], alpha=0.8, label=arm)
-        levels = sorted(set(peds))
-        axes.plot(np.array(levels) + offset, [gaps[peds == level].mean() for level in levels], "-", color=colours[arm], linewidth=1)
+        slots, gaps = np.array(mine).T
+        axes.plot(slots + offset, gaps, "o", color=colours[arm], alpha=0.8, label=arm)
+        present = sorted(set(slots))
+        axes.plot(np.array(present) + offset, [gaps[slots == slot].mean() for slot in present], "-", color=colours[arm], linewidth=1)
     axes.axhline(intimate_m, color="0.5", linestyle=":", linewidth=1)
-    axes.text(axes.get_xlim()[0], intimate_m, f" intimate distance {intimate_m:g} m", fontsize=7, va="bottom", color="0.4")
+    axes.text(-0.45, intimate_m, f" intimate distance {intimate_m:g} m", fontsize=7, va="bottom", color="0.4")
+    axes.set_xticks(range(len(levels)), [str(level) for level in levels])
+    axes.set_xlim(-0.5, len(levels) - 0.5)
     axes.set_xlabel("pedestrians")
     axes.set_ylabel("minimum gap to a pedestrian (m)")
     axes.set_ylim(bottom=0)
-    axes.legend(fontsize=8)
+    axes.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     axes.set_title(title)
     figure.tight_layout()
     return _rendered(figure)

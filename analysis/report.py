@@ -468,14 +468,14 @@ def _figures_section(a: _Analysis) -> list[Block]:
         groups = {arm: counts(a.scores[r.code].final for r in data.finished if r.arm == arm) for arm in a.arms}
         groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(s.final for s in a.scores.values())}
         paper_shares = paper_score_shares(data.spec)
-        caption = f"Share of runs scored 1, 2 and 3 by {word} (bars, counts on top)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
+        caption = f"Share of runs scored 1, 2 and 3 by {word} (bars with Wilson 95 % intervals, counts under them)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
         blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption))
     panels = []
     for run in data.finished:
         log = a.logs.get(run.code)
         if log is None:
             continue
-        title = f"{run.order}. {run.code} | {run.arm} | {a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
+        title = f"{run.order}. {run.code} | {run.arm}\n{a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
         panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
     if panels:
         blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))

@@ -1,8 +1,9 @@
 """MCAP run logs that open in Foxglove with no plugin: JSON messages with Foxglove's schemas.
 
 `FoxgloveWriter` writes messages on named topics, each with a schema name: a well-known
-Foxglove type from `FOXGLOVE_SCHEMAS` (scene updates, poses, transforms, scans, log lines)
-or any other name for a plain JSON record (settings, events, metrics). The file is written
+Foxglove type (scene updates, poses, transforms, scans, log lines; its JSON schema from
+`foxglove_schema`), a type whose JSON schema the writer is given (a run log's own records), or
+any other name for a plain JSON record. The file is written
 under a hidden temporary name and renamed on `close()`, so a file under its real name is
 always complete. `FoxgloveReader` reads such a file back. The builder functions below make
 the message dictionaries from planar poses and positions.
@@ -24,7 +25,7 @@ from mcap.reader import make_reader
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from robot_logs.errors import LogError
-from robot_logs.foxglove_schemas import FOXGLOVE_SCHEMAS, open_schema
+from robot_logs.foxglove_schemas import Schema, foxglove_schema, open_schema
 from robot_logs.frames import Pose2D
 from robot_logs.records import Scan
 
@@ -132,13 +133,13 @@ def line_strip(points: np.ndarray, rgba: Color, thickness: float = 0.05) -> Mess
 
 
 def entity(stamp_ns: int, frame: str, entity_id: str, lifetime_s: float = 0.0, **primitives: list[Message]) -> Message:
-    """A SceneEntity with primitive lists (spheres=, cylinders=, lines=, texts=, arrows=, cubes=).
+    """A SceneEntity with primitive lists (spheres=, cylinders=, lines=, texts=, arrows=, cubes=, triangles=, models=).
 
     lifetime_s: seconds until Foxglove removes it (0: until replaced or deleted).
     """
     lifetime = timestamp(int(lifetime_s * 1e9))
     entry: Message = {"timestamp": timestamp(stamp_ns), "frame_id": frame, "id": entity_id, "lifetime": lifetime, "frame_locked": False, "metadata": []}
-    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "texts"):
+    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
         entry[kind] = primitives.pop(kind, [])
     if primitives:
         raise TypeError(f"unknown primitive kinds: {', '.join(primitives)}")
@@ -160,10 +161,13 @@ class FoxgloveWriter:
     Args:
         path: where the finished log goes (an existing file there is replaced on close).
         metadata: named string maps stored as MCAP metadata (seed, factor settings...).
+        schemas: JSON schemas of the writer's own (non-Foxglove) types, by schema name.
     """
 
-    def __init__(self, path: str | Path, metadata: Mapping[str, Mapping[str, str]] | None = None) -> None:
+    def __init__(self, path: str | Path, metadata: Mapping[str, Mapping[str, str]] | None = None,
+                 schemas: Mapping[str, Schema] | None = None) -> None:
         self.path = Path(path)
+        self._definitions = dict(schemas or {})
         self.partial = self.path.with_name(f".{self.path.name}.partial")
         self._stream: BinaryIO = self.partial.open("wb")
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
@@ -184,18 +188,26 @@ class FoxgloveWriter:
                 raise ValueError(f"topic {topic} already carries {known[1]}, not {schema}")
             return known[0]
         if schema not in self._schemas:
-            definition = FOXGLOVE_SCHEMAS.get(schema) or open_schema(schema)
+            definition = self._schema(schema)
             self._schemas[schema] = self._writer.register_schema(schema, "jsonschema", json.dumps(definition).encode())
         channel = self._writer.register_channel(topic, "json", self._schemas[schema])
         self._channels[topic] = (channel, schema)
         return channel
+
+    def _schema(self, name: str) -> Schema:
+        if name in self._definitions:
+            return self._definitions[name]
+        try:
+            return foxglove_schema(name)
+        except KeyError:
+            return open_schema(name)
 
     def write(self, topic: str, schema: str, message: Mapping[str, Any], stamp_ns: int) -> None:
         """Log one message on `topic` at `stamp_ns`.
 
         Args:
             topic: channel name, e.g. "/robot/pose"; one schema per topic.
-            schema: a name from `FOXGLOVE_SCHEMAS`, or any other name for a plain JSON record.
+            schema: a Foxglove type, one of the writer's `schemas`, or any other name for a plain JSON record.
             message: the JSON-able message; NaN and infinities are not allowed (JSON has none).
             stamp_ns: log and publish time in nanoseconds.
         """
@@ -266,6 +278,21 @@ class FoxgloveReader:
         """Topic -> schema name."""
         schemas = self._summary.schemas
         return {c.topic: schemas[c.schema_id].name if c.schema_id else "" for c in self._summary.channels.values()}
+
+    @property
+    def schemas(self) -> dict[str, tuple[str, tuple[str, ...]]]:
+        """Schema name -> its encoding and, for a JSON schema, the top-level fields it declares (what
+        Foxglove's panels offer); a schema in another encoding, or one that is not valid JSON, lists none."""
+        found: dict[str, tuple[str, tuple[str, ...]]] = {}
+        for schema in self._summary.schemas.values():
+            fields: tuple[str, ...] = ()
+            if schema.encoding == "jsonschema":
+                try:
+                    fields = tuple(json.loads(schema.data).get("properties", {}))
+                except (ValueError, AttributeError):
+                    fields = ()
+            found[schema.name] = (schema.encoding, fields)
+        return found
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
         """Messages in time order, all or those of the given topics."""

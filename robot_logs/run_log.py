@@ -3,7 +3,8 @@ layout of its own messages, and the one reader of it (`read_run`).
 
 `trials` writes these logs (simulated and logged trials) and `analysis` reads them back for the
 report; both take the format from here, so it has one owner. docs/study_folder.md describes it.
-Times are the run's own seconds (log times count from 0); values are rounded to 0.1 mm.
+Times are the run's own seconds (each message's `t`); log times count from 0, or from the wall-clock
+start the `clock` metadata records; values are rounded to 0.1 mm.
 """
 
 from __future__ import annotations
@@ -17,12 +18,16 @@ import numpy as np
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_log import FoxgloveReader
+from robot_logs.foxglove_schemas import Schema
 
+#: A Foxglove layout for run logs (scene, robot velocity plot, events), built by scripts/foxglove_layout.py.
+LAYOUT = Path(__file__).with_name("run_log_layout.json")
 #: The fixed frame of every run log's 3-D scene.
 FRAME = "map"
-#: Metadata records: the run's settings, and a logged trial's plans against the log.
+#: Metadata records: the run's settings, a logged trial's plans against the log, and the log times' origin.
 RUN_METADATA = "run"
 REPLAY_METADATA = "replay"
+CLOCK_METADATA = "clock"
 
 
 class Topic(NamedTuple):
@@ -47,6 +52,62 @@ EVENTS = Topic("/events", "navtrials.Event")
 #: a blinded run keeps these out of its public log, in its sealed record, with the `replay` metadata.
 CONTROLLER_TOPICS = (PLAN, PLAN_POSES, CONTROLLER_RECORD, COMPARISON, RECORDED_POSES)
 
+
+
+def _number(description: str) -> Schema:
+    return {"type": "number", "description": description}
+
+
+def _numbers(description: str) -> Schema:
+    return {"type": "array", "items": {"type": "number"}, "description": description}
+
+
+def _points(description: str) -> Schema:
+    return {"type": "array", "items": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}, "description": description}
+
+
+def _optional(description: str) -> Schema:
+    return {"type": ["number", "null"], "description": description}
+
+
+def _record(name: str, description: str, required: tuple[str, ...], properties: Schema, closed: bool = True) -> Schema:
+    """A message type's JSON schema; `closed`: no fields beyond `properties`."""
+    return {"title": name, "description": description, "type": "object", "properties": properties,
+            "required": list(required), "additionalProperties": not closed}
+
+
+TIME_S = _number("run time, s since the start")
+#: The JSON schema of each of the run log's own message types, so Foxglove's panels know their fields.
+SCHEMAS: dict[str, Schema] = {
+    ROBOT_STATE.schema: _record(ROBOT_STATE.schema, "the robot's pose and velocity at each physics step", ("t", "x", "y", "theta", "v", "w"), {
+        "t": TIME_S, "x": _number("m, map frame"), "y": _number("m, map frame"), "theta": _number("heading, rad"),
+        "v": _number("linear velocity, m/s"), "w": _number("angular velocity, rad/s"),
+        "v_cmd": _number("commanded linear velocity, m/s (absent from a blinded run's log)"),
+        "w_cmd": _number("commanded angular velocity, rad/s (absent from a blinded run's log)")}),
+    PEDESTRIANS.schema: _record(PEDESTRIANS.schema, "pedestrians' positions and velocities; index i of each array is person ids[i]",
+                                ("t", "ids", "x", "y", "vx", "vy"), {
+        "t": TIME_S, "ids": {"type": "array", "items": {"type": "integer"}, "description": "pedestrian ids"},
+        "x": _numbers("m, map frame"), "y": _numbers("m, map frame"), "vx": _numbers("m/s"), "vy": _numbers("m/s")}),
+    PLAN.schema: _record(PLAN.schema, "the way-points a controller planned, one every 0.4 s", ("t", "waypoints"), {
+        "t": TIME_S, "waypoints": _points("[x, y] in m, map frame")}),
+    CONTROLLER_RECORD.schema: _record(CONTROLLER_RECORD.schema, "what a controller logged with a plan; fields depend on the controller",
+                                      ("t", "record"), {
+        "t": TIME_S,
+        "record": {"type": "object", "additionalProperties": True, "properties": {
+            "controller": {"type": "string"}, "plan_seconds": _number("time the controller took to plan, s"),
+            "subgoal": _numbers("NaviGAN-R: [x, y] it steered to, m"), "intention": _points("NaviGAN-R: intended way-points, m"),
+            "forces": _points("NaviGAN-R: social-force corrections, m"), "status": {"type": "string", "description": "lattice: search result"},
+            "holding": {"type": "boolean", "description": "lattice: standing still"}, "pedestrians": {"type": "integer"},
+            "margin": _number("lattice: comfort margin, m"), "rung": {"type": "string", "description": "lattice: recovery rung"}}}}),
+    COMPARISON.schema: _record(COMPARISON.schema, "a logged trial's plan against the robot's recorded positions", ("t", "recorded"), {
+        "t": TIME_S, "recorded": _points("[x, y] recorded at the way-points' times, m"),
+        "deviation_m": _optional("mean distance from the plan, m"), "final_deviation_m": _optional("last way-point's distance, m"),
+        "min_clearance_m": _optional("smallest predicted gap to a person, m (null: nobody there)")}),
+    EVENTS.schema: _record(EVENTS.schema, "the run's start and how it ended", ("t", "event", "detail"), {
+        "t": TIME_S, "event": {"type": "string", "enum": ["start", "goal", "collision", "timeout"]},
+        "detail": {"type": "string"}}),
+}
+
 #: The fields of a /robot/state message the reader uses, in the order of `LoggedRun`'s arrays.
 ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
 
@@ -54,6 +115,15 @@ ROBOT_FIELDS = ("t", "x", "y", "theta", "v", "w")
 def stamp_ns(time: float) -> int:
     """A run time (s) as a log time (ns)."""
     return round(time * 1e9)
+
+
+def clock(start_ns: int) -> dict[str, str]:
+    """The `clock` metadata: the log time (ns since 1970) of the run's start, and that instant in UTC when
+    it is a wall-clock time (empty when log times are the run's own seconds)."""
+    from datetime import UTC, datetime
+
+    utc = datetime.fromtimestamp(start_ns / 1e9, UTC).isoformat() if start_ns else ""
+    return {"start_ns": str(start_ns), "start_utc": utc}
 
 
 def rounded(values: Any) -> list[float]:

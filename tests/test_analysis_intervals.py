@@ -71,4 +71,4 @@ def test_shares_figure_draws_every_all_yes_and_all_no_arm() -> None:
         yes, no = wilson(n, n), wilson(0, n)
         rows.append((n, {"A": (yes.share, yes.low, yes.high), "B": (no.share, no.low, no.high)}))
     image = shares_figure(rows, None, "all yes against all no")
-    assert image.png.startswith(b"\x89PNG") and b"<svg" in image.svg
+    assert image.png().startswith(b"\x89PNG") and b"<svg" in image.svg()

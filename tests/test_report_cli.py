@@ -72,6 +72,20 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("Measure,Value\nD-efficiency,55.871\n")
 
 
+def test_dpi_sets_the_png_resolution_and_the_html_keeps_its_own(ab_study: Path) -> None:
+    figures = ab_study / "report" / "figures"
+    assert main(["report", "--study", str(ab_study)]) == 0
+    default = {p.name: mpimg.imread(p).shape[:2] for p in figures.glob("*.png")}
+    page = (ab_study / "report" / "report.html").read_text(encoding="utf-8")
+    svgs = {p.name: p.read_bytes() for p in figures.glob("*.svg")}
+    assert main(["report", "--study", str(ab_study), "--dpi", "300"]) == 0
+    for name, (height, width) in default.items():
+        assert mpimg.imread(figures / name).shape[:2] == pytest.approx((3 * height, 3 * width), rel=0.01), name
+    assert {p.name: p.read_bytes() for p in figures.glob("*.svg")} == svgs  # SVG has no resolution
+    stamp = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")  # when the report was made
+    assert stamp.sub("", (ab_study / "report" / "report.html").read_text(encoding="utf-8")) == stamp.sub("", page)
+
+
 def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
     """Table II counted independently: plan, sealed key and responses.csv."""
     arms = json.loads((root / "sealed" / "allocation.json").read_text())["arms"]
@@ -259,9 +273,10 @@ def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
 def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> None:
     assert main(["report", "--study", str(ab_study)]) == 0
     shot = tmp_path / "shot.png"
-    screenshot_report.screenshot(ab_study / "report" / "report.html", shot, width=1200, height=8000)
+    page = ab_study / "report" / "report.html"
+    tall = screenshot_report.screenshot(page, shot, width=1200)  # the whole page, however tall
     image = mpimg.imread(shot)
-    assert image.shape[:2] == (8000, 1200)
+    assert image.shape[:2] == (tall, 1200) and tall == screenshot_report.page_height(page, 1200, screenshot_report.find_browser())
     # The figures are drawn: plenty of saturated (coloured) pixels, which text and tables do not have.
     rgb = image[..., :3]
     saturated = (rgb.max(axis=2) - rgb.min(axis=2)) > 0.3

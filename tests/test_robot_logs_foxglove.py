@@ -23,9 +23,10 @@ from robot_logs.foxglove_log import (
     scene_update,
     sphere,
 )
-from robot_logs.foxglove_schemas import FOXGLOVE_SCHEMAS
+from robot_logs.foxglove_schemas import foxglove_schema
 from robot_logs.frames import Pose2D
 from robot_logs.records import Scan
+from tests.support.mcap_schemas import validate_channels
 
 
 def write_run(path: Path) -> None:
@@ -62,10 +63,27 @@ def test_schemas_carry_foxglove_names_and_json_schema(tmp_path: Path) -> None:
     schemas = {s.name: s for s in summary.schemas.values()}
     for name in ("foxglove.PoseInFrame", "foxglove.PosesInFrame", "foxglove.FrameTransform", "foxglove.SceneUpdate", "foxglove.Log"):
         assert schemas[name].encoding == "jsonschema"
-        assert json.loads(schemas[name].data) == FOXGLOVE_SCHEMAS[name]
+        assert json.loads(schemas[name].data) == foxglove_schema(name)
     assert {c.message_encoding for c in summary.channels.values()} == {"json"}
-    scene = FOXGLOVE_SCHEMAS["foxglove.SceneUpdate"]["properties"]["entities"]["items"]["properties"]
+    assert json.loads(schemas["navtrials.Event"].data) == {"title": "navtrials.Event", "type": "object"}  # no schema given: any object
+    scene = foxglove_schema("foxglove.SceneUpdate")["properties"]["entities"]["items"]["properties"]
     assert scene["timestamp"]["title"] == "time" and "spheres" in scene and "cylinders" in scene
+
+
+def test_given_schemas_are_declared_and_foxglove_messages_fit_foxglove_schemas(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    event = {"title": "navtrials.Event", "type": "object", "properties": {"kind": {"type": "string"}}, "required": ["kind"]}
+    with FoxgloveWriter(path, schemas={"navtrials.Event": event}) as log:
+        log.write("/events", "navtrials.Event", {"kind": "goal"}, 0)
+        people = entity(0, "map", "people", spheres=[sphere(1.0, 2.0, 0.5, (1, 0, 0, 1))], lines=[line_strip(np.zeros((2, 2)), (0, 1, 0, 1))])
+        log.write("/scene", "foxglove.SceneUpdate", scene_update([people], delete_all_before_ns=0), 0)
+        log.write("/scan", "foxglove.LaserScan", laser_scan(Scan(0, "laser", -0.5, 0.5, 0.5, 5.0, np.array([1.0, 2.0, np.inf]))), 0)
+        log.write("/log", "foxglove.Log", log_line(0, "hello", "warning"), 0)
+    counts = validate_channels(path)
+    assert counts == {"navtrials.Event": 1, "foxglove.SceneUpdate": 1, "foxglove.LaserScan": 1, "foxglove.Log": 1}
+    with path.open("rb") as stream:
+        schemas = {s.name: json.loads(s.data) for s in make_reader(stream).get_summary().schemas.values()}
+    assert schemas["navtrials.Event"] == event
 
 
 def test_the_file_appears_only_when_finished(tmp_path: Path) -> None:

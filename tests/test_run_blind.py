@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.blinding import NAMES, mcap_text
 from tests.support.run_studies import design_small_study
@@ -30,7 +31,7 @@ def trials(*args: str) -> subprocess.CompletedProcess:
 def blind_run(tmp_path_factory):
     study = tmp_path_factory.mktemp("blind") / "study"
     design_small_study(study, blind=True)
-    run = trials("run", "--blind", "--workers", "2", "--study", str(study))
+    run = trials("run", "--blind", "--workers", "2", "--study", str(study), "--wall-clock")
     one_per_arm = {row["Controller"]: row["run_code"] for row in _plan(study)}
     shows = [trials("log", "show", code, "--study", str(study)) for code in one_per_arm.values()]
     return study, [run, *shows]
@@ -89,6 +90,16 @@ def test_a_log_of_a_blind_run_has_no_controller_output(blind_run):
         content = mcap_text(study / "runs" / f"{row['run_code']}.mcap")
         for topic in CONTROLLER_TOPICS:
             assert topic.name.encode() not in content and topic.schema.encode() not in content
+
+
+def test_wall_clock_stamps_of_a_blind_run_are_whole_minutes(blind_run):
+    study, _ = blind_run
+    for row in _plan(study):
+        log = FoxgloveReader(study / "runs" / f"{row['run_code']}.mcap")
+        start = int(log.metadata["clock"]["start_ns"])
+        assert start > 0 and start % 60_000_000_000 == 0 and log.metadata["clock"]["start_utc"].endswith(":00+00:00")
+        state = next(log.messages(["/robot/state"]))
+        assert state.stamp_ns == start and state.data["t"] == 0.0
 
 
 def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):

@@ -9,6 +9,7 @@ import shutil
 from datetime import datetime
 from pathlib import Path
 
+import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
@@ -117,17 +118,24 @@ def test_log_show_prints_the_runs_metrics_and_draws_it(finished, capsys):
     printed = {line.split()[0]: line.split()[1] for line in out.splitlines() if line.startswith("  ")}
     for column in ("path_length_m", "min_distance_m", "time_within_1_2m_s", "max_deceleration_mps2", "stopped_s"):
         assert float(printed[column]) == pytest.approx(float(row[column]), abs=0.02), column
-    assert (study / "runs" / f"{row['run_code']}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    png, svg = study / "runs" / f"{row['run_code']}.png", study / "runs" / f"{row['run_code']}.svg"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and b"<svg" in svg.read_bytes()
+    assert f"trajectories: {png}, {svg}" in out
+    width = mpimg.imread(png).shape[1]
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--dpi", "200"]) == 0
+    assert mpimg.imread(png).shape[1] == pytest.approx(2 * width, abs=4)  # the same picture at twice the resolution
 
 
 def test_rerun_moves_the_old_run_aside_and_reproduces_it(finished, tmp_path, capsys):
     study = Path(shutil.copytree(finished[0], tmp_path / "study"))
     code = next(r["run_code"] for r in rows(study) if r["controller"] == "NaviGAN-R")
     old = next(r for r in rows(study) if r["run_code"] == code)
+    assert main(["log", "show", code, "--study", str(study)]) == 0
     assert main(["run", "--rerun", code, "--study", str(study)]) == 0
     assert "moved to" in capsys.readouterr().out
     (aside,) = (study / "superseded").iterdir()
-    assert (aside / "runs" / f"{code}.mcap").exists()
+    assert all((aside / "runs" / f"{code}{suffix}").exists() for suffix in (".mcap", ".png", ".svg"))
+    assert not (study / "runs" / f"{code}.png").exists() and not (study / "runs" / f"{code}.svg").exists()
     with (aside / "outcomes.csv").open(newline="") as handle:
         assert list(csv.DictReader(handle)) == [old]
     table = rows(study)

@@ -16,6 +16,7 @@ import re
 import shutil
 import subprocess
 import sys
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from robot_logs.records import Odometry, Transform
 from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.bag_writer import BagWriter
 from tests.support.blinding import NAMES, mcap_text
+from tests.support.mcap_schemas import validate_channels
 from trials.cli import main
 
 pytestmark = pytest.mark.slow  # logged trials: bags tracked and studies run end to end
@@ -130,6 +132,7 @@ def test_the_ros1_and_ros2_bags_give_equivalent_run_logs(played):
     assert differ == {"log", "log_format"}
     assert one.metadata["replay"] == two.metadata["replay"]
     assert untimed(one) == untimed(two)
+    assert validate_channels(ros1 / "runs" / f"{first}.mcap")["navtrials.ReplayComparison"] > 5
 
 
 def untimed(log: FoxgloveReader) -> list[tuple[str, int, dict]]:
@@ -141,6 +144,18 @@ def untimed(log: FoxgloveReader) -> list[tuple[str, int, dict]]:
             data = {**data, "record": {k: v for k, v in data["record"].items() if not k.endswith("_seconds")}}
         found.append((m.topic, m.stamp_ns, data))
     return found
+
+
+def test_wall_clock_stamps_a_logged_trial_when_its_log_was_recorded(template, robot_logs_dir, tmp_path):
+    study = Path(shutil.copytree(template, tmp_path / "study"))
+    first = table(study / "plan.csv")[0]["run_code"]
+    assert main(["run", "--study", str(study), "--from-log", str(robot_logs_dir / "stationary_ros1.bag"), *WINDOW,
+                 "--only", first, "--wall-clock"]) == 0
+    log = FoxgloveReader(study / "runs" / f"{first}.mcap")
+    start = int(log.metadata["clock"]["start_ns"])
+    assert start == int(Decimal(log.metadata["run"]["log_start_stamp"]) * 10**9)
+    state = next(log.messages(["/robot/state"]))
+    assert state.data["t"] == 0.0 and state.stamp_ns == start
 
 
 def test_plans_are_recorded_at_2_5_hz_next_to_the_recorded_robot(played):

@@ -37,7 +37,7 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     created = utc_now()
     d = plan.diagnostics
     # The figure first: it does not need the cvxpy bound, which may still be solving.
-    figure = correlation_map_figure(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns").png
+    figure = correlation_map_figure(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns").png()
     table = plan_table(plan)
     record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
     public = {

@@ -37,6 +37,14 @@ def whole(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
 seed = whole(0, SEED_MAX)
 
 
+def add_dpi(parser: argparse.ArgumentParser) -> None:
+    """The --dpi option of a command that saves figures (PNG resolution; the SVG beside each has none)."""
+    from analysis.figure_files import DEFAULT_DPI, MAX_DPI, MIN_DPI
+
+    parser.add_argument("--dpi", type=whole(MIN_DPI, MAX_DPI), default=DEFAULT_DPI, metavar="N",
+                        help=f"resolution of the PNG figures, dots per inch (default {DEFAULT_DPI}); each is also written as SVG")
+
+
 def number(minimum: float, maximum: float, *, above: bool = False, below: bool = False) -> Callable[[str], float]:
     """A finite number in the range, its ends open where `above` / `below` say."""
     expected = f"a finite number in {'(' if above else '['}{minimum:g}, {maximum:g}{')' if below else ']'}"

@@ -1,17 +1,21 @@
-"""A picture of one run from above: the robot's path and footprint, the pedestrians' paths, goal and cone."""
+"""A picture of one run from above: the robot's path and footprint with time marks, the pedestrians' paths, goal and cone."""
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 
+from analysis.figure_files import Rendered
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
 from robot_logs.run_log import LoggedRun
 from trials.sim.robot import RobotLimits
 
 #: Seconds between the robot outlines drawn along its path.
 OUTLINE_EVERY_S = 1.0
+#: Seconds between the time marks on every path (the same instants on the robot's and the pedestrians').
+MARK_EVERY_S = 2.0
+#: The robot is black; the pedestrians take tab10's colours, none of which is black or grey-black.
+ROBOT_COLOUR = "black"
+PEDESTRIAN_COLOURS = "tab10"
 
 
 def _outline(pose: np.ndarray, limits: RobotLimits) -> np.ndarray:
@@ -20,42 +24,59 @@ def _outline(pose: np.ndarray, limits: RobotLimits) -> np.ndarray:
     return corners @ np.array([[c, s], [-s, c]]) + pose[:2]
 
 
-def run_png(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[float, float] | None,
-            limits: RobotLimits = RobotLimits()) -> bytes:
-    """The run's trajectories as PNG bytes (a logged trial has no cone, and its people come and go)."""
-    import matplotlib
+def mark_indices(time: np.ndarray, every_s: float = MARK_EVERY_S) -> np.ndarray:
+    """The samples nearest 0, every_s, 2 every_s, ... seconds of the run's clock (`time` sorted)."""
+    if not len(time):
+        return np.zeros(0, dtype=int)
+    marks = np.arange(time[0], time[-1] + 1e-9, every_s)
+    return np.unique(np.abs(time[None, :] - marks[:, None]).argmin(axis=1))
 
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
 
-    figure, axes = plt.subplots(figsize=(8, 6), dpi=110)
+def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[float, float] | None,
+               limits: RobotLimits = RobotLimits()) -> Rendered:
+    """The run's trajectories (a logged trial has no cone, and its people come and go), with the legend
+    beside the axes so it never hides a path."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    figure = Figure(figsize=(9, 6), layout="constrained")
+    axes = figure.add_subplot()
     step = max(int(round(OUTLINE_EVERY_S / max(np.median(np.diff(run.time)), 1e-3))), 1) if len(run.time) > 1 else 1
     for k in range(0, len(run.time), step):
         outline = _outline(run.pose[k], limits)
-        axes.plot(outline[:, 0], outline[:, 1], color="goldenrod", linewidth=0.6, alpha=0.6)
-    axes.plot(run.pose[:, 0], run.pose[:, 1], color="darkorange", linewidth=2.0, label="robot")
-    colours = plt.get_cmap("tab10")
+        axes.plot(outline[:, 0], outline[:, 1], color=ROBOT_COLOUR, linewidth=0.5, alpha=0.35)
+    axes.plot(run.pose[:, 0], run.pose[:, 1], color=ROBOT_COLOUR, linewidth=2.0, label="robot", zorder=3)
+    marks = mark_indices(run.time)
+    axes.plot(run.pose[marks, 0], run.pose[marks, 1], "o", color=ROBOT_COLOUR, markersize=4, zorder=4)
+    for k in marks[1:]:
+        axes.annotate(f"{run.time[k] - run.time[0]:.0f}", tuple(run.pose[k, :2]), textcoords="offset points", xytext=(3, -9),
+                      fontsize=7, color=ROBOT_COLOUR)
+    colours = colormaps[PEDESTRIAN_COLOURS]
     for j, pid in enumerate(run.ids):
+        colour = colours(j % colours.N)
         path = run.pedestrians[:, j, :]
-        axes.plot(path[:, 0], path[:, 1], color=colours(j % 10), linewidth=1.2)
-        path = path[np.isfinite(path).all(axis=1)]
-        axes.plot(*path[0], marker="o", color=colours(j % 10), markersize=4)
-        axes.add_patch(plt.Circle(tuple(path[-1]), PEDESTRIAN_RADIUS_M, color=colours(j % 10), alpha=0.5))
+        axes.plot(path[:, 0], path[:, 1], color=colour, linewidth=1.2, label=f"pedestrian {pid}")
+        seen = np.isfinite(path).all(axis=1)
+        marked = marks[seen[marks]]
+        axes.plot(path[marked, 0], path[marked, 1], "o", color=colour, markersize=3)
+        path = path[seen]
+        axes.plot(*path[0], marker="^", color=colour, markersize=5)
+        axes.add_patch(Circle(tuple(path[-1]), PEDESTRIAN_RADIUS_M, color=colour, alpha=0.5))
         axes.annotate(str(pid), tuple(path[0]), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    axes.add_patch(plt.Circle(goal, GOAL_TOLERANCE_M, color="green", alpha=0.25, label=f"goal ({GOAL_TOLERANCE_M:g} m)"))
+    axes.add_patch(Circle(goal, GOAL_TOLERANCE_M, color="green", alpha=0.25, label=f"goal ({GOAL_TOLERANCE_M:g} m)"))
     if cone is not None:
         axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
     for t, name, _detail in run.events:
         if name == "collision":
             k = int(np.searchsorted(run.time, t))
             axes.plot(*run.pose[min(k, len(run.pose) - 1), :2], marker="x", color="red", markersize=12, mew=3, label="collision")
+    axes.plot([], [], "o", color="0.3", markersize=4, label=f"every {MARK_EVERY_S:g} s (robot: s)")
+    axes.plot([], [], "^", color="0.3", markersize=5, linestyle="none", label="pedestrian's start")
     axes.set_aspect("equal")
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
-    axes.set_title(title, fontsize=10)
+    axes.set_title(title, fontsize=10, wrap=True)
     axes.grid(alpha=0.3)
-    axes.legend(loc="lower left", fontsize=8)
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", bbox_inches="tight")
-    plt.close(figure)
-    return buffer.getvalue()
+    figure.legend(loc="outside right upper", fontsize=8)
+    return Rendered(figure)

@@ -1,8 +1,9 @@
 """Writing the MCAP log of one run (`runs/<code>.mcap`) in the format `robot_logs.run_log` owns
 (topics, schemas, message layout; it also reads the log back).
 
-The log opens in Foxglove as a 3-D scene in its frame. Times are simulated seconds since the
-start (log times count from 0), never wall-clock time. A blinded run's log holds only what an
+The log opens in Foxglove as a 3-D scene in its frame. Log times are simulated seconds since the
+start, counted from 0 (1970-01-01 in Foxglove) unless the log is given a wall-clock start
+(`start_ns`, `trials run --wall-clock`); the messages' own `t` is always the run's seconds. A blinded run's log holds only what an
 observer of the trial could see (the motion, the scene, the events): what the controller computed
 (`fmt.CONTROLLER_TOPICS`, the `replay` metadata, and the commanded velocity the path follower took
 from its plan) is kept back (`withheld`, `withheld_metadata`, `withheld_commands`) for the run's
@@ -70,11 +71,14 @@ class RunLog:
         goal, cone: where they stand (m); a logged trial has no cone (None).
         blind: keep what the controller computed out of the log (it collects in `withheld`).
         limits: the robot's footprint, for the scene.
+        start_ns: the log time of the run's start, ns since 1970 (0: log times are the run's own seconds).
     """
 
     def __init__(self, path: Path, metadata: Mapping[str, str], goal: tuple[float, float], cone: tuple[float, float] | None,
-                 blind: bool, limits: RobotLimits = RobotLimits()) -> None:
-        self.writer = FoxgloveWriter(path, metadata={fmt.RUN_METADATA: metadata})
+                 blind: bool, limits: RobotLimits = RobotLimits(), start_ns: int = 0) -> None:
+        self.writer = FoxgloveWriter(path, metadata={fmt.RUN_METADATA: metadata, fmt.CLOCK_METADATA: fmt.clock(start_ns)},
+                                     schemas=fmt.SCHEMAS)
+        self._start_ns = start_ns
         self.blind = blind
         #: A blinded run's controller output: topic name -> its messages; metadata name -> record.
         self.withheld: dict[str, list[dict[str, Any]]] = {}
@@ -86,8 +90,11 @@ class RunLog:
         if cone is not None:
             self._fixed.append(entity(0, FRAME, "cone", cylinders=[{**cylinder(*cone, 0.15, 0.5, CONE_COLOUR), "top_scale": 0.0}]))
 
+    def _stamp(self, time: float) -> int:
+        return self._start_ns + fmt.stamp_ns(time)
+
     def state(self, time: float, robot: RobotState, command: tuple[float, float], crowd: Crowd) -> None:
-        stamp = fmt.stamp_ns(time)
+        stamp = self._stamp(time)
         w = self.writer
         w.write(*fmt.TRANSFORM, frame_transform(stamp, FRAME, "base_link", Pose2D(robot.x, robot.y, robot.theta)), stamp)
         w.write(*fmt.SCENE, scene_update([*self._fixed, self._robot(stamp, robot), self._people(stamp, crowd)]), stamp)
@@ -101,10 +108,10 @@ class RunLog:
         newest = history[:, -1, :] if len(ids) else np.zeros((0, 2))
         previous = history[:, -2, :] if len(ids) else np.zeros((0, 2))
         velocity = np.nan_to_num((newest - previous) / STEP_S)
-        self.writer.write(*fmt.PERCEIVED, fmt.pedestrians(time, ids, newest, velocity), fmt.stamp_ns(time))
+        self.writer.write(*fmt.PERCEIVED, fmt.pedestrians(time, ids, newest, velocity), self._stamp(time))
 
     def planned(self, time: float, plan: Plan) -> None:
-        stamp = fmt.stamp_ns(time)
+        stamp = self._stamp(time)
         points = np.asarray(plan.waypoints, dtype=float).reshape(-1, 2)
         self._controller_output(fmt.PLAN, fmt.plan(time, points), stamp)
         self._controller_output(fmt.PLAN_POSES, poses_in_frame(stamp, FRAME, points), stamp)
@@ -112,7 +119,7 @@ class RunLog:
 
     def compared(self, time: float, recorded: np.ndarray, figures: Mapping[str, float | None]) -> None:
         """A logged trial's plan against the log: the robot's recorded positions at the way-points' times."""
-        stamp = fmt.stamp_ns(time)
+        stamp = self._stamp(time)
         points = np.asarray(recorded, dtype=float).reshape(-1, 2)
         self._controller_output(fmt.COMPARISON, fmt.comparison(time, points, jsonable(figures)), stamp)
         self._controller_output(fmt.RECORDED_POSES, poses_in_frame(stamp, FRAME, points), stamp)
@@ -134,7 +141,7 @@ class RunLog:
             self.withheld.setdefault(topic.name, []).append(message)
 
     def event(self, time: float, name: str, detail: str) -> None:
-        self.writer.write(*fmt.EVENTS, fmt.event(time, name, detail), fmt.stamp_ns(time))
+        self.writer.write(*fmt.EVENTS, fmt.event(time, name, detail), self._stamp(time))
 
     def _robot(self, stamp: int, robot: RobotState) -> dict[str, Any]:
         size = {"x": 2.0 * self._limits.half_length, "y": 2.0 * self._limits.half_width, "z": 0.4}

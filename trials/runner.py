@@ -24,6 +24,7 @@ import fcntl
 import hashlib
 import json
 import os
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
@@ -74,6 +75,8 @@ class RunOptions:
     weights: str | None = None
     timeout_s: float = 60.0
     replay: ReplayOptions = ReplayOptions()
+    #: Stamp logs with the wall-clock start (blinded runs: to the minute) instead of from 1970-01-01.
+    wall_clock: bool = False
 
 
 @dataclass(frozen=True)
@@ -218,7 +221,7 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
     files: dict[Path, bytes] = {old: outcomes_text(read_outcomes(old, outcomes.blind) + moved, outcomes.blind).encode()}
     originals, private = [], set()
     for code in codes:
-        for source, base in ((folder.run_log(code), target / RUNS), (folder.run_figure(code), target / RUNS),
+        for source, base in ((folder.run_log(code), target / RUNS), *((figure, target / RUNS) for figure in folder.run_figures(code)),
                              (folder.sealed_run(code), secret / RUNS), (folder.older_sealed_run(code), secret / RUNS)):
             if source.exists():
                 files[base / source.name] = source.read_bytes()
@@ -383,7 +386,7 @@ class TrialWorker:
         else:
             perception = "log"
             metadata = self._metadata(task, level, {"perception": perception, **self._factors(task), **task.scene.metadata()})
-            with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind) as log:
+            with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind, start_ns=self._start_ns(task.scene)) as log:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
             status, metrics = played.status, played.outcome
@@ -393,6 +396,17 @@ class TrialWorker:
         outcome = Outcome(run_code=task.code, status=status, seed=task.seed, perception=perception, **asdict(metrics),
                           controller=None if self.blind else level, finished_utc=utc_stamp(self.blind))
         return RunDone(task.code, outcome, task.scene is not None, replay)
+
+    def _start_ns(self, scene: LoggedScene | None = None) -> int:
+        """The log time of a run's start: 0, or with --wall-clock the played log's own header stamp there (when
+        it was recorded), else now (to the minute when blind, as every time a blinded study records, so run
+        times cannot tell the arms apart)."""
+        if not self.options.wall_clock:
+            return 0
+        if scene is not None:
+            return int(scene.scan_ns[0])
+        now = time.time_ns()
+        return now - now % 60_000_000_000 if self.blind else now
 
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
                   path: Path) -> tuple[str, RunMetrics]:
@@ -412,7 +426,8 @@ class TrialWorker:
         if options.perception == "positions":
             noise = options.noise
             entries.update(noise_std_m=f"{noise.std_m:g}", dropout=f"{noise.dropout:g}", range_m=f"{noise.range_m:g}")
-        with RunLog(path, self._metadata(task, level, entries), scenario.goal, scenario.cone, self.blind, config.limits) as log:
+        with RunLog(path, self._metadata(task, level, entries), scenario.goal, scenario.cone, self.blind, config.limits,
+                    self._start_ns()) as log:
             result = simulate(scenario, controller, perception, log, config, crowd_seed)
             self._seal(task, level, arm, log)
         trace = result.trace

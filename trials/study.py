@@ -23,6 +23,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from analysis.figure_files import FORMATS
 from designs import export
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
@@ -46,8 +47,8 @@ RUNS = "runs"
 #: Held by the one `trials run` working on the study.
 RUN_LOCK = f"{RUNS}/.lock"
 RUN_LOG_SUFFIX = ".mcap"
-#: The picture of a run beside its log (`trials log show`).
-RUN_FIGURE_SUFFIX = ".png"
+#: The picture of a run beside its log (`trials log show`), in every format a figure is saved in.
+RUN_FIGURE_SUFFIXES = FORMATS
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
@@ -126,9 +127,9 @@ class StudyFolder:
         """runs/<code>.mcap, the log of a run."""
         return self.path(RUNS) / f"{code}{RUN_LOG_SUFFIX}"
 
-    def run_figure(self, code: str) -> Path:
-        """runs/<code>.png, the picture of a run."""
-        return self.run_log(code).with_suffix(RUN_FIGURE_SUFFIX)
+    def run_figures(self, code: str) -> tuple[Path, ...]:
+        """runs/<code>.png and .svg, the picture of a run."""
+        return tuple(self.run_log(code).with_suffix(suffix) for suffix in RUN_FIGURE_SUFFIXES)
 
     def sealed_run(self, code: str) -> Path:
         """sealed/runs/<code>.json.gz, a blinded run's controller output (`trials.sealed_runs`)."""

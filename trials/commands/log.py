@@ -45,7 +45,8 @@ def _register_inspect(group: argparse._SubParsersAction) -> None:
     parser = group.add_parser(
         "inspect",
         help="topics, types, counts, rates, duration and frames of a log",
-        description="List a log's topics with their types, message counts, rates and frames, and its duration. "
+        description="List a log's topics with their types, message counts, rates and frames, and its duration; "
+        "for an MCAP file also its schemas and the fields each JSON schema declares (what Foxglove's panels offer). "
         "Times are header stamps; record times are shown where they differ.",
     )
     _add_log_argument(parser)
@@ -84,10 +85,26 @@ def inspect(args: argparse.Namespace) -> int:
         total = sum(t.count for t in log.topics if not t.service)
         with tqdm(total=total, unit="msg", desc="reading", disable=None, leave=False) as bar:
             summary = summarise(log, bar.update)
-    for line in summary_lines(summary):
+    for line in summary_lines(summary) + schema_lines(args.file):
         print(line)
     _warn_damage(summary.damage)
     return 0
+
+
+def schema_lines(path: Path) -> list[str]:
+    """The schemas section of `trials log inspect` for an MCAP file (none for bags, or an MCAP without a summary)."""
+    from robot_logs.errors import LogError
+    from robot_logs.foxglove_log import FoxgloveReader
+
+    if not path.is_file() or path.suffix != ".mcap":
+        return []
+    try:
+        schemas = FoxgloveReader(path).schemas
+    except LogError:  # damaged: the summary above already says so
+        return []
+    lines = ["", "schemas (JSON schemas: the fields Foxglove's panels offer):"]
+    lines.extend(f"  {name:<30} {encoding:<10} {', '.join(fields) or '-'}" for name, (encoding, fields) in sorted(schemas.items()))
+    return lines
 
 
 def summary_lines(summary: LogSummary) -> list[str]:

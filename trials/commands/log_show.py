@@ -13,8 +13,9 @@ def register(group: argparse._SubParsersAction) -> None:
         "show",
         help="summarise a trial run from its MCAP log and draw its trajectories",
         description="Print a run's settings, seed, events and metrics, recomputed from runs/<code>.mcap, and "
-        "write runs/<code>.png (the robot's and the pedestrians' paths seen from above) beside it. A blinded "
-        "run's log holds no controller output; --unblind adds it from the sealed record.",
+        "write runs/<code>.png and .svg (the robot's and the pedestrians' paths seen from above, marked every 2 s) beside it. A blinded "
+        "run's log holds no controller output; --unblind adds it from the sealed record. It also names the Foxglove "
+        "layout shipped for run logs (the scene, the robot's velocity in a plot, the events).",
     )
     parser.add_argument("run", metavar="RUN", help="a run code of the study, or the path of a run's .mcap")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
@@ -22,21 +23,21 @@ def register(group: argparse._SubParsersAction) -> None:
                         help="blinded study: open the sealed key (checked against design.json's commitment) and show "
                         "the run's controller and its plans from sealed/runs/")
     parser.add_argument("--commitment", metavar="HEX", help="with --unblind: the commitment recorded when the study was designed")
+    types.add_dpi(parser)
     parser.set_defaults(handler=show)
 
 
 def show(args: argparse.Namespace) -> int:
-    from robot_logs.run_log import read_run
+    from robot_logs.run_log import LAYOUT, read_run
     from trials.atomic import write_files
     from trials.errors import StudyError
     from trials.metrics import measure
     from trials.outcomes import outcome_cells
-    from trials.run_figure import run_png
+    from trials.run_figure import run_figure
     from trials.scenario import CONE, GOAL
     from trials.sealed_runs import unsealed_lines
     from trials.study import (
         OUTCOMES,
-        RUN_FIGURE_SUFFIX,
         RUN_LOG_SUFFIX,
         RUNS,
         StudyFolder,
@@ -85,8 +86,9 @@ def show(args: argparse.Namespace) -> int:
         lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
                      f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
     lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome_cells(outcome).items() if name != "duration_s")
-    picture = path.with_suffix(RUN_FIGURE_SUFFIX)
-    write_files({picture: run_png(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE)})
-    lines.append(f"trajectories: {picture}")
+    pictures = run_figure(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE).files(path.with_suffix(""), args.dpi)
+    write_files(pictures)
+    lines.append(f"trajectories: {', '.join(str(picture) for picture in pictures)}")
+    lines.append(f"Foxglove: open {path} with the layout {LAYOUT} (scene, robot velocity, events)")
     print("\n".join(lines))
     return 0

@@ -35,6 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")
+    types.add_dpi(parser)
     parser.set_defaults(handler=run)
 
 
@@ -77,8 +78,7 @@ def run(args: argparse.Namespace) -> int:
         folder.path(REPORT_MARKDOWN): report.markdown().encode(),
         folder.path(REPORT_HTML): report.html().encode(),
         folder.path(REPORT_RECORD): (json.dumps(report.record, indent=1) + "\n").encode(),
-        **{figures / f"{figure.name}.png": figure.image.png for figure in report.figures},
-        **{figures / f"{figure.name}.svg": figure.image.svg for figure in report.figures},
+        **{path: data for figure in report.figures for path, data in figure.image.files(figures / figure.name, args.dpi).items()},
         **{tables / f"{name}.csv": text.encode() for name, text in report.tables().items()},
     }
     kept = None

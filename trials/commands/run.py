@@ -49,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="positions: position noise, standard deviation in metres (default 0.05)")
     parser.add_argument("--dropout", type=types.number(0, 1, below=True), default=0.05, metavar="P",
                         help="positions: chance a pedestrian is missed at a step (default 0.05)")
+    parser.add_argument("--wall-clock", action="store_true",
+                        help="stamp each run's MCAP log with the time it ran (blinded: to the minute; a logged trial: "
+                        "when its log was recorded) instead of from 1970-01-01")
     parser.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
     parser.add_argument("--timeout", type=types.number(STEP_S, MAX_TIMEOUT_S), default=60.0, metavar="S",
                         help=f"simulated seconds before a run times out, from one {STEP_S} s step to {MAX_TIMEOUT_S:g} (default 60)")
@@ -89,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
                            TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage)
-    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout, replay)
+    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout, replay,
+                         wall_clock=args.wall_clock)
 
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
