@@ -23,7 +23,6 @@ import numpy as np
 from scipy.special import fdtri, ncfdtr
 
 from designs.errors import DesignError
-from designs.exchange import squared_continuous
 from designs.model import Model
 
 #: How the power's anticipated coefficients are set, as design.json and the report say it.
@@ -104,7 +103,7 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
         d_efficiency=100.0 * float(np.exp(log_det / p)) / n,
         a_efficiency=100.0 * p / (n * float(np.trace(inv))),
         g_efficiency=100.0 * float(np.sqrt(p / n / max_var)),
-        average_prediction_variance=float(np.trace(inv @ moment_matrix(model))),
+        average_prediction_variance=float(np.trace(inv @ model.moment_matrix())),
         max_prediction_variance=max_var,
         standard_errors=dict(zip(columns, np.sqrt(np.diag(inv)).tolist())),
         correlation_columns=columns[1:],
@@ -118,15 +117,6 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
     )
 
 
-def moment_matrix(model: Model) -> np.ndarray:
-    """(p, p) the mean of f(x) f(x)' over the design region, exact by product quadrature."""
-    nodes, weights = zip(*(factor.quadrature for factor in model.factors))
-    points = np.array(list(itertools.product(*nodes)))
-    w = np.prod(np.array(list(itertools.product(*weights))), axis=1)
-    f = model.matrix(points)
-    return f.T @ (w[:, None] * f)
-
-
 def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     """The largest relative prediction variance x'(X'X)^-1 x over the design region.
 
@@ -134,10 +124,10 @@ def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     grid holds its maximum unless a continuous factor is squared; then a grid of 21 values per
     such factor is searched and its best points are polished with L-BFGS-B.
     """
-    squared = squared_continuous(model)
-    grids = [np.linspace(-1, 1, _REGION_GRID) if i in squared else f.candidate_settings for i, f in enumerate(model.factors)]
+    squared = model.curved_continuous
+    grids = [np.linspace(-1, 1, _REGION_GRID) if i in squared else model.grid(i) for i in range(len(model.factors))]
     if np.prod([len(g) for g in grids]) > _MAX_REGION_POINTS:
-        grids = [f.candidate_settings for f in model.factors]
+        grids = [model.grid(i) for i in range(len(model.factors))]
     points = np.array(list(itertools.product(*grids)))
     variance = _prediction_variance(model, inv, points)
     best = float(variance.max())

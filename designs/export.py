@@ -13,7 +13,7 @@ import numpy as np
 from designs.blinding import WHOLE_KEY
 from designs.diagnostics import POWER_CONVENTION
 from designs.errors import DesignError
-from designs.exchange import candidate_set
+from designs.exchange import CRITERION_NAMES, candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
 from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
@@ -67,6 +67,9 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
         "runs": plan.spec.runs,
         "seed": plan.seed,
         "factors": [_factor_record(f) for f in plan.spec.factors],
+        "criterion": plan.spec.criterion,
+        "disallowed": list(plan.spec.disallowed),
+        "constraints": list(plan.spec.constraints),
         "model": {
             "expression": plan.spec.model,
             "terms": plan.model.term_names,
@@ -96,11 +99,13 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             },
         },
         "search": {
-            "algorithm": "Fedorov exchange with replicates, then coordinate search of continuous factors",
+            "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates",
+            "criterion": plan.design.criterion,
+            "criterion_value": plan.design.value,
             "starts": plan.design.starts,
             "hits": plan.design.hits,
             "design_seed": plan.design.seed,
-            "log_det_xtx": plan.design.log_det,
+            "log_det_xtx": math.log(d.det_xtx),
         },
         "bound": {
             "method": "approximate D-optimal design on the candidate set (cvxpy, log det)",
@@ -128,7 +133,8 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     spec = plan.spec
     lines = [
         f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
-        f"Seed {plan.seed}; {plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
+        f"Seed {plan.seed}; criterion {plan.design.criterion} ({CRITERION_NAMES[plan.design.criterion]}); "
+        f"{plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
         f"  D-efficiency                 {d.d_efficiency:9.4f}   det(X'X) = {d.det_xtx:.10g}",
         f"  D-efficiency bound (cvxpy)   {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it",
         f"  A-efficiency                 {d.a_efficiency:9.4f}",
@@ -162,7 +168,7 @@ def _factor_record(factor: Factor) -> dict[str, Any]:
 
 
 def _support(plan: StudyPlan) -> list[dict[str, Any]]:
-    candidates = candidate_set(plan.model)
+    candidates = candidate_set(plan.model, plan.restrictions)
     keep = plan.bound.weights > 1e-6
     return [{"settings": c.tolist(), "weight": float(w)} for c, w in zip(candidates[keep], plan.bound.weights[keep])]
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import secrets
+from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, replace
 
@@ -10,8 +11,9 @@ import numpy as np
 
 from designs.blinding import SealedAllocation, arm_labels, seal
 from designs.bound import ApproximateDesign, solve_in_background
+from designs.constraints import Restrictions, compile_restrictions
 from designs.diagnostics import Diagnostics, diagnose
-from designs.exchange import ExactDesign, candidate_set, check_runs, d_optimal
+from designs.exchange import ExactDesign, candidate_set, check_runs, optimal_design
 from designs.model import Model, parse_model
 from designs.spec import StudySpec, check_search_size
 
@@ -41,6 +43,7 @@ class StudyPlan:
     diagnostics: Diagnostics
     runs: tuple[PlannedRun, ...]
     sealed: SealedAllocation | None
+    restrictions: Restrictions
 
     @property
     def bound(self) -> ApproximateDesign:
@@ -58,8 +61,11 @@ class StudyPlan:
         return 100.0 * self.diagnostics.d_efficiency / self.bound.d_efficiency
 
 
-def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan:
+def build_plan(spec: StudySpec, allocation_seed: int | None = None,
+               progress: Callable[[int, int], None] | None = None) -> StudyPlan:
     """Design, bound, diagnose and randomize a study; seal its blind factor if it has one.
+
+    `progress(done, starts)` follows the exchange's starts.
 
     The public seed (drawn when the spec has none) drives the exchange starts, the run order
     and the run codes; the blind allocation uses its own secret seed.
@@ -71,12 +77,14 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
     if blind is not None:
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
-    check_search_size(spec)
     model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    check_search_size(spec, model.p)
     check_runs(model, spec.runs)
-    bound_job = solve_in_background(model.matrix(candidate_set(model)))
+    restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
+    bound_job = solve_in_background(model.matrix(candidate_set(model, restrictions)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
-    design = d_optimal(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts)
+    design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
+                            criterion=spec.criterion, restrictions=restrictions, progress=progress)
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
     order = np.random.default_rng(order_seed).permutation(spec.runs)
     codes = run_codes(spec.runs, np.random.default_rng(code_seed))
@@ -84,7 +92,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan
         PlannedRun(position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
-    return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed)
+    return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed, restrictions)
 
 
 def run_codes(count: int, rng: np.random.Generator) -> list[str]:

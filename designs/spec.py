@@ -8,6 +8,9 @@
     starts = 100              # random starts of the exchange
     snr = 1.0                 # signal-to-noise ratio for the power table
     alpha = 0.05
+    criterion = "D"           # D (det X'X), I (average prediction variance) or A (trace of (X'X)^-1)
+    disallowed = ["Direction == 'Crossing' and Pedestrians == 6"]   # combinations no run may have
+    constraints = ["Speed + 0.5 * Density <= 1.5"]                    # linear limits every run keeps
 
     [anticipated]             # optional: a term's anticipated coefficient for the power (default 1)
     Controller = 0.5          # its columns get +c, -c, +c, ... as in JMP
@@ -33,7 +36,9 @@ from typing import Any
 
 import tomli_w
 
+from designs.constraints import compile_restrictions
 from designs.errors import DesignError
+from designs.exchange import CRITERIA
 from designs.factors import (
     CategoricalFactor,
     ContinuousFactor,
@@ -58,8 +63,9 @@ MAX_RUNS = 1000
 MAX_STARTS = 1000
 MAX_LEVELS = 20
 MAX_CANDIDATES = 10_000
-#: runs x starts: each start exchanges every run, so this bounds the search's time (about 10 s at the limit).
-MAX_SEARCH = 100_000
+#: starts x runs x factors x p^2, the work of the coordinate exchange: at the limit (e.g. 100 starts of a
+#: 6-factor quadratic in 200 runs) the search takes about half a minute.
+MAX_SEARCH = 100_000_000
 #: Numbers in a spec (levels, ranges, fixed values) are physical settings; larger magnitudes are refused
 #: so that coding and plan.csv cells stay exact and short.
 MAX_MAGNITUDE = 1e6
@@ -85,6 +91,9 @@ class StudySpec:
     arms_sealed: bool = False
     #: Anticipated coefficient per model term for the power table; terms not named get 1.
     anticipated: dict[str, float] = field(default_factory=dict)
+    criterion: str = "D"
+    disallowed: tuple[str, ...] = ()
+    constraints: tuple[str, ...] = ()
 
     @property
     def design_factors(self) -> tuple[DesignFactor, ...]:
@@ -141,7 +150,7 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     if candidates > MAX_CANDIDATES:
         raise DesignError(f"{source}: the factors span {candidates} candidate points; at most {MAX_CANDIDATES} "
                           "(fewer factors or levels)")
-    allowed = {"name", "runs", "model", "seed", "starts", "snr", "alpha"}
+    allowed = {"name", "runs", "model", "seed", "starts", "snr", "alpha", "criterion", "disallowed", "constraints"}
     where = f"{source}: [study]"
     _no_unknown_keys(study, allowed, where)
     name = _string(study, "name", where, default="study")
@@ -153,6 +162,12 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     alpha = _number(study, "alpha", where, default=0.05)
     if not 0 < alpha < 1:
         raise DesignError(f"{where}: alpha must be a number between 0 and 1, got {alpha:g}")
+    criterion = _string(study, "criterion", where, default="D")
+    if criterion not in CRITERIA:
+        raise DesignError(f"{where}: criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+    disallowed, constraints = _expressions(study, "disallowed", where), _expressions(study, "constraints", where)
+    design_factors = tuple(f for f in factors if not isinstance(f, FixedFactor))
+    compile_restrictions(disallowed, constraints, design_factors, where, blind[0].name if blind else None)
     return StudySpec(
         name=name,
         factors=factors,
@@ -164,13 +179,26 @@ def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
         alpha=alpha,
         arms_sealed=any("arms" in raw for raw in raw_factors if isinstance(raw, dict)),
         anticipated=_anticipated(data, source),
+        criterion=criterion,
+        disallowed=disallowed,
+        constraints=constraints,
     )
 
 
-def check_search_size(spec: StudySpec) -> None:
-    """DesignError when runs x starts (from the spec or the command line) exceeds MAX_SEARCH."""
-    if spec.runs * spec.starts > MAX_SEARCH:
-        raise DesignError(f"runs x starts = {spec.runs} x {spec.starts} exceeds {MAX_SEARCH:,}; ask for fewer runs or starts")
+def _expressions(study: dict[str, Any], key: str, where: str) -> tuple[str, ...]:
+    """An optional list of expression strings (checked by `designs.constraints`)."""
+    value = study.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise DesignError(f"{where}: {key} must be a list of strings (expressions over factor names), got {value!r}")
+    return tuple(value)
+
+
+def check_search_size(spec: StudySpec, p: int) -> None:
+    """DesignError when starts x runs x factors x p^2 (p the model's parameters) exceeds MAX_SEARCH."""
+    work = spec.starts * spec.runs * len(spec.design_factors) * p * p
+    if work > MAX_SEARCH:
+        raise DesignError(f"starts x runs x factors x p^2 = {spec.starts} x {spec.runs} x {len(spec.design_factors)} x {p}^2 "
+                          f"= {work:,} exceeds {MAX_SEARCH:,} (about half a minute of search); ask for fewer starts, runs or terms")
 
 
 def _anticipated(data: dict[str, Any], source: str) -> dict[str, float]:
@@ -187,6 +215,12 @@ def spec_to_toml(spec: StudySpec) -> str:
     if spec.seed is not None:
         study["seed"] = spec.seed
     study.update(starts=spec.starts, snr=spec.snr, alpha=spec.alpha)
+    if spec.criterion != "D":
+        study["criterion"] = spec.criterion
+    if spec.disallowed:
+        study["disallowed"] = list(spec.disallowed)
+    if spec.constraints:
+        study["constraints"] = list(spec.constraints)
     tables: dict[str, Any] = {"study": study}
     if spec.anticipated:
         tables["anticipated"] = dict(spec.anticipated)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
+from designs.exchange import CRITERIA
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
 
@@ -24,6 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
     parser.add_argument("--runs", type=types.whole(1, MAX_RUNS), help=f"number of runs, at most {MAX_RUNS} (presets: 27, or 18 with --ab)")
     parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
+    parser.add_argument("--criterion", choices=CRITERIA,
+                        help="D: largest det(X'X) (default); I: smallest average prediction variance; A: smallest trace((X'X)^-1)")
     parser.add_argument("--seed", type=types.seed, help="seed of the design search, run order and run codes (default: drawn and recorded)")
     parser.add_argument("--starts", type=types.whole(1, MAX_STARTS), help=f"random starts of the exchange algorithm (default 100, at most {MAX_STARTS})")
     parser.add_argument("--snr", type=types.number(0, MAX_SNR, above=True), help="signal-to-noise ratio for the power table (default 1)")
@@ -31,6 +35,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
     parser.set_defaults(handler=run)
+
+
+def _progress(done: int, starts: int) -> None:
+    """One line on a terminal that follows the exchange's starts."""
+    print(f"\rdesign search: start {done} of {starts}", end="", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
         spec = read_spec(spec_path)
     else:
         spec = presets.ab(registry.NAMES) if args.ab else presets.qualitative()
-    overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr}
+    overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr,
+                 "criterion": args.criterion}
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
 
     replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
@@ -70,7 +80,10 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
-    plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
+    # every bad input fails here, before any write
+    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if sys.stderr.isatty() else None)
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
     # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
     from trials.design_files import write_design
 
