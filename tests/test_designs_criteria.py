@@ -1,0 +1,136 @@
+"""Criteria D, I and A, higher-order terms and disallowed combinations against known optima."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from designs.constraints import compile_restrictions
+from designs.diagnostics import diagnose
+from designs.errors import DesignError
+from designs.exchange import optimal_design
+from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
+from designs.model import parse_model
+from designs.presets import qualitative
+
+
+def test_plackett_burman_12_runs_reach_d_efficiency_100():
+    """11 two-level factors, main effects, 12 runs: a Plackett-Burman design has X'X = 12 I."""
+    factors = tuple(DiscreteFactor(f"F{i}", (-1.0, 1.0)) for i in range(11))
+    model = parse_model("main", factors)
+    design = optimal_design(model, 12, seed=3, starts=20)
+    x = model.matrix(design.settings)
+    np.testing.assert_allclose(x.T @ x, 12 * np.eye(12), atol=1e-9)
+    assert diagnose(model, design.settings).d_efficiency == pytest.approx(100.0)
+
+
+def test_i_optimal_quadratic_puts_half_the_runs_at_the_centre():
+    """One factor, quadratic, 4 runs: the I-optimum (weights 1/4, 1/2, 1/4 on -1, 0, 1; Atkinson, Donev
+    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]; D-optimal differs."""
+    model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
+    design = optimal_design(model, 4, seed=1, starts=20, criterion="I")
+    assert sorted(np.round(design.settings[:, 0], 6)) == [-1.0, 0.0, 0.0, 1.0]
+    assert design.value == pytest.approx(8 / 15, rel=1e-9)
+    assert diagnose(model, design.settings).average_prediction_variance == pytest.approx(8 / 15, rel=1e-9)
+    d_design = optimal_design(model, 4, seed=1, starts=20, criterion="D")
+    assert diagnose(model, d_design.settings).average_prediction_variance > 8 / 15 + 0.01
+
+
+def test_a_optimal_two_level_factorial_has_trace_p_over_n():
+    """2^2 factorial is A-optimal for main effects in 4 runs: (X'X)^-1 = I/4, trace 3/4."""
+    model = parse_model("main", (ContinuousFactor("A", 0, 1), ContinuousFactor("B", 0, 1)))
+    design = optimal_design(model, 4, seed=0, starts=10, criterion="A")
+    assert design.value == pytest.approx(0.75)
+    assert sorted(map(tuple, design.settings)) == [(-1, -1), (-1, 1), (1, -1), (1, 1)]
+
+
+def test_box_draper_six_runs_reach_det_267_74():
+    model = parse_model("main + interactions + quadratic", (ContinuousFactor("A", -1, 1), ContinuousFactor("B", -1, 1)))
+    design = optimal_design(model, 6, seed=5, starts=20)
+    assert math.exp(design.value) == pytest.approx(267.737, abs=1e-3)
+
+
+def test_three_factor_interaction_and_cube_terms():
+    factors = tuple(ContinuousFactor(name, -1, 1) for name in "ABC")
+    model = parse_model("main + A*B*C + A^3 + A*B^2", factors)
+    assert model.term_names == ["Intercept", "A", "B", "C", "A*B*C", "A^3", "A*B^2"]
+    point = np.array([[0.5, -2.0, 3.0]])
+    np.testing.assert_allclose(model.matrix(point)[0], [1, 0.5, -2, 3, -3.0, 0.125, 2.0])
+    # 2^3 factorial plus centre runs cannot separate A from A^3 (equal on -1, 0, 1); the design must leave the grid
+    design = optimal_design(model, 12, seed=2, starts=10)
+    assert np.isfinite(design.value)
+    assert not np.all(np.isin(np.round(design.settings[:, 0], 9), [-1.0, 0.0, 1.0]))
+
+
+def test_compiled_rows_equal_the_model_matrix():
+    from designs.constraints import factor_arrays
+    from designs.kernels import model_row
+
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b", "c")), ContinuousFactor("X", 1, 3))
+    model = parse_model("main + interactions + P^2 + P*D*X + X^3", factors)
+    col_factor, col_code = model.column_codes()
+    _, _, kinds = factor_arrays(factors)
+    levels = np.array([0, 3, 0])
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.choice([-1.0, 0.0, 1.0], 20), rng.integers(0, 3, 20), rng.uniform(-1, 1, 20)])
+    out = np.empty(model.p)
+    for point in points:
+        model_row(point, kinds, levels, col_factor, col_code, out)
+        np.testing.assert_allclose(out, model.matrix(point)[0])
+
+
+@pytest.mark.parametrize("criterion", ["D", "I", "A"])
+def test_disallowed_combination_never_appears(criterion):
+    spec = qualitative()
+    model = parse_model(spec.model, spec.design_factors)
+    rules = compile_restrictions(("Direction == 'Crossing' and Pedestrians == 6", "CrossingDistance > 2.5 and Pedestrians < 3"),
+                                 (), model.factors, "test")
+    design = optimal_design(model, 27, seed=4, starts=10, criterion=criterion, restrictions=rules)
+    peds = np.array([spec.design_factors[0].decode(s) for s in design.settings[:, 0]])
+    direction = design.settings[:, 1]
+    distance = 2.0 + design.settings[:, 2]
+    assert not np.any((direction == 2) & (peds == 6))
+    assert not np.any((distance > 2.5 + 1e-9) & (peds < 3))
+    assert np.all(rules.allowed(design.settings, model.factors))
+
+
+def test_linear_constraint_holds_for_continuous_moves():
+    factors = (ContinuousFactor("A", 0, 1), ContinuousFactor("B", 0, 1))
+    model = parse_model("main + interactions + quadratic", factors)
+    rules = compile_restrictions((), ("A + B <= 1.5",), model.factors, "test")
+    design = optimal_design(model, 10, seed=0, starts=10, restrictions=rules)
+    natural = (design.settings + 1) / 2
+    assert np.all(natural.sum(axis=1) <= 1.5 + 1e-9)
+    assert np.any(np.isclose(natural.sum(axis=1), 1.5, atol=1e-4)), "the optimum presses against the constraint"
+
+
+def test_restrictions_read_only_the_whitelisted_forms():
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b")))
+    rules = compile_restrictions(("P in [2, 6] and not D != 'a'",), (), factors, "spec")
+    points = np.array(list(itertools.product([-1.0, 0.0, 1.0], [0.0, 1.0])))
+    assert rules.allowed(points, factors).tolist() == [False, True, True, True, False, True]
+    for text, message in [
+        ("__import__('os').system('true')", "expected a comparison"),
+        ("P.real > 1", "expected a factor name"),
+        ("Q == 2", "no design factor 'Q'"),
+        ("D == 'z'", "'z' is no level of D"),
+        ("D < 'a'", "D is categorical"),
+        ("P ==", "not an expression"),
+        ("P is 2", "unsupported comparison Is"),
+    ]:
+        with pytest.raises(DesignError, match=message):
+            compile_restrictions((text,), (), factors, "spec")
+    with pytest.raises(DesignError, match="blinded"):
+        compile_restrictions(("D == 'a'",), (), factors, "spec", blind="D")
+
+
+def test_bad_terms_are_refused():
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b")), ContinuousFactor("X", 0, 1),
+               ContinuousFactor("Y", 0, 1))
+    for expression, message in [("P^3", "at least 4 levels"), ("D^2", "numeric factor"), ("X^4", "powers run from 1 to 3"),
+                                ("P*D*X*Y", "at most 3"), ("X^", "cannot read term")]:
+        with pytest.raises(DesignError, match=message):
+            parse_model(expression, factors)
