@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from designs.exchange import CRITERIA
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
+
+if TYPE_CHECKING:
+    from designs.spec import StudySpec
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,6 +29,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     source.add_argument("--ab", action="store_true", help="the paper's blinded A/B plan (NaviGAN-R vs the lattice planner)")
     source.add_argument("--spec", type=types.input_file, metavar="FILE",
                         help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
+    check = parser.add_mutually_exclusive_group()
+    check.add_argument("--evaluate", type=types.input_file, metavar="PLAN.csv",
+                       help="print the full diagnostics of a plan you have (its factor columns, under the spec's coding "
+                            "and model); writes nothing")
+    check.add_argument("--compare", type=types.input_file, nargs=2, metavar=("A.csv", "B.csv"),
+                       help="print two plans' diagnostics side by side; writes nothing")
     parser.add_argument("--runs", type=types.whole(1, MAX_RUNS), help=f"number of runs, at most {MAX_RUNS} (presets: 27, or 18 with --ab)")
     parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
     parser.add_argument("--criterion", choices=CRITERIA,
@@ -40,6 +51,32 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _progress(done: int, starts: int) -> None:
     """One line on a terminal that follows the exchange's starts."""
     print(f"\rdesign search: start {done} of {starts}", end="", file=sys.stderr, flush=True)
+
+
+def _evaluate(spec: StudySpec, paths: list[Path]) -> int:
+    """Diagnose plans the researcher brings under the spec's factors, coding and model; print, write nothing."""
+    from designs.diagnostics import diagnose
+    from designs.errors import DesignError
+    from designs.evaluate import settings_from_rows
+    from designs.export import comparison_lines, diagnostics_lines
+    from designs.model import parse_model
+    from trials.csv_table import read_rows
+
+    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    results = []
+    for path in paths:
+        header, rows = read_rows(path, same_width=True)
+        settings = settings_from_rows(model.factors, header, rows, path.name)
+        if len(settings) < model.p:
+            raise DesignError(f"{path.name}: {len(settings)} runs cannot estimate the model's p = {model.p} parameters")
+        results.append(diagnose(model, settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated))
+    if len(results) == 1:
+        print(f"{paths[0].name}: {results[0].n} runs, model {spec.model!r} with p = {results[0].p} parameters")
+        print("\n".join(diagnostics_lines(results[0])))
+    else:
+        print(f"Model {spec.model!r}")
+        print("\n".join(comparison_lines([p.name for p in paths], results)))
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
     overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr,
                  "criterion": args.criterion}
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
+
+    if args.evaluate or args.compare:
+        return _evaluate(spec, args.compare or [args.evaluate])
 
     replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
     if (folder.has_plan() or replaces_own_spec) and not args.force:
