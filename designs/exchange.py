@@ -113,15 +113,17 @@ def criterion_value(x: np.ndarray, criterion: str, weight: np.ndarray) -> float:
 
 
 def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, criterion: str = "D",
-                   restrictions: Restrictions | None = None,
+                   restrictions: Restrictions | None = None, kept: np.ndarray | None = None,
                    progress: Callable[[int, int], None] | None = None) -> ExactDesign:
     """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
 
-    `progress(done, starts)` is called after each start.
+    `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
+    `runs` - m new runs are searched around them. `progress(done, starts)` is called after each start.
     """
     from designs import kernels  # numba loads only when a design is searched
 
     check_runs(model, runs)
+    kept = np.zeros((0, len(model.factors))) if kept is None else np.asarray(kept, dtype=float)
     if starts < 1:
         raise DesignError(f"starts must be at least 1, got {starts}")
     weight = criterion_weight(model, criterion)
@@ -142,10 +144,11 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     best_settings, best = None, None
     ends = np.empty(starts)
     for s, child in enumerate(np.random.SeedSequence(seed).spawn(starts)):
-        settings = _random_start(np.random.default_rng(child), candidates, runs, curved, restrictions, model)
+        fresh = _random_start(np.random.default_rng(child), candidates, runs - len(kept), curved, restrictions, model)
+        settings = np.vstack([kept, fresh])
         kernels.optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
                                continuous, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
-                               _MAX_PASSES)
+                               _MAX_PASSES, len(kept))
         ends[s] = criterion_value(model.matrix(settings), criterion, weight)
         if best is None or _better(ends[s], best, criterion):
             best_settings, best = settings, ends[s]

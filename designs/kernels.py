@@ -188,8 +188,10 @@ def _exchange_row(inv, x_old, y, b, a):  # noqa: ANN001, ANN202
 @kernel
 def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
                    continuous, weight, trace, ops, args, bounds, cand_settings, probes, probe_inverse,
-                   max_passes):  # noqa: ANN001, ANN201
+                   max_passes, first_free):  # noqa: ANN001, ANN201
     """Coordinate exchange of one start, in place on `settings`; returns the passes made.
+
+    Rows before `first_free` are kept as they are (the runs of a study being augmented).
 
     `values[f, :value_count[f]]` are the settings factor f may take when it is not continuous;
     `cand_settings` are whole points tried as row swaps (none: an empty array).
@@ -228,7 +230,7 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
         if trace:
             tolerance = 1e-10 * max(np.sum(weight * inv), 1e-300)
         improved = False
-        for i in range(n):
+        for i in range(first_free, n):
             _mat_vec(inv, x[i], b)
             dx = _dot(x[i], b)
             bwb = 0.0

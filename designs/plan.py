@@ -61,20 +61,30 @@ class StudyPlan:
         return 100.0 * self.diagnostics.d_efficiency / self.bound.d_efficiency
 
 
+@dataclass(frozen=True)
+class KeptRuns:
+    """The runs of a study being augmented, as (order, run code, settings), which they keep, and its sealed key."""
+
+    runs: tuple[tuple[int, str, np.ndarray], ...]
+    sealed: SealedAllocation | None
+
+
 def build_plan(spec: StudySpec, allocation_seed: int | None = None,
-               progress: Callable[[int, int], None] | None = None) -> StudyPlan:
+               progress: Callable[[int, int], None] | None = None, kept: KeptRuns | None = None) -> StudyPlan:
     """Design, bound, diagnose and randomize a study; seal its blind factor if it has one.
 
-    `progress(done, starts)` follows the exchange's starts.
+    `progress(done, starts)` follows the exchange's starts. With `kept` (augmenting; `spec` is the
+    study's public spec, `spec.runs` the new total) the kept runs stay first and unchanged, the new
+    ones are searched around them and randomized after them, and the sealed key stays as it is.
 
     The public seed (drawn when the spec has none) drives the exchange starts, the run order
     and the run codes; the blind allocation uses its own secret seed.
     """
     seed = spec.seed if spec.seed is not None else secrets.randbits(31)
     spec = replace(spec, seed=seed)
-    sealed = None
+    sealed = kept.sealed if kept is not None else None
     blind = spec.blind_factor
-    if blind is not None:
+    if blind is not None and kept is None:
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
     model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
@@ -83,24 +93,28 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
     bound_job = solve_in_background(model.matrix(candidate_set(model, restrictions)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
+    old = tuple(PlannedRun(order, code, _values(spec, model, settings), settings)
+                for order, code, settings in (kept.runs if kept is not None else ()))
     design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
-                            criterion=spec.criterion, restrictions=restrictions, progress=progress)
+                            criterion=spec.criterion, restrictions=restrictions, progress=progress,
+                            kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)))
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
-    order = np.random.default_rng(order_seed).permutation(spec.runs)
-    codes = run_codes(spec.runs, np.random.default_rng(code_seed))
-    runs = tuple(
-        PlannedRun(position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
+    order = len(old) + np.random.default_rng(order_seed).permutation(spec.runs - len(old))
+    codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})
+    runs = old + tuple(
+        PlannedRun(len(old) + position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
     return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed, restrictions)
 
 
-def run_codes(count: int, rng: np.random.Generator) -> list[str]:
-    """`count` distinct random codes, unrelated to run order or arm."""
+def run_codes(count: int, rng: np.random.Generator, taken: set[str] | None = None) -> list[str]:
+    """`count` distinct random codes, unrelated to run order or arm, none of them in `taken`."""
     codes: list[str] = []
+    taken = taken or set()
     while len(codes) < count:
         code = "".join(rng.choice(list(CODE_ALPHABET), size=CODE_LENGTH))
-        if code not in codes:
+        if code not in codes and code not in taken:
             codes.append(code)
     return codes
 

@@ -207,6 +207,15 @@ class StudyFolder:
             shutil.move(str(self.path(name)), str(target / Path(name).name))
         return target
 
+    def copy_aside(self, names: tuple[str, ...]) -> Path:
+        """Copy existing entries (files) into superseded/<UTC time>/, leaving them in place; returns that folder."""
+        target = self.path(SUPERSEDED) / utc_now().replace(":", "")
+        target.mkdir(parents=True, exist_ok=True)
+        for name in names:
+            if self.path(name).exists():
+                shutil.copy2(self.path(name), target / Path(name).name)
+        return target
+
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:
         """Move existing entries aside into superseded/<UTC time>/; returns that folder if any moved."""
         stamp = utc_now().replace(":", "")

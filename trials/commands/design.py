@@ -13,6 +13,7 @@ from trials import option_types as types
 
 if TYPE_CHECKING:
     from designs.spec import StudySpec
+    from trials.study import StudyFolder
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                             "and model); writes nothing")
     check.add_argument("--compare", type=types.input_file, nargs=2, metavar=("A.csv", "B.csv"),
                        help="print two plans' diagnostics side by side; writes nothing")
+    check.add_argument("--augment", type=types.whole(1, MAX_RUNS), metavar="N",
+                       help="add N runs to the study's plan, keeping its runs and results (the old design files are "
+                            "copied to superseded/)")
     parser.add_argument("--runs", type=types.whole(1, MAX_RUNS), help=f"number of runs, at most {MAX_RUNS} (presets: 27, or 18 with --ab)")
     parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
     parser.add_argument("--criterion", choices=CRITERIA,
@@ -79,6 +83,43 @@ def _evaluate(spec: StudySpec, paths: list[Path]) -> int:
     return 0
 
 
+def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
+    """Add runs to a study's plan around the runs it has; its results and sealed key stay as they are."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from designs.export import summary_lines
+    from designs.plan import KeptRuns, build_plan
+    from designs.spec import MAX_RUNS, read_spec
+    from trials.design_files import write_design
+    from trials.errors import StudyError
+    from trials.study import CORRELATION_MAP, DESIGN, PLAN, SPEC
+
+    folder.require_plan()
+    spec = read_spec(folder.path(SPEC))
+    record = folder.read_design()
+    try:
+        kept = tuple((int(run["order"]), str(run["run_code"]), np.array(run["settings"], dtype=float)) for run in record["design"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise StudyError(f"{folder.path(DESIGN)}: its runs are damaged ({type(exc).__name__}: {exc})") from None
+    total = len(kept) + args.augment
+    if total > MAX_RUNS:
+        raise StudyError(f"--augment {args.augment}: the study would have {total} runs; at most {MAX_RUNS}")
+    overrides = {"seed": args.seed, "starts": args.starts, "snr": args.snr, "criterion": args.criterion}
+    spec = replace(spec, runs=total, **{k: v for k, v in overrides.items() if v is not None})
+    if args.seed is None:
+        spec = replace(spec, seed=None)  # a fresh seed for the new runs, recorded
+    sealed = folder.read_sealed() if spec.blind_factor is not None else None
+    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() else None)
+    copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP))
+    written = write_design(folder, plan)
+    print("\n".join(summary_lines(plan)))
+    print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
+          f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copied}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -97,6 +138,8 @@ def run(args: argparse.Namespace) -> int:
     )
 
     folder = StudyFolder(args.study)
+    if args.augment:
+        return _augment(folder, args)
     own_spec = folder.path(SPEC)
     spec_path = args.spec or (own_spec if own_spec.exists() and not args.ab else None)
     if spec_path is not None:

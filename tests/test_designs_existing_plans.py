@@ -1,4 +1,5 @@
-"""`trials design --evaluate / --compare` and the spec's criterion and disallowed combinations, end to end."""
+"""Plans that already exist (`trials design --evaluate`, `--compare`, `--augment`) and the spec's criterion and
+disallowed combinations, end to end."""
 
 from __future__ import annotations
 
@@ -109,3 +110,33 @@ def test_bad_criterion_or_restriction_is_one_line_exit_2(tmp_path, capsys, line,
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "s").exists() or not any((tmp_path / "s").iterdir())
+
+
+def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--ab", "--seed", "1", "--study", str(study)]) == 0
+    before = json.loads((study / "design.json").read_text())
+    old_plan = (study / "plan.csv").read_text().splitlines()
+    (study / "outcomes.csv").write_text("kept results\n")
+    key = (study / "sealed" / "allocation.json").read_bytes()
+    capsys.readouterr()
+    assert main(["design", "--augment", "6", "--seed", "4", "--study", str(study)]) == 0
+    assert "Kept the 18 planned runs and their results; added 6" in capsys.readouterr().out
+    new_plan = (study / "plan.csv").read_text().splitlines()
+    assert new_plan[: len(old_plan)] == old_plan and len(new_plan) == len(old_plan) + 6
+    assert (study / "outcomes.csv").read_text() == "kept results\n"
+    assert (study / "sealed" / "allocation.json").read_bytes() == key
+    after = json.loads((study / "design.json").read_text())
+    assert after["design"][:18] == before["design"]
+    assert [run["order"] for run in after["design"]] == list(range(1, 25))
+    assert len({run["run_code"] for run in after["design"]}) == 24
+    assert after["blinding"]["commitment"] == before["blinding"]["commitment"]
+    assert after["diagnostics"]["det_xtx"] > before["diagnostics"]["det_xtx"]
+    copies = list((study / "superseded").iterdir())
+    assert len(copies) == 1 and json.loads((copies[0] / "design.json").read_text()) == before
+
+
+def test_augment_needs_a_plan(tmp_path, capsys):
+    assert main(["design", "--augment", "3", "--study", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
