@@ -114,11 +114,13 @@ def criterion_value(x: np.ndarray, criterion: str, weight: np.ndarray) -> float:
 
 def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, criterion: str = "D",
                    restrictions: Restrictions | None = None, kept: np.ndarray | None = None,
+                   per_run: dict[int, np.ndarray] | None = None,
                    progress: Callable[[int, int], None] | None = None) -> ExactDesign:
     """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
 
     `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
-    `runs` - m new runs are searched around them. `progress(done, starts)` is called after each start.
+    `runs` - m new runs are searched around them. `per_run` maps a factor the runs fix (block,
+    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start.
     """
     from designs import kernels  # numba loads only when a design is searched
 
@@ -129,6 +131,8 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     weight = criterion_weight(model, criterion)
     candidates = candidate_set(model, restrictions)
     curved = model.curved_continuous
+    per_run = per_run or {}
+    frozen = np.array([i in per_run for i in range(len(model.factors))])
     continuous = np.array([i in curved for i in range(len(model.factors))])
     grids = [model.grid(i) for i in range(len(model.factors))]
     values = np.zeros((len(grids), max(len(g) for g in grids)))
@@ -146,8 +150,10 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     for s, child in enumerate(np.random.SeedSequence(seed).spawn(starts)):
         fresh = _random_start(np.random.default_rng(child), candidates, runs - len(kept), curved, restrictions, model)
         settings = np.vstack([kept, fresh])
+        for i, column in per_run.items():
+            settings[len(kept):, i] = column[len(kept):]
         kernels.optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
-                               continuous, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
+                               continuous, frozen, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
                                _MAX_PASSES, len(kept))
         ends[s] = criterion_value(model.matrix(settings), criterion, weight)
         if best is None or _better(ends[s], best, criterion):

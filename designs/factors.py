@@ -120,6 +120,28 @@ class CategoricalFactor:
 
 
 @dataclass(frozen=True)
+class BlockFactor(CategoricalFactor):
+    """The block of each run (`blocks = b` in the spec): levels "1" .. "b", equal blocks in run order.
+
+    The exchange never moves it; its effect-coded columns join the model. study.toml holds only `blocks`.
+    """
+
+    @classmethod
+    def of(cls, blocks: int) -> BlockFactor:
+        return cls("Block", tuple(str(b + 1) for b in range(blocks)))
+
+
+@dataclass(frozen=True)
+class CovariateFactor(ContinuousFactor):
+    """A numeric value measured for each run in advance (a participant's age, the day's wind), coded from its
+    observed range; run j takes values[j], and the exchange chooses the other factors around it."""
+
+    values: tuple[float, ...] = ()
+
+    kind = "covariate"
+
+
+@dataclass(frozen=True)
 class FixedFactor:
     """A factor held at one value: recorded in every run, never a model term."""
 

@@ -187,11 +187,12 @@ def _exchange_row(inv, x_old, y, b, a):  # noqa: ANN001, ANN202
 
 @kernel
 def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
-                   continuous, weight, trace, ops, args, bounds, cand_settings, probes, probe_inverse,
+                   continuous, frozen, weight, trace, ops, args, bounds, cand_settings, probes, probe_inverse,
                    max_passes, first_free):  # noqa: ANN001, ANN201
     """Coordinate exchange of one start, in place on `settings`; returns the passes made.
 
-    Rows before `first_free` are kept as they are (the runs of a study being augmented).
+    Rows before `first_free` are kept as they are (the runs of a study being augmented), and so are
+    the coordinates of `frozen` factors (a run's block or covariate).
 
     `values[f, :value_count[f]]` are the settings factor f may take when it is not continuous;
     `cand_settings` are whole points tried as row swaps (none: an empty array).
@@ -241,6 +242,8 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
             for j in range(k):
                 best_point[j] = settings[i, j]
             for f in range(k):
+                if frozen[f]:
+                    continue
                 for j in range(k):
                     trial[j] = best_point[j]
                 if continuous[f]:
@@ -295,13 +298,17 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                             best = g
                             best_point[f] = value
             for c in range(len(cand_settings)):
-                model_row(cand_settings[c], kinds, levels, col_factor, col_code, y)
+                for j in range(k):
+                    trial[j] = best_point[j] if frozen[j] else cand_settings[c, j]
+                if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
+                    continue
+                model_row(trial, kinds, levels, col_factor, col_code, y)
                 _trial(y, inv, b, wb, weight, trace, a, wa, out)
                 g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
                 if g > best + tolerance:
                     best = g
                     for j in range(k):
-                        best_point[j] = cand_settings[c, j]
+                        best_point[j] = trial[j]
             if best > tolerance:
                 improved = True
                 for j in range(k):

@@ -15,7 +15,7 @@ from itertools import combinations, product
 import numpy as np
 
 from designs.errors import DesignError
-from designs.factors import CategoricalFactor, ContinuousFactor, DesignFactor, column_labels, is_numeric, main_effect_basis
+from designs.factors import BlockFactor, CategoricalFactor, ContinuousFactor, DesignFactor, column_labels, is_numeric, main_effect_basis
 
 KEYWORDS = ("main", "interactions", "quadratic")
 _FACTOR_POWER = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\^\s*([0-9]+))?\s*$")
@@ -165,12 +165,13 @@ def _expand(
     piece: str, factors: tuple[DesignFactor, ...], index: dict[str, int], fixed: tuple[str, ...]
 ) -> list[Term]:
     """The terms one `+`-separated piece stands for."""
+    treatments = [i for i, f in enumerate(factors) if not isinstance(f, BlockFactor)]  # keywords leave the block out
     if piece == "main":
-        return [Term(((i, 1),)) for i in range(len(factors))]
+        return [Term(((i, 1),)) for i in treatments]
     if piece == "interactions":
-        return [Term(((i, 1), (j, 1))) for i, j in combinations(range(len(factors)), 2)]
+        return [Term(((i, 1), (j, 1))) for i, j in combinations(treatments, 2)]
     if piece == "quadratic":
-        return [Term(((i, 2),)) for i, f in enumerate(factors) if _can_take_power(f, 2)]
+        return [Term(((i, 2),)) for i in treatments if _can_take_power(factors[i], 2)]
     powers: dict[int, int] = {}
     for part in piece.split("*"):
         match = _FACTOR_POWER.match(part)

@@ -14,7 +14,8 @@ from designs.bound import ApproximateDesign, solve_in_background
 from designs.constraints import Restrictions, compile_restrictions
 from designs.diagnostics import Diagnostics, diagnose
 from designs.exchange import ExactDesign, candidate_set, check_runs, optimal_design
-from designs.model import Model, parse_model
+from designs.factors import CovariateFactor
+from designs.model import Model
 from designs.spec import StudySpec, check_search_size
 
 #: Run-code alphabet: capitals and digits without the look-alikes 0/O, 1/I/L, 2/Z, 5/S, 8/B.
@@ -87,7 +88,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     if blind is not None and kept is None:
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
-    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    model = spec.build_model()
     check_search_size(spec, model.p)
     check_runs(model, spec.runs)
     restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
@@ -97,15 +98,25 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
                 for order, code, settings in (kept.runs if kept is not None else ()))
     design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
                             criterion=spec.criterion, restrictions=restrictions, progress=progress,
-                            kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)))
+                            kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
+                            per_run=spec.per_run())
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
-    order = len(old) + np.random.default_rng(order_seed).permutation(spec.runs - len(old))
+    order = len(old) + _run_order(spec, spec.runs - len(old), np.random.default_rng(order_seed))
     codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})
     runs = old + tuple(
         PlannedRun(len(old) + position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
     return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed, restrictions)
+
+
+def _run_order(spec: StudySpec, count: int, rng: np.random.Generator) -> np.ndarray:
+    """The design rows in run order: at random, within each block when blocked; as given when a
+    covariate ties each row to a run."""
+    if any(isinstance(f, CovariateFactor) for f in spec.factors):
+        return np.arange(count)
+    size = count // spec.blocks
+    return np.concatenate([b * size + rng.permutation(size) for b in range(spec.blocks)])
 
 
 def run_codes(count: int, rng: np.random.Generator, taken: set[str] | None = None) -> list[str]:

@@ -12,7 +12,7 @@ from designs.constraints import compile_restrictions
 from designs.diagnostics import diagnose
 from designs.errors import DesignError
 from designs.exchange import optimal_design
-from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
+from designs.factors import BlockFactor, CategoricalFactor, ContinuousFactor, CovariateFactor, DiscreteFactor
 from designs.model import parse_model
 from designs.presets import qualitative
 
@@ -134,3 +134,35 @@ def test_bad_terms_are_refused():
                                 ("P*D*X*Y", "at most 3"), ("X^", "cannot read term")]:
         with pytest.raises(DesignError, match=message):
             parse_model(expression, factors)
+
+
+def test_blocks_are_orthogonal_to_the_effects_where_they_can_be():
+    """2^3 in two blocks of 4, main effects and two-factor interactions: the optimum confounds only ABC
+    with blocks (Box, Hunter and Hunter), so every effect column is orthogonal to the block and D = 100."""
+    from designs.spec import StudySpec
+
+    factors = tuple(ContinuousFactor(name, 0, 1) for name in "ABC")
+    spec = StudySpec("blocked", factors + (BlockFactor.of(2),), "main + interactions", 8)
+    model = spec.build_model()
+    assert model.term_names == ["Intercept", "A", "B", "C", "A*B", "A*C", "B*C", "Block"]
+    design = optimal_design(model, 8, seed=0, starts=20, per_run=spec.per_run())
+    assert design.settings[:, 3].tolist() == [0, 0, 0, 0, 1, 1, 1, 1]
+    x = model.matrix(design.settings)
+    np.testing.assert_allclose(x.T @ x, 8 * np.eye(8), atol=1e-9)
+    abc = np.prod(design.settings[:, :3], axis=1)
+    assert abs(np.corrcoef(abc, x[:, -1])[0, 1]) == pytest.approx(1.0)
+
+
+def test_covariate_values_stay_with_their_runs():
+    from designs.spec import StudySpec
+
+    ages = (23.0, 31.0, 45.0, 52.0, 60.0, 38.0, 27.0, 49.0)
+    factors = (ContinuousFactor("Speed", 0.4, 1.2), CovariateFactor("Age", 23.0, 60.0, "", ages))
+    spec = StudySpec("covariate", factors, "main", 8)
+    model = spec.build_model()
+    design = optimal_design(model, 8, seed=1, starts=10, per_run=spec.per_run())
+    np.testing.assert_allclose([factors[1].decode(s) for s in design.settings[:, 1]], ages)
+    assert set(np.round(design.settings[:, 0], 9)) <= {-1.0, 1.0}
+    x = model.matrix(design.settings)
+    # Speed is chosen to be as uncorrelated with Age as 8 runs of +-1 allow
+    assert abs(np.corrcoef(x[:, 1], x[:, 2])[0, 1]) < 0.15

@@ -140,3 +140,54 @@ def test_augment_needs_a_plan(tmp_path, capsys):
     assert main(["design", "--augment", "3", "--study", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
+
+
+BLOCKED = """[study]
+name = "blocked"
+runs = 12
+model = "main"
+blocks = 3
+
+[[factors]]
+name = "Speed"
+type = "continuous"
+low = 0.4
+high = 1.2
+
+[[factors]]
+name = "Age"
+type = "covariate"
+file = "ages.csv"
+"""
+
+
+def test_blocks_and_a_covariate_file_reach_the_plan(tmp_path):
+    (tmp_path / "ages.csv").write_text("participant,Age\n" + "".join(f"P{i},{20 + 3 * i}\n" for i in range(12)))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(BLOCKED)
+    study = tmp_path / "s"
+    assert main(["design", "--spec", str(spec), "--study", str(study), "--seed", "5"]) == 0
+    rows = _plan_rows(study)
+    assert [r["Block"] for r in rows] == ["1"] * 4 + ["2"] * 4 + ["3"] * 4
+    assert [int(r["Age"]) for r in rows] == [20 + 3 * i for i in range(12)]
+    text = (study / "study.toml").read_text()
+    assert "blocks = 3" in text and "values = [" in text and "Block" not in text
+    record = json.loads((study / "design.json").read_text())
+    assert record["model"]["terms"] == ["Intercept", "Speed", "Age", "Block"]
+    # the written spec reads back to the same plan checks
+    assert main(["design", "--study", str(study), "--evaluate", str(study / "plan.csv")]) == 0
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("blocks = 3", "blocks = 5", "blocks = 5 must divide runs = 12"),
+    ('file = "ages.csv"', 'file = "none.csv"', "cannot read the covariate file"),
+    ('file = "ages.csv"', "values = [1, 2]", "covariate Age has 2 values for 12 runs"),
+    ('file = "ages.csv"', 'values = [1, "x"]', "covariate value (values[1]: 'x')"),
+])
+def test_bad_blocks_or_covariates_are_one_line(tmp_path, capsys, old, new, message):
+    (tmp_path / "ages.csv").write_text("Age\n" + "30\n" * 6 + "40\n" * 6)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(BLOCKED.replace(old, new))
+    assert main(["design", "--spec", str(spec), "--study", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

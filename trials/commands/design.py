@@ -63,10 +63,9 @@ def _evaluate(spec: StudySpec, paths: list[Path]) -> int:
     from designs.errors import DesignError
     from designs.evaluate import settings_from_rows
     from designs.export import comparison_lines, diagnostics_lines
-    from designs.model import parse_model
     from trials.csv_table import read_rows
 
-    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    model = spec.build_model()
     results = []
     for path in paths:
         header, rows = read_rows(path, same_width=True)
@@ -98,6 +97,9 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
 
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
+    if spec.blocks > 1 or any(f.kind == "covariate" for f in spec.factors):
+        raise StudyError(f"{folder.path(SPEC)}: a study with blocks or covariates cannot be augmented (its runs' "
+                         "blocks and covariate values are fixed by the spec); make a new plan with trials design --force")
     record = folder.read_design()
     try:
         kept = tuple((int(run["order"]), str(run["run_code"]), np.array(run["settings"], dtype=float)) for run in record["design"])
