@@ -23,6 +23,7 @@ import numpy as np
 from scipy.special import fdtri, ncfdtr
 
 from designs.errors import DesignError
+from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
 
 #: How the power's anticipated coefficients are set, as design.json and the report say it.
@@ -134,6 +135,46 @@ def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     for start in points[np.argsort(variance)[-5:]] if squared else ():
         best = max(best, _polish(model, inv, start, squared))
     return best
+
+
+@dataclass(frozen=True)
+class VarianceProfile:
+    """The relative prediction variance along one factor, the others at their centre (first level)."""
+
+    factor: str
+    x: list[float]
+    variance: list[float]
+    labels: list[str]
+
+
+def fraction_of_design_space(model: Model, settings: np.ndarray, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
+    """JMP's fraction of design space plot: the share of the region (x) whose relative prediction variance
+    x'(X'X)^-1 x is at most y. The region is a grid (continuous factors at up to 11 evenly spaced values, fewer
+    when there are many, levels as they are), so the curve is the same every time."""
+    inv = np.linalg.inv(model.matrix(settings).T @ model.matrix(settings))
+    counts = [len(model.grid(i)) for i, f in enumerate(model.factors) if not isinstance(f, ContinuousFactor)]
+    continuous = [i for i, f in enumerate(model.factors) if isinstance(f, ContinuousFactor)]
+    budget = _MAX_REGION_POINTS / 10 / max(1, int(np.prod(counts)))
+    steps = max(3, min(11, int(budget ** (1 / max(1, len(continuous))))))
+    grids = [np.linspace(-1, 1, steps) if i in continuous else model.grid(i) for i in range(len(model.factors))]
+    variance = np.sort(_prediction_variance(model, inv, np.array(list(itertools.product(*grids)))))
+    fractions = np.linspace(0.0, 1.0, points)
+    return fractions, np.quantile(variance, fractions)
+
+
+def variance_profiles(model: Model, settings: np.ndarray, points: int = 41) -> list[VarianceProfile]:
+    """JMP's prediction variance profile: for each factor, the relative variance across its range."""
+    inv = np.linalg.inv(model.matrix(settings).T @ model.matrix(settings))
+    centre = np.zeros(len(model.factors))  # coded centre of numeric factors, first level of categorical ones
+    profiles = []
+    for i, factor in enumerate(model.factors):
+        along = np.linspace(-1, 1, points) if isinstance(factor, ContinuousFactor) else model.grid(i)
+        trial = np.repeat(centre[None], len(along), axis=0)
+        trial[:, i] = along
+        labels = list(factor.levels) if isinstance(factor, CategoricalFactor) else []
+        x = along.tolist() if labels else [float(factor.decode(v)) for v in along]
+        profiles.append(VarianceProfile(factor.name, x, _prediction_variance(model, inv, trial).tolist(), labels))
+    return profiles
 
 
 def _prediction_variance(model: Model, inv: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -166,3 +166,20 @@ def test_covariate_values_stay_with_their_runs():
     x = model.matrix(design.settings)
     # Speed is chosen to be as uncorrelated with Age as 8 runs of +-1 allow
     assert abs(np.corrcoef(x[:, 1], x[:, 2])[0, 1]) < 0.15
+
+
+def test_fraction_of_design_space_and_variance_profile_of_a_2x2_factorial():
+    """Main effects on a 2^2 factorial: x'(X'X)^-1 x = (1 + a^2 + b^2) / 4, from 1/4 at the centre to 3/4 at a corner."""
+    from designs.diagnostics import fraction_of_design_space, variance_profiles
+
+    model = parse_model("main", (ContinuousFactor("A", 0, 10), ContinuousFactor("B", 0, 10)))
+    settings = np.array(list(itertools.product([-1.0, 1.0], repeat=2)))
+    fractions, variance = fraction_of_design_space(model, settings)
+    assert (fractions[0], fractions[-1]) == (0.0, 1.0)
+    assert (variance[0], variance[-1]) == pytest.approx((0.25, 0.75))
+    grid = np.linspace(-1, 1, 11)
+    expected = np.quantile([(1 + a * a + b * b) / 4 for a in grid for b in grid], 0.5)
+    assert variance[50] == pytest.approx(expected)
+    profile = variance_profiles(model, settings)[0]
+    assert profile.factor == "A" and profile.x[0] == 0.0 and profile.x[-1] == 10.0
+    np.testing.assert_allclose(profile.variance, (1 + np.linspace(-1, 1, 41) ** 2) / 4)

@@ -33,6 +33,7 @@ SPEC = "study.toml"
 PLAN = "plan.csv"
 DESIGN = "design.json"
 CORRELATION_MAP = "correlation_map.png"
+DESIGN_EVALUATION = "design_evaluation.png"
 #: The researcher's own thresholds for the report's rubric, if the study has any.
 RUBRIC = "rubric.toml"
 SEALED = "sealed"
@@ -64,7 +65,7 @@ UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:

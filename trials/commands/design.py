@@ -23,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Build the study's plan: the paper's 27-run qualitative plan by default, the 18-run "
             "blinded A/B plan with --ab, or any study from a study.toml. Writes study.toml, "
-            "plan.csv, design.json, correlation_map.png (and sealed/ when blinded)."
+            "plan.csv, design.json, correlation_map.png, design_evaluation.png (and sealed/ when blinded)."
         ),
     )
     source = parser.add_mutually_exclusive_group()
@@ -93,7 +93,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from designs.spec import MAX_RUNS, read_spec
     from trials.design_files import write_design
     from trials.errors import StudyError
-    from trials.study import CORRELATION_MAP, DESIGN, PLAN, SPEC
+    from trials.study import CORRELATION_MAP, DESIGN, DESIGN_EVALUATION, PLAN, SPEC
 
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
@@ -114,7 +114,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
         spec = replace(spec, seed=None)  # a fresh seed for the new runs, recorded
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
     plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() else None)
-    copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP))
+    copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION))
     written = write_design(folder, plan)
     print("\n".join(summary_lines(plan)))
     print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
