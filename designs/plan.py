@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import secrets
 from collections.abc import Callable
-from concurrent.futures import Future
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from designs.blinding import SealedAllocation, arm_labels, seal
-from designs.bound import ApproximateDesign, solve_in_background
+from designs.bound import ApproximateDesign, approximate_d_optimal
 from designs.constraints import Restrictions, compile_restrictions
 from designs.diagnostics import Diagnostics, diagnose
 from designs.exchange import ExactDesign, candidate_set, check_runs, optimal_design
@@ -35,21 +34,16 @@ class PlannedRun:
 
 @dataclass(frozen=True)
 class StudyPlan:
-    """A built study: the public spec (arm labels when blind), design, bound, diagnostics, runs."""
+    """A built study: the public spec (arm labels when blind), design, D-efficiency bound, diagnostics, runs."""
 
     spec: StudySpec
     model: Model
     design: ExactDesign
-    bound_job: Future[ApproximateDesign]
+    bound: ApproximateDesign
     diagnostics: Diagnostics
     runs: tuple[PlannedRun, ...]
     sealed: SealedAllocation | None
     restrictions: Restrictions
-
-    @property
-    def bound(self) -> ApproximateDesign:
-        """The cvxpy bound (waits for its background solve on first use)."""
-        return self.bound_job.result()
 
     @property
     def seed(self) -> int:
@@ -92,7 +86,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     check_search_size(spec, model.p)
     check_runs(model, spec.runs)
     restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
-    bound_job = solve_in_background(model.matrix(candidate_set(model, restrictions)))
+    bound = approximate_d_optimal(model.matrix(candidate_set(model, restrictions)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
     old = tuple(PlannedRun(order, code, _values(spec, model, settings), settings)
                 for order, code, settings in (kept.runs if kept is not None else ()))
@@ -107,7 +101,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
         PlannedRun(len(old) + position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
-    return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed, restrictions)
+    return StudyPlan(spec, model, design, bound, diagnostics, runs, sealed, restrictions)
 
 
 def _run_order(spec: StudySpec, count: int, rng: np.random.Generator) -> np.ndarray:

@@ -50,12 +50,21 @@ def test_ab_plan_reaches_the_proven_optimum_from_any_seed(seed):
     assert diagnose(model, design.settings).d_efficiency == pytest.approx(55.8707, abs=1e-4)
 
 
-def test_cvxpy_bounds_of_the_presets():
+def test_approximate_design_bounds_of_the_presets():
     for spec, bound in [(qualitative(), 80.2742), (ab(CONTROLLERS), 57.9620)]:
         model = _model(spec)
         result = approximate_d_optimal(model.matrix(candidate_set(model)))
         assert result.d_efficiency == pytest.approx(bound, abs=1e-3)
         assert result.weights.sum() == pytest.approx(1.0)
+
+
+def test_bound_of_one_factor_quadratic_is_the_known_approximate_optimum():
+    """Quadratic on {-1, 0, 1}: the approximate D-optimum puts 1/3 on each point, det M = 4/27."""
+    model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
+    result = approximate_d_optimal(model.matrix(candidate_set(model)))
+    np.testing.assert_allclose(result.weights, [1 / 3] * 3, atol=1e-6)
+    assert result.d_efficiency == pytest.approx(100 * (4 / 27) ** (1 / 3), rel=1e-7)
+    assert result.d_efficiency >= 100 * (4 / 27) ** (1 / 3) * (1 - 1e-12)  # the certified bound never falls below the optimum
 
 
 def test_plan_reports_efficiency_relative_to_the_bound():

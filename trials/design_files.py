@@ -38,7 +38,6 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     """
     created = utc_now()
     d = plan.diagnostics
-    # The figure first: it does not need the cvxpy bound, which may still be solving.
     figure = correlation_map_figure(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns").png
     profiles = [(v.factor, v.x, v.variance, v.labels) for v in variance_profiles(plan.model, plan.design.settings)]
     evaluation = design_evaluation_figure(fraction_of_design_space(plan.model, plan.design.settings), profiles,

@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if sys.stderr.isatty() else None)
     if sys.stderr.isatty():
         print(file=sys.stderr)
-    # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
+    # Imported only now: matplotlib loads only when there is a plan to write.
     from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
