@@ -23,7 +23,7 @@ import numpy as np
 
 from designs.constraints import Restrictions, factor_arrays
 from designs.errors import DesignError
-from designs.factors import CategoricalFactor
+from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
 
 CRITERION_NAMES = {"D": "largest det(X'X)", "I": "smallest average prediction variance", "A": "smallest trace((X'X)^-1)"}
@@ -133,7 +133,10 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     curved = model.curved_continuous
     per_run = per_run or {}
     frozen = np.array([i in per_run for i in range(len(model.factors))])
-    continuous = np.array([i in curved for i in range(len(model.factors))])
+    # A continuous factor entering only linearly has its D-optimum at -1 or +1 (the delta is convex in it),
+    # so the grid suffices there; under I or A, or with restrictions, it too moves anywhere in its range.
+    free = criterion != "D" or bool(restrictions)
+    continuous = np.array([i in curved or (free and isinstance(f, ContinuousFactor)) for i, f in enumerate(model.factors)])
     grids = [model.grid(i) for i in range(len(model.factors))]
     values = np.zeros((len(grids), max(len(g) for g in grids)))
     for i, grid in enumerate(grids):
@@ -156,13 +159,16 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
                                continuous, frozen, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
                                _MAX_PASSES, len(kept))
         ends[s] = criterion_value(model.matrix(settings), criterion, weight)
+        if restrictions and not restrictions.allowed(settings, model.factors).all():
+            ends[s] = -np.inf if criterion == "D" else np.inf  # a run's block or covariate left it nowhere allowed
         if best is None or _better(ends[s], best, criterion):
             best_settings, best = settings, ends[s]
         if progress is not None:
             progress(s + 1, starts)
     assert best is not None and best_settings is not None
     if not np.isfinite(best):
-        raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular)")
+        why = " or no allowed setting fits some run's block or covariate" if restrictions else ""
+        raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular{why})")
     return ExactDesign(best_settings, criterion, float(best), ends, seed)
 
 
