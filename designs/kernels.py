@@ -1,18 +1,17 @@
 """Compiled kernels of the design search (numba, cached beside the sources): model rows, the
 disallowed-combination programs and one start of the coordinate exchange.
 
-The exchange keeps the inverse of the information matrix M = X'X and updates it by rank-one
-steps: taking row x out of M gives M1^-1 = M^-1 + u u' / (1 - x'u) with u = M^-1 x, and putting
-a row y back gives M^-1 = M1^-1 - v v' / (1 + y'v) with v = M1^-1 y. So the worth of every
-trial row is known in O(p^2):
+The exchange keeps V = (X'X)^-1 and judges replacing a run's row x by a trial row y from
+y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx): O(p^2) a trial.
 
-- D: log det M = log det M1 + log(1 + y' M1^-1 y)
-- I and A: trace(W M^-1) = trace(W M1^-1) - v'Wv / (1 + y'v), W the region's moment matrix (I)
-  or the identity (A)
+- D: det rises by the factor (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta)
+- I and A: trace(W V) falls by the Woodbury identity with the 2 x 2 core of the exchange, W the
+  region's moment matrix (I) or the identity (A)
 
-A continuous coordinate enters each model column as a polynomial of degree at most 3, so
-y' M1^-1 y and v'Wv are polynomials of degree at most 6 in it: seven probes fix them exactly,
-and the best value is found on a fine grid that is then refined around its best point.
+A move taken updates V by the same rank-two Woodbury step; V is recomputed from X once a pass.
+A continuous coordinate enters each model column as a polynomial of degree at most 3, so those
+quantities are polynomials of degree at most 6 in it: seven probes fix them exactly, and the
+best value is found on a fine grid, then refined around its best point.
 """
 
 from __future__ import annotations
@@ -31,7 +30,7 @@ _ZOOMS = 5
 
 
 @kernel
-def model_row(s, kinds, levels, col_factor, col_code, out):  # noqa: ANN001, ANN201
+def model_row(s, kinds, levels, col_factor, col_code, out):
     """The model row of one point `s` (coded settings; level indices for categorical factors) into `out`."""
     p, parts = col_factor.shape
     for c in range(p):
@@ -54,12 +53,12 @@ def model_row(s, kinds, levels, col_factor, col_code, out):  # noqa: ANN001, ANN
 
 
 @kernel
-def _close(a, b):  # noqa: ANN001, ANN202
+def _close(a, b):
     return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
 
 
 @kernel
-def disallowed(s, centre, half, kinds, ops, args, bounds, stack):  # noqa: ANN001, ANN201
+def disallowed(s, centre, half, kinds, ops, args, bounds, stack):
     """Whether point `s` satisfies any of the programs (program e is ops[bounds[e]:bounds[e + 1]]).
 
     Numeric factors are read in their own units, categorical ones as level indices.
@@ -114,7 +113,7 @@ def disallowed(s, centre, half, kinds, ops, args, bounds, stack):  # noqa: ANN00
 
 
 @kernel
-def _mat_vec(matrix, vector, out):  # noqa: ANN001, ANN202
+def _mat_vec(matrix, vector, out):
     n = len(vector)
     for a in range(n):
         total = 0.0
@@ -124,7 +123,7 @@ def _mat_vec(matrix, vector, out):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _dot(a, b):  # noqa: ANN001, ANN202
+def _dot(a, b):
     total = 0.0
     for j in range(len(a)):
         total += a[j] * b[j]
@@ -132,7 +131,7 @@ def _dot(a, b):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _trial(y, inv, b, wb, weight, trace, a, wa, out):  # noqa: ANN001, ANN202
+def _trial(y, inv, b, wb, weight, trace, a, wa, out):
     """Into `out`: y'Vy, x'Vy, a'Wa and a'Wb for trial row y (a = Vy, b = Vx, x the run's present row)."""
     _mat_vec(inv, y, a)
     out[0] = _dot(y, a)
@@ -144,7 +143,7 @@ def _trial(y, inv, b, wb, weight, trace, a, wa, out):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _gain(dy, dxy, awa, awb, dx, bwb, trace):  # noqa: ANN001, ANN202
+def _gain(dy, dxy, awa, awb, dx, bwb, trace):
     """What replacing the row x by y gains (larger is better; 0 for y = x).
 
     D: log of det(M')/det(M) = (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta). I and A: the fall
@@ -160,7 +159,7 @@ def _gain(dy, dxy, awa, awb, dx, bwb, trace):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _poly(coefficients, t):  # noqa: ANN001, ANN202
+def _poly(coefficients, t):
     total = 0.0
     for j in range(len(coefficients) - 1, -1, -1):
         total = total * t + coefficients[j]
@@ -168,7 +167,7 @@ def _poly(coefficients, t):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _exchange_row(inv, x_old, y, b, a):  # noqa: ANN001, ANN202
+def _exchange_row(inv, x_old, y, b, a):
     """V = (X'X)^-1 in place after the row x_old is replaced by y (rank-two Woodbury update)."""
     _mat_vec(inv, y, a)
     _mat_vec(inv, x_old, b)
@@ -188,7 +187,7 @@ def _exchange_row(inv, x_old, y, b, a):  # noqa: ANN001, ANN202
 @kernel
 def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
                    continuous, frozen, weight, trace, ops, args, bounds, cand_settings, probes, probe_inverse,
-                   max_passes, first_free):  # noqa: ANN001, ANN201
+                   max_passes, first_free):
     """Coordinate exchange of one start, in place on `settings`; returns the passes made.
 
     Rows before `first_free` are kept as they are (the runs of a study being augmented), and so are
