@@ -13,11 +13,6 @@ import numpy as np
 
 from designs.errors import DesignError
 
-#: Gauss-Legendre nodes and weights (normalised to sum 1) on [-1, 1]: exact for the
-#: polynomials of degree <= 5 that products of two model columns of one factor can be.
-_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(3)
-_GL_WEIGHTS = _GL_WEIGHTS / _GL_WEIGHTS.sum()
-
 
 class _LinearCoding:
     """Numeric coding: low -> -1, high -> +1."""
@@ -47,10 +42,6 @@ class ContinuousFactor(_LinearCoding):
     def candidate_settings(self) -> np.ndarray:
         return np.array([-1.0, 0.0, 1.0])
 
-    @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        return _GL_NODES, _GL_WEIGHTS
-
 
 @dataclass(frozen=True)
 class DiscreteFactor(_LinearCoding):
@@ -74,11 +65,6 @@ class DiscreteFactor(_LinearCoding):
     def candidate_settings(self) -> np.ndarray:
         return np.array([self.encode(v) for v in self.levels])
 
-    @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        settings = self.candidate_settings
-        return settings, np.full(len(settings), 1.0 / len(settings))
-
     def decode(self, setting: float) -> float:
         """The level nearest to the setting (settings of a discrete factor are its levels)."""
         raw = super().decode(setting)
@@ -101,10 +87,6 @@ class CategoricalFactor:
     @property
     def candidate_settings(self) -> np.ndarray:
         return np.arange(len(self.levels), dtype=float)
-
-    @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.candidate_settings, np.full(len(self.levels), 1.0 / len(self.levels))
 
     @property
     def effect_coding(self) -> np.ndarray:
