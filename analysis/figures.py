@@ -15,20 +15,49 @@ TRAJECTORY_COLUMNS = 4
 
 
 def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: str) -> Rendered:
-    """JMP's colour map on correlations: |r| between model columns, white 0 to dark red 1."""
+    """JMP's colour map on correlations, signed: r between model columns, blue -1 through white 0 to red +1."""
     size = 2.5 + 0.45 * len(columns)
     figure = Figure(figsize=(size + 1.5, size))
     axes = figure.add_subplot()
-    image = axes.imshow(np.abs(correlations), cmap="Reds", vmin=0.0, vmax=1.0)
+    image = axes.imshow(correlations, cmap="RdBu_r", vmin=-1.0, vmax=1.0)
     axes.set_xticks(range(len(columns)), columns, rotation=60, ha="right", fontsize=8)
     axes.set_yticks(range(len(columns)), columns, fontsize=8)
     for (i, j), value in np.ndenumerate(correlations):
         if not np.isnan(value):
-            axes.text(j, i, f"{abs(value):.2f}", ha="center", va="center", fontsize=6, color="white" if abs(value) > 0.6 else "black")
-    figure.colorbar(image, ax=axes, label="|correlation|")
+            axes.text(j, i, f"{value:.2f}", ha="center", va="center", fontsize=6, color="white" if abs(value) > 0.6 else "black")
+    figure.colorbar(image, ax=axes, label="correlation")
     axes.set_title(title)
     with quiet_glyphs():
         figure.tight_layout()
+    return _rendered(figure)
+
+
+def design_evaluation_figure(fraction: tuple[np.ndarray, np.ndarray], profiles: list[tuple[str, list[float], list[float], list[str]]],
+                             title: str) -> Rendered:
+    """JMP's design evaluation views: the fraction of design space plot (left) and the prediction variance
+    profile, one panel per factor (right); variances relative to sigma^2, on one scale."""
+    width = 4.0 + 2.2 * len(profiles)
+    figure = Figure(figsize=(width, 3.6))
+    grid = figure.add_gridspec(1, len(profiles) + 2)
+    fds = figure.add_subplot(grid[0, :2])
+    fds.plot(fraction[0], fraction[1], color="#1f77b4")
+    fds.set_xlabel("fraction of design space")
+    fds.set_ylabel("relative prediction variance")
+    fds.set_xlim(0.0, 1.0)
+    fds.set_title("Fraction of design space", fontsize=9)
+    top = 1.05 * max(float(np.max(fraction[1])), *(max(v) for _, _, v, _ in profiles))
+    fds.set_ylim(0.0, top)
+    for k, (name, x, variance, labels) in enumerate(profiles):
+        axes = figure.add_subplot(grid[0, k + 2], sharey=fds)
+        if labels:
+            axes.plot(range(len(labels)), variance, "o-", color="#d62728")
+            axes.set_xticks(range(len(labels)), labels, rotation=45, ha="right", fontsize=7)
+        else:
+            axes.plot(x, variance, color="#d62728")
+        axes.set_xlabel(name, fontsize=8)
+        axes.tick_params(labelleft=False)
+    figure.suptitle(title, fontsize=10)
+    figure.subplots_adjust(left=0.8 / width, right=1 - 0.15 / width, bottom=0.3, top=0.85, wspace=0.15)  # fixed: tight_layout costs more than the drawing
     return _rendered(figure)
 
 

@@ -501,7 +501,7 @@ def _design_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading("The design")]
     efficiencies = [
         ("D-efficiency", d.get("d_efficiency")),
-        ("D-efficiency bound (cvxpy, approximate design)", d.get("d_efficiency_bound")),
+        ("D-efficiency bound (approximate design)", d.get("d_efficiency_bound")),
         ("D-efficiency as % of the bound", d.get("d_efficiency_vs_bound")),
         ("A-efficiency", d.get("a_efficiency")),
         ("G-efficiency", d.get("g_efficiency")),

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.special import fdtri, ncfdtr
 
 from designs.errors import DesignError
-from designs.exchange import squared_continuous
+from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
 
 #: How the power's anticipated coefficients are set, as design.json and the report say it.
@@ -104,7 +104,7 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
         d_efficiency=100.0 * float(np.exp(log_det / p)) / n,
         a_efficiency=100.0 * p / (n * float(np.trace(inv))),
         g_efficiency=100.0 * float(np.sqrt(p / n / max_var)),
-        average_prediction_variance=float(np.trace(inv @ moment_matrix(model))),
+        average_prediction_variance=float(np.trace(inv @ model.moment_matrix())),
         max_prediction_variance=max_var,
         standard_errors=dict(zip(columns, np.sqrt(np.diag(inv)).tolist())),
         correlation_columns=columns[1:],
@@ -118,15 +118,6 @@ def diagnose(model: Model, settings: np.ndarray, *, alpha: float = 0.05, snr: fl
     )
 
 
-def moment_matrix(model: Model) -> np.ndarray:
-    """(p, p) the mean of f(x) f(x)' over the design region, exact by product quadrature."""
-    nodes, weights = zip(*(factor.quadrature for factor in model.factors))
-    points = np.array(list(itertools.product(*nodes)))
-    w = np.prod(np.array(list(itertools.product(*weights))), axis=1)
-    f = model.matrix(points)
-    return f.T @ (w[:, None] * f)
-
-
 def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     """The largest relative prediction variance x'(X'X)^-1 x over the design region.
 
@@ -134,16 +125,56 @@ def max_prediction_variance(model: Model, inv: np.ndarray) -> float:
     grid holds its maximum unless a continuous factor is squared; then a grid of 21 values per
     such factor is searched and its best points are polished with L-BFGS-B.
     """
-    squared = squared_continuous(model)
-    grids = [np.linspace(-1, 1, _REGION_GRID) if i in squared else f.candidate_settings for i, f in enumerate(model.factors)]
+    squared = model.curved_continuous
+    grids = [np.linspace(-1, 1, _REGION_GRID) if i in squared else model.grid(i) for i in range(len(model.factors))]
     if np.prod([len(g) for g in grids]) > _MAX_REGION_POINTS:
-        grids = [f.candidate_settings for f in model.factors]
+        grids = [model.grid(i) for i in range(len(model.factors))]
     points = np.array(list(itertools.product(*grids)))
     variance = _prediction_variance(model, inv, points)
     best = float(variance.max())
     for start in points[np.argsort(variance)[-5:]] if squared else ():
         best = max(best, _polish(model, inv, start, squared))
     return best
+
+
+@dataclass(frozen=True)
+class VarianceProfile:
+    """The relative prediction variance along one factor, the others at their centre (first level)."""
+
+    factor: str
+    x: list[float]
+    variance: list[float]
+    labels: list[str]
+
+
+def fraction_of_design_space(model: Model, settings: np.ndarray, points: int = 101) -> tuple[np.ndarray, np.ndarray]:
+    """JMP's fraction of design space plot: the share of the region (x) whose relative prediction variance
+    x'(X'X)^-1 x is at most y. The region is a grid (continuous factors at up to 11 evenly spaced values, fewer
+    when there are many, levels as they are), so the curve is the same every time."""
+    inv = np.linalg.inv(model.matrix(settings).T @ model.matrix(settings))
+    counts = [len(model.grid(i)) for i, f in enumerate(model.factors) if not isinstance(f, ContinuousFactor)]
+    continuous = [i for i, f in enumerate(model.factors) if isinstance(f, ContinuousFactor)]
+    budget = _MAX_REGION_POINTS / 10 / max(1, int(np.prod(counts)))
+    steps = max(3, min(11, int(budget ** (1 / max(1, len(continuous))))))
+    grids = [np.linspace(-1, 1, steps) if i in continuous else model.grid(i) for i in range(len(model.factors))]
+    variance = np.sort(_prediction_variance(model, inv, np.array(list(itertools.product(*grids)))))
+    fractions = np.linspace(0.0, 1.0, points)
+    return fractions, np.quantile(variance, fractions)
+
+
+def variance_profiles(model: Model, settings: np.ndarray, points: int = 41) -> list[VarianceProfile]:
+    """JMP's prediction variance profile: for each factor, the relative variance across its range."""
+    inv = np.linalg.inv(model.matrix(settings).T @ model.matrix(settings))
+    centre = np.zeros(len(model.factors))  # coded centre of numeric factors, first level of categorical ones
+    profiles = []
+    for i, factor in enumerate(model.factors):
+        along = np.linspace(-1, 1, points) if isinstance(factor, ContinuousFactor) else model.grid(i)
+        trial = np.repeat(centre[None], len(along), axis=0)
+        trial[:, i] = along
+        labels = list(factor.levels) if isinstance(factor, CategoricalFactor) else []
+        x = along.tolist() if labels else [float(factor.decode(v)) for v in along]
+        profiles.append(VarianceProfile(factor.name, x, _prediction_variance(model, inv, trial).tolist(), labels))
+    return profiles
 
 
 def _prediction_variance(model: Model, inv: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -1,47 +1,44 @@
-"""Exact n-run D-optimal designs by exchange from many seeded random starts.
+"""Exact optimal designs (criterion D, I or A) by coordinate exchange from many seeded random starts.
 
-Each start draws n candidate points at random (with replacement) and repeatedly makes the
-single row-for-candidate swap that raises det(X'X) most, using Fedorov's delta
+Each start draws its runs at random from the allowed candidate points (a continuous factor that
+some term raises to a power starts anywhere in its range) and then, run by run, makes the best
+change of one coordinate, or the best swap for a whole candidate point, while the criterion
+improves (Meyer and Nachtsheim's coordinate exchange with Fedorov's row swaps). Candidates may
+repeat and balance is never imposed, so optima that replicate points are reachable. The inner
+loop is compiled (`designs/kernels.py`) and updates (X'X)^-1 by rank-one steps.
 
-    det(M') / det(M) = (1 + d(x_new)) (1 - d(x_old)) + d(x_old, x_new)^2,
-    d(u, v) = u' M^-1 v,
-
-until no swap helps. Candidates may repeat and balance is never imposed, so optima that
-replicate points are reachable.
-
-Continuous factors: when every term is linear in each continuous factor, the delta of moving
-one coordinate is convex in it, so some optimum has every continuous coordinate at -1 or +1
-and the candidate grid suffices. When a continuous factor is squared, the optimum may lie
-off the grid (Box & Draper's 6-run quadratic design is one), so those starts draw continuous
-coordinates uniformly and alternate three steps: a coordinate exchange over the whole range
-(each move maximises the delta exactly: it is a quartic in the coordinate), a joint polish of
-all those coordinates by L-BFGS-B on log det(X'X), and the candidate exchange.
+Criteria, as JMP names them:
+- D: maximise det(X'X)
+- I: minimise the average prediction variance over the region, trace(W (X'X)^-1), W its moment matrix
+- A: minimise trace((X'X)^-1), the sum of the coefficients' variances
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from designs.constraints import Restrictions, factor_arrays
 from designs.errors import DesignError
-from designs.factors import ContinuousFactor
+from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
 
-#: A swap must raise det(X'X) by this relative margin to count, so loops always end.
-_MIN_GAIN = 1e-9
-#: Coordinate jumps are taken while they gain this much; the joint polish does the fine work.
-_COORDINATE_GAIN = 1e-4
-#: Two log-determinants this close are the same optimum.
-LOG_DET_TOL = 1e-7
-#: Coordinate values at which the quartic delta is sampled, and the fine grid it is maximised on.
-_PROBES = np.array([-1.0, -0.5, 0.0, 0.5, 1.0])
-_PROBE_INVERSE = np.linalg.inv(np.vander(_PROBES, 5, increasing=True))
-_FINE = np.linspace(-1.0, 1.0, 401)
-_FINE_POWERS = np.vander(_FINE, 5, increasing=True).T
+CRITERION_NAMES = {"D": "largest det(X'X)", "I": "smallest average prediction variance", "A": "smallest trace((X'X)^-1)"}
+CRITERIA = tuple(CRITERION_NAMES)
+#: Two criterion values this close (relative; absolute for log det) are the same optimum.
+VALUE_TOL = 1e-7
 #: Largest candidate set enumerated (the product of the factors' candidate settings).
 MAX_CANDIDATES = 200_000
+#: Whole candidate points are tried as row swaps while candidates x p stays below this; beyond it the
+#: coordinate moves alone search (each swap costs p^2 per candidate).
+_SWAP_BUDGET = 4_000
+_MAX_PASSES = 500
+#: Chebyshev-Lobatto probes of a continuous coordinate: 7 fix a polynomial of degree 6 exactly.
+_PROBES = np.cos(np.pi * np.arange(7) / 6)[::-1].copy()
+_PROBE_INVERSE = np.linalg.inv(np.vander(_PROBES, 7, increasing=True))
 
 
 @dataclass(frozen=True)
@@ -50,33 +47,43 @@ class ExactDesign:
 
     Attributes:
         settings: (n, k) factor settings of the runs (coded values / level indices).
-        log_det: log det(X'X) of the design.
-        start_log_dets: log det(X'X) each start ended at, in start order.
+        criterion: D, I or A.
+        value: the criterion of the best design: log det(X'X) (D), the average prediction
+            variance (I) or trace((X'X)^-1) (A).
+        start_values: the criterion each start ended at, in start order (inf or -inf: singular).
         seed: the master seed; start s uses SeedSequence(seed).spawn(starts)[s].
     """
 
     settings: np.ndarray
-    log_det: float
-    start_log_dets: np.ndarray
+    criterion: str
+    value: float
+    start_values: np.ndarray
     seed: int
 
     @property
     def starts(self) -> int:
-        return len(self.start_log_dets)
+        return len(self.start_values)
 
     @property
     def hits(self) -> int:
         """How many starts reached the best value found."""
-        return int(np.sum(self.start_log_dets >= self.log_det - LOG_DET_TOL))
+        if self.criterion == "D":
+            return int(np.sum(self.start_values >= self.value - VALUE_TOL))
+        return int(np.sum(self.start_values <= self.value * (1.0 + VALUE_TOL)))
 
 
-def candidate_set(model: Model) -> np.ndarray:
-    """(N, k) every combination of the factors' candidate settings (continuous: -1, 0, 1)."""
-    grids = [factor.candidate_settings for factor in model.factors]
+def candidate_set(model: Model, restrictions: Restrictions | None = None) -> np.ndarray:
+    """(N, k) every allowed combination of the factors' candidate settings (continuous: -1, 0, 1)."""
+    grids = [model.grid(i) for i in range(len(model.factors))]
     size = int(np.prod([len(grid) for grid in grids]))
     if size > MAX_CANDIDATES:
         raise DesignError(f"the candidate set would have {size} points (limit {MAX_CANDIDATES}); use fewer factors or levels")
-    return np.array(list(itertools.product(*grids)), dtype=float)
+    points = np.array(list(itertools.product(*grids)), dtype=float)
+    if restrictions:
+        points = points[restrictions.allowed(points, model.factors)]
+        if not len(points):
+            raise DesignError("the disallowed combinations and constraints leave no candidate point")
+    return points
 
 
 def check_runs(model: Model, runs: int) -> None:
@@ -85,168 +92,97 @@ def check_runs(model: Model, runs: int) -> None:
         raise DesignError(f"runs = {runs} is too few: the model has p = {model.p} parameters, so it needs at least {model.p} runs")
 
 
-def d_optimal(model: Model, runs: int, *, seed: int, starts: int = 100) -> ExactDesign:
-    """The exact D-optimal `runs`-run design for `model`, best of `starts` seeded starts."""
+def criterion_weight(model: Model, criterion: str) -> np.ndarray:
+    """W of trace(W (X'X)^-1): the region's moment matrix (I), the identity (A), unused for D."""
+    if criterion not in CRITERIA:
+        raise DesignError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+    if criterion == "I":
+        return model.moment_matrix()
+    return np.eye(model.p)
+
+
+def criterion_value(x: np.ndarray, criterion: str, weight: np.ndarray) -> float:
+    """The criterion of model matrix x: log det(X'X) for D (-inf when singular), else trace(W (X'X)^-1) (inf)."""
+    info = x.T @ x
+    sign, log_det = np.linalg.slogdet(info)
+    if sign <= 0 or log_det < -30.0:
+        return -np.inf if criterion == "D" else np.inf
+    if criterion == "D":
+        return float(log_det)
+    return float(np.sum(weight * np.linalg.inv(info)))
+
+
+def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, criterion: str = "D",
+                   restrictions: Restrictions | None = None, kept: np.ndarray | None = None,
+                   per_run: dict[int, np.ndarray] | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> ExactDesign:
+    """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
+
+    `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
+    `runs` - m new runs are searched around them. `per_run` maps a factor the runs fix (block,
+    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start.
+    """
+    from designs import kernels  # numba loads only when a design is searched
+
     check_runs(model, runs)
+    kept = np.zeros((0, len(model.factors))) if kept is None else np.asarray(kept, dtype=float)
     if starts < 1:
         raise DesignError(f"starts must be at least 1, got {starts}")
-    candidates = candidate_set(model)
-    rows = model.matrix(candidates)
-    squared = squared_continuous(model)
-    best_settings, best = None, -np.inf
+    weight = criterion_weight(model, criterion)
+    candidates = candidate_set(model, restrictions)
+    curved = model.curved_continuous
+    per_run = per_run or {}
+    frozen = np.array([i in per_run for i in range(len(model.factors))])
+    # A continuous factor entering only linearly has its D-optimum at -1 or +1 (the delta is convex in it),
+    # so the grid suffices there; under I or A, or with restrictions, it too moves anywhere in its range.
+    free = criterion != "D" or bool(restrictions)
+    continuous = np.array([i in curved or (free and isinstance(f, ContinuousFactor)) for i, f in enumerate(model.factors)])
+    grids = [model.grid(i) for i in range(len(model.factors))]
+    values = np.zeros((len(grids), max(len(g) for g in grids)))
+    for i, grid in enumerate(grids):
+        values[i, : len(grid)] = grid
+    value_count = np.array([len(g) for g in grids], dtype=np.int64)
+    levels = np.array([len(f.levels) if isinstance(f, CategoricalFactor) else 0 for f in model.factors], dtype=np.int64)
+    centre, half, kinds = factor_arrays(model.factors)
+    col_factor, col_code = model.column_codes()
+    ops, args, bounds = ((restrictions.ops, restrictions.args, restrictions.bounds) if restrictions
+                         else (np.zeros(0, np.int64), np.zeros(0), np.zeros(1, np.int64)))
+    swaps = candidates if len(candidates) * model.p <= _SWAP_BUDGET else np.zeros((0, len(model.factors)))
+    best_settings, best = None, None
     ends = np.empty(starts)
     for s, child in enumerate(np.random.SeedSequence(seed).spawn(starts)):
-        rng = np.random.default_rng(child)
-        settings = candidates[rng.integers(len(candidates), size=runs)]
-        settings[:, squared] = rng.uniform(-1.0, 1.0, size=(runs, len(squared)))
-        settings, log_det = _optimise(model, settings, candidates, rows, squared)
-        ends[s] = log_det
-        if log_det > best:
-            best_settings, best = settings, log_det
+        fresh = _random_start(np.random.default_rng(child), candidates, runs - len(kept), curved, restrictions, model)
+        settings = np.vstack([kept, fresh])
+        for i, column in per_run.items():
+            settings[len(kept):, i] = column[len(kept):]
+        kernels.optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
+                               continuous, frozen, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
+                               _MAX_PASSES, len(kept))
+        ends[s] = criterion_value(model.matrix(settings), criterion, weight)
+        if restrictions and not restrictions.allowed(settings, model.factors).all():
+            ends[s] = -np.inf if criterion == "D" else np.inf  # a run's block or covariate left it nowhere allowed
+        if best is None or _better(ends[s], best, criterion):
+            best_settings, best = settings, ends[s]
+        if progress is not None:
+            progress(s + 1, starts)
+    assert best is not None and best_settings is not None
     if not np.isfinite(best):
-        raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular)")
-    return ExactDesign(best_settings, best, ends, seed)
+        why = " or no allowed setting fits some run's block or covariate" if restrictions else ""
+        raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular{why})")
+    return ExactDesign(best_settings, criterion, float(best), ends, seed)
 
 
-def squared_continuous(model: Model) -> list[int]:
-    """Indices of the continuous factors that some term squares."""
-    squared = {i for term in model.terms for i, power in term.parts if power == 2}
-    return [i for i, f in enumerate(model.factors) if isinstance(f, ContinuousFactor) and i in squared]
+def _better(value: float, best: float, criterion: str) -> bool:
+    return value > best if criterion == "D" else value < best
 
 
-def _optimise(
-    model: Model, settings: np.ndarray, candidates: np.ndarray, rows: np.ndarray, squared: list[int]
-) -> tuple[np.ndarray, float]:
-    """Alternate coordinate exchange and joint polish (squared continuous factors) with candidate exchange."""
-    x = model.matrix(settings)
-    while True:
-        moved = bool(squared) and _coordinate_exchange(model, x, settings, squared, _COORDINATE_GAIN)
-        swapped = _exchange(x, settings, candidates, rows)
-        if not squared or (not (moved or swapped) and not _polish(model, x, settings, squared)):
-            break
-    sign, log_det = np.linalg.slogdet(x.T @ x)
-    return settings, float(log_det) if sign > 0 else -np.inf
-
-
-def _singular(info: np.ndarray) -> bool:
-    sign, log_det = np.linalg.slogdet(info)
-    return bool(sign <= 0 or log_det < -30.0)
-
-
-def _inverse_information(x: np.ndarray) -> np.ndarray:
-    """(X'X)^-1, with a small ridge while X'X is singular so that exchange can leave it."""
-    info = x.T @ x
-    if _singular(info):
-        info = info + 1e-6 * max(1.0, np.trace(info) / len(info)) * np.eye(len(info))
-    return np.linalg.inv(info)
-
-
-def _exchange(x: np.ndarray, settings: np.ndarray, candidates: np.ndarray, rows: np.ndarray) -> bool:
-    """Fedorov exchange in place: make the best row-for-candidate swap while one helps."""
-    swapped = False
-    for _ in range(50 * len(x)):
-        inv = _inverse_information(x)
-        xa = x @ inv
-        d_old = (xa * x).sum(axis=1)
-        d_new = ((rows @ inv) * rows).sum(axis=1)
-        delta = np.outer(1.0 - d_old, 1.0 + d_new) + (xa @ rows.T) ** 2
-        i, j = np.unravel_index(np.argmax(delta), delta.shape)
-        if delta[i, j] <= 1.0 + _MIN_GAIN:
-            break
-        x[i], settings[i] = rows[j], candidates[j]
-        swapped = True
-    return swapped
-
-
-def _coordinate_exchange(model: Model, x: np.ndarray, settings: np.ndarray, factors: list[int], min_gain: float) -> bool:
-    """Make the best single-coordinate move anywhere in [-1, 1] while one raises det(X'X) by min_gain.
-
-    Nothing moves while X'X is singular: the candidate exchange, free in every factor, repairs that.
-    """
-    moved = False
-    for _ in range(50 * len(x)):
-        if _singular(x.T @ x):
-            break
-        inv = np.linalg.inv(x.T @ x)
-        best_gain, best_move = 1.0 + min_gain, None
-        for f in factors:
-            values, gains = _best_coordinate(model, x, settings, inv, f)
-            i = int(np.argmax(gains))
-            if gains[i] > best_gain:
-                best_gain, best_move = gains[i], (i, f, values[i])
-        if best_move is None:
-            break
-        i, f, value = best_move
-        settings[i, f] = value
-        x[i] = model.matrix(settings[i])[0]
-        moved = True
-    return moved
-
-
-def _polish(model: Model, x: np.ndarray, settings: np.ndarray, factors: list[int]) -> bool:
-    """Maximise log det(X'X) over all coordinates of `factors` at once (L-BFGS-B, in place).
-
-    Returns whether det(X'X) rose by more than the exchange's minimum relative gain.
-
-    Model rows are at most quadratic in a coordinate, so a central difference with any step
-    is its exact derivative; the gradient of log det is 2 x_i' (X'X)^-1 dx_i/dt.
-    """
-    from scipy.optimize import minimize  # only models with squared continuous factors need it
-
-    n = len(settings)
-
-    def trial(values: np.ndarray) -> np.ndarray:
-        out = settings.copy()
-        out[:, factors] = values.reshape(n, len(factors))
-        return out
-
-    def objective(values: np.ndarray) -> tuple[float, np.ndarray]:
-        points = trial(values)
-        rows = model.matrix(points)
-        sign, log_det = np.linalg.slogdet(rows.T @ rows)
-        if sign <= 0:
-            return 1e6, np.zeros_like(values)
-        weighted = rows @ np.linalg.inv(rows.T @ rows)
-        gradient = np.empty((n, len(factors)))
-        for j, f in enumerate(factors):
-            up, down = points.copy(), points.copy()
-            up[:, f] += 1.0
-            down[:, f] -= 1.0
-            gradient[:, j] = ((model.matrix(up) - model.matrix(down)) * weighted).sum(axis=1)
-        return -log_det, -gradient.ravel()
-
-    start = settings[:, factors].ravel()
-    before, _ = objective(start)
-    result = minimize(objective, start, jac=True, method="L-BFGS-B", bounds=[(-1.0, 1.0)] * len(start))
-    if result.fun >= before:
-        return False
-    settings[:, factors] = result.x.reshape(n, len(factors))
-    x[:] = model.matrix(settings)
-    return bool(before - result.fun > _MIN_GAIN)
-
-
-def _best_coordinate(model: Model, x: np.ndarray, settings: np.ndarray, inv: np.ndarray, f: int) -> tuple[np.ndarray, np.ndarray]:
-    """For every row, the value of coordinate f that maximises Fedorov's delta, and that delta.
-
-    The delta is a quartic in the coordinate (model columns are at most quadratic in it), so
-    five samples fix it exactly; it is maximised on a fine grid, then by Newton steps.
-    """
-    n, k = settings.shape
-    trial = np.repeat(settings[:, None, :], len(_PROBES), axis=1)
-    trial[:, :, f] = _PROBES
-    cand = model.matrix(trial.reshape(-1, k)).reshape(n, len(_PROBES), -1)
-    d_old = ((x @ inv) * x).sum(axis=1)
-    xa = x @ inv
-    d_new = np.einsum("igj,jk,igk->ig", cand, inv, cand)
-    gains = (1.0 - d_old)[:, None] * (1.0 + d_new) + np.einsum("igj,ij->ig", cand, xa) ** 2
-    quartic = gains @ _PROBE_INVERSE.T
-    values = _FINE[np.argmax(quartic @ _FINE_POWERS, axis=1)]
-    slope = quartic[:, 1:] * np.arange(1, 5)
-    curvature = slope[:, 1:] * np.arange(1, 4)
-    spacing = _FINE[1] - _FINE[0]
-    for _ in range(3):
-        first = (slope * np.vander(values, 4, increasing=True)).sum(axis=1)
-        second = (curvature * np.vander(values, 3, increasing=True)).sum(axis=1)
-        step = np.where(second < 0.0, -first / np.where(second < 0.0, second, -1.0), 0.0)
-        values = np.clip(values + np.clip(step, -spacing, spacing), -1.0, 1.0)
-    return values, (quartic * np.vander(values, 5, increasing=True)).sum(axis=1)
+def _random_start(rng: np.random.Generator, candidates: np.ndarray, runs: int, curved: list[int],
+                  restrictions: Restrictions | None, model: Model) -> np.ndarray:
+    """Runs drawn from the allowed candidates; curved continuous coordinates then drawn uniformly where allowed."""
+    settings = candidates[rng.integers(len(candidates), size=runs)]
+    if curved:
+        moved = settings.copy()
+        moved[:, curved] = rng.uniform(-1.0, 1.0, size=(runs, len(curved)))
+        keep = restrictions.allowed(moved, model.factors) if restrictions else np.ones(runs, dtype=bool)
+        settings[keep] = moved[keep]
+    return settings

@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 
 from designs.blinding import WHOLE_KEY
-from designs.diagnostics import POWER_CONVENTION
+from designs.diagnostics import POWER_CONVENTION, Diagnostics
 from designs.errors import DesignError
-from designs.exchange import candidate_set
+from designs.exchange import CRITERION_NAMES, candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
 from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
@@ -67,6 +67,9 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
         "runs": plan.spec.runs,
         "seed": plan.seed,
         "factors": [_factor_record(f) for f in plan.spec.factors],
+        "criterion": plan.spec.criterion,
+        "disallowed": list(plan.spec.disallowed),
+        "constraints": list(plan.spec.constraints),
         "model": {
             "expression": plan.spec.model,
             "terms": plan.model.term_names,
@@ -96,14 +99,16 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             },
         },
         "search": {
-            "algorithm": "Fedorov exchange with replicates, then coordinate search of continuous factors",
+            "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates",
+            "criterion": plan.design.criterion,
+            "criterion_value": plan.design.value,
             "starts": plan.design.starts,
             "hits": plan.design.hits,
             "design_seed": plan.design.seed,
-            "log_det_xtx": plan.design.log_det,
+            "log_det_xtx": math.log(d.det_xtx),
         },
         "bound": {
-            "method": "approximate D-optimal design on the candidate set (cvxpy, log det)",
+            "method": "approximate D-optimal design on the candidate set (multiplicative algorithm, certified by the equivalence theorem)",
             "d_efficiency": plan.bound.d_efficiency,
             "support": _support(plan),
         },
@@ -128,19 +133,11 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     spec = plan.spec
     lines = [
         f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
-        f"Seed {plan.seed}; {plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
-        f"  D-efficiency                 {d.d_efficiency:9.4f}   det(X'X) = {d.det_xtx:.10g}",
-        f"  D-efficiency bound (cvxpy)   {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it",
-        f"  A-efficiency                 {d.a_efficiency:9.4f}",
-        f"  G-efficiency                 {d.g_efficiency:9.4f}",
-        f"  Average prediction variance  {d.average_prediction_variance:9.4f}",
-        f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}; {POWER_CONVENTION}):",
+        f"Seed {plan.seed}; criterion {plan.design.criterion} ({CRITERION_NAMES[plan.design.criterion]}); "
+        f"{plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
     ]
-    width = max(len(t.term) for t in d.term_power)
-    lines += [f"  {t.term:<{width}}  {t.parameters} df  power {t.power:.3f}" for t in d.term_power]
-    largest = _largest_correlation(d.correlation_columns, d.correlations)
-    if largest:
-        lines.append(f"Largest correlation between model columns: {largest}")
+    bound = f"  D-efficiency bound           {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it"
+    lines += diagnostics_lines(d, bound)
     if plan.sealed is not None:
         lines += [
             f"Blinded: {plan.sealed.factor} appears as arms {', '.join(sorted(plan.sealed.arms))}; the key is sealed, committed to by",
@@ -148,6 +145,40 @@ def summary_lines(plan: StudyPlan) -> list[str]:
             "Record this commitment outside the study folder (lab notebook, preregistration): unblinding with "
             "`trials report --unblind --commitment <it>` refuses a key that does not match it.",
         ]
+    return lines
+
+
+def diagnostics_lines(d: Diagnostics, bound: str = "") -> list[str]:
+    """The efficiencies, each term's power and the largest correlation, as the console shows them;
+    `bound` is a line placed after the D-efficiency."""
+    lines = [f"  D-efficiency                 {d.d_efficiency:9.4f}   det(X'X) = {d.det_xtx:.10g}", *([bound] if bound else []),
+             f"  A-efficiency                 {d.a_efficiency:9.4f}",
+             f"  G-efficiency                 {d.g_efficiency:9.4f}",
+             f"  Average prediction variance  {d.average_prediction_variance:9.4f}",
+             f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}; {POWER_CONVENTION}):"]
+    width = max(len(t.term) for t in d.term_power)
+    lines += [f"  {t.term:<{width}}  {t.parameters} df  power {t.power:.3f}" for t in d.term_power]
+    largest = _largest_correlation(d.correlation_columns, d.correlations)
+    if largest:
+        lines.append(f"Largest correlation between model columns: {largest}")
+    return lines
+
+
+def comparison_lines(names: list[str], results: list[Diagnostics]) -> list[str]:
+    """Two or more plans' diagnostics side by side, one row per figure."""
+    width = max(12, *(len(name) for name in names))
+    rows = [("runs", [f"{d.n}" for d in results]), ("p", [f"{d.p}" for d in results]),
+            ("det(X'X)", [f"{d.det_xtx:.6g}" for d in results]),
+            ("D-efficiency", [f"{d.d_efficiency:.4f}" for d in results]),
+            ("A-efficiency", [f"{d.a_efficiency:.4f}" for d in results]),
+            ("G-efficiency", [f"{d.g_efficiency:.4f}" for d in results]),
+            ("Average prediction variance", [f"{d.average_prediction_variance:.4f}" for d in results]),
+            ("Largest prediction variance", [f"{d.max_prediction_variance:.4f}" for d in results])]
+    rows += [(f"Power {t.term}", [f"{next(u.power for u in d.term_power if u.term == t.term):.3f}" for d in results])
+             for t in results[0].term_power]
+    label = max(len(name) for name, _ in rows)
+    lines = [f"{'':<{label}}  " + "  ".join(f"{name:>{width}}" for name in names)]
+    lines += [f"{name:<{label}}  " + "  ".join(f"{v:>{width}}" for v in values) for name, values in rows]
     return lines
 
 
@@ -162,7 +193,7 @@ def _factor_record(factor: Factor) -> dict[str, Any]:
 
 
 def _support(plan: StudyPlan) -> list[dict[str, Any]]:
-    candidates = candidate_set(plan.model)
+    candidates = candidate_set(plan.model, plan.restrictions)
     keep = plan.bound.weights > 1e-6
     return [{"settings": c.tolist(), "weight": float(w)} for c, w in zip(candidates[keep], plan.bound.weights[keep])]
 

@@ -13,11 +13,6 @@ import numpy as np
 
 from designs.errors import DesignError
 
-#: Gauss-Legendre nodes and weights (normalised to sum 1) on [-1, 1]: exact for the
-#: polynomials of degree <= 5 that products of two model columns of one factor can be.
-_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(3)
-_GL_WEIGHTS = _GL_WEIGHTS / _GL_WEIGHTS.sum()
-
 
 class _LinearCoding:
     """Numeric coding: low -> -1, high -> +1."""
@@ -47,10 +42,6 @@ class ContinuousFactor(_LinearCoding):
     def candidate_settings(self) -> np.ndarray:
         return np.array([-1.0, 0.0, 1.0])
 
-    @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        return _GL_NODES, _GL_WEIGHTS
-
 
 @dataclass(frozen=True)
 class DiscreteFactor(_LinearCoding):
@@ -73,11 +64,6 @@ class DiscreteFactor(_LinearCoding):
     @property
     def candidate_settings(self) -> np.ndarray:
         return np.array([self.encode(v) for v in self.levels])
-
-    @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        settings = self.candidate_settings
-        return settings, np.full(len(settings), 1.0 / len(settings))
 
     def decode(self, setting: float) -> float:
         """The level nearest to the setting (settings of a discrete factor are its levels)."""
@@ -103,10 +89,6 @@ class CategoricalFactor:
         return np.arange(len(self.levels), dtype=float)
 
     @property
-    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.candidate_settings, np.full(len(self.levels), 1.0 / len(self.levels))
-
-    @property
     def effect_coding(self) -> np.ndarray:
         """(k, k-1) the main-effect columns of each level."""
         k = len(self.levels)
@@ -117,6 +99,28 @@ class CategoricalFactor:
 
     def encode(self, value: str) -> float:
         return float(self.levels.index(value))
+
+
+@dataclass(frozen=True)
+class BlockFactor(CategoricalFactor):
+    """The block of each run (`blocks = b` in the spec): levels "1" .. "b", equal blocks in run order.
+
+    The exchange never moves it; its effect-coded columns join the model. study.toml holds only `blocks`.
+    """
+
+    @classmethod
+    def of(cls, blocks: int) -> BlockFactor:
+        return cls("Block", tuple(str(b + 1) for b in range(blocks)))
+
+
+@dataclass(frozen=True)
+class CovariateFactor(ContinuousFactor):
+    """A numeric value measured for each run in advance (a participant's age, the day's wind), coded from its
+    observed range; run j takes values[j], and the exchange chooses the other factors around it."""
+
+    values: tuple[float, ...] = ()
+
+    kind = "covariate"
 
 
 @dataclass(frozen=True)

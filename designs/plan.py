@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import secrets
-from concurrent.futures import Future
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from designs.blinding import SealedAllocation, arm_labels, seal
-from designs.bound import ApproximateDesign, solve_in_background
+from designs.bound import ApproximateDesign, approximate_d_optimal
+from designs.constraints import Restrictions, compile_restrictions
 from designs.diagnostics import Diagnostics, diagnose
-from designs.exchange import ExactDesign, candidate_set, check_runs, d_optimal
-from designs.model import Model, parse_model
+from designs.exchange import ExactDesign, candidate_set, check_runs, optimal_design
+from designs.factors import CovariateFactor
+from designs.model import Model
 from designs.spec import StudySpec, check_search_size
 
 #: Run-code alphabet: capitals and digits without the look-alikes 0/O, 1/I/L, 2/Z, 5/S, 8/B.
@@ -32,20 +34,16 @@ class PlannedRun:
 
 @dataclass(frozen=True)
 class StudyPlan:
-    """A built study: the public spec (arm labels when blind), design, bound, diagnostics, runs."""
+    """A built study: the public spec (arm labels when blind), design, D-efficiency bound, diagnostics, runs."""
 
     spec: StudySpec
     model: Model
     design: ExactDesign
-    bound_job: Future[ApproximateDesign]
+    bound: ApproximateDesign
     diagnostics: Diagnostics
     runs: tuple[PlannedRun, ...]
     sealed: SealedAllocation | None
-
-    @property
-    def bound(self) -> ApproximateDesign:
-        """The cvxpy bound (waits for its background solve on first use)."""
-        return self.bound_job.result()
+    restrictions: Restrictions
 
     @property
     def seed(self) -> int:
@@ -58,41 +56,70 @@ class StudyPlan:
         return 100.0 * self.diagnostics.d_efficiency / self.bound.d_efficiency
 
 
-def build_plan(spec: StudySpec, allocation_seed: int | None = None) -> StudyPlan:
+@dataclass(frozen=True)
+class KeptRuns:
+    """The runs of a study being augmented, as (order, run code, settings), which they keep, and its sealed key."""
+
+    runs: tuple[tuple[int, str, np.ndarray], ...]
+    sealed: SealedAllocation | None
+
+
+def build_plan(spec: StudySpec, allocation_seed: int | None = None,
+               progress: Callable[[int, int], None] | None = None, kept: KeptRuns | None = None) -> StudyPlan:
     """Design, bound, diagnose and randomize a study; seal its blind factor if it has one.
+
+    `progress(done, starts)` follows the exchange's starts. With `kept` (augmenting; `spec` is the
+    study's public spec, `spec.runs` the new total) the kept runs stay first and unchanged, the new
+    ones are searched around them and randomized after them, and the sealed key stays as it is.
 
     The public seed (drawn when the spec has none) drives the exchange starts, the run order
     and the run codes; the blind allocation uses its own secret seed.
     """
     seed = spec.seed if spec.seed is not None else secrets.randbits(31)
     spec = replace(spec, seed=seed)
-    sealed = None
+    sealed = kept.sealed if kept is not None else None
     blind = spec.blind_factor
-    if blind is not None:
+    if blind is not None and kept is None:
         sealed = seal(blind.name, blind.levels, allocation_seed)
         spec = spec.with_factor(replace(blind, levels=arm_labels(len(blind.levels))))
-    check_search_size(spec)
-    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    model = spec.build_model()
+    check_search_size(spec, model.p)
     check_runs(model, spec.runs)
-    bound_job = solve_in_background(model.matrix(candidate_set(model)))
+    restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
+    bound = approximate_d_optimal(model.matrix(candidate_set(model, restrictions)))
     design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
-    design = d_optimal(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts)
+    old = tuple(PlannedRun(order, code, _values(spec, model, settings), settings)
+                for order, code, settings in (kept.runs if kept is not None else ()))
+    design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
+                            criterion=spec.criterion, restrictions=restrictions, progress=progress,
+                            kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
+                            per_run=spec.per_run())
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
-    order = np.random.default_rng(order_seed).permutation(spec.runs)
-    codes = run_codes(spec.runs, np.random.default_rng(code_seed))
-    runs = tuple(
-        PlannedRun(position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
+    order = len(old) + _run_order(spec, spec.runs - len(old), np.random.default_rng(order_seed))
+    codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})
+    runs = old + tuple(
+        PlannedRun(len(old) + position + 1, codes[position], _values(spec, model, design.settings[row]), design.settings[row])
         for position, row in enumerate(order)
     )
-    return StudyPlan(spec, model, design, bound_job, diagnostics, runs, sealed)
+    return StudyPlan(spec, model, design, bound, diagnostics, runs, sealed, restrictions)
 
 
-def run_codes(count: int, rng: np.random.Generator) -> list[str]:
-    """`count` distinct random codes, unrelated to run order or arm."""
+def _run_order(spec: StudySpec, count: int, rng: np.random.Generator) -> np.ndarray:
+    """The design rows in run order: at random, within each block when blocked; as given when a
+    covariate ties each row to a run."""
+    if any(isinstance(f, CovariateFactor) for f in spec.factors):
+        return np.arange(count)
+    size = count // spec.blocks
+    return np.concatenate([b * size + rng.permutation(size) for b in range(spec.blocks)])
+
+
+def run_codes(count: int, rng: np.random.Generator, taken: set[str] | None = None) -> list[str]:
+    """`count` distinct random codes, unrelated to run order or arm, none of them in `taken`."""
     codes: list[str] = []
+    taken = taken or set()
     while len(codes) < count:
         code = "".join(rng.choice(list(CODE_ALPHABET), size=CODE_LENGTH))
-        if code not in codes:
+        if code not in codes and code not in taken:
             codes.append(code)
     return codes
 

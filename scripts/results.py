@@ -95,7 +95,7 @@ def designs() -> str:
         "## Designs",
         "",
         "The preset plans' diagnostics (`design.json`; JMP's conventions, see [designs.md](designs.md)).",
-        "Every seed reaches the same D-optimum (the bound is cvxpy's approximate design), but the",
+        "Every seed reaches the same D-optimum (the bound is the approximate D-optimal design's), but the",
         "exchange can end on different optimal designs, whose A-efficiency differs: an A-efficiency",
         "belongs to its seed.",
         "",

@@ -106,8 +106,8 @@ CASES = [
     Case("snr negative", ("design", "--snr", "-1", "--study", "{tmp}/new"), "argument --snr: expected a finite number in (0, 100], got '-1'"),
     Case("runs far too many", ("design", "--runs", "100000", "--study", "{tmp}/new"),
          "argument --runs: expected a whole number from 1 to 1000, got '100000'"),
-    Case("runs times starts too large", ("design", "--runs", "1000", "--starts", "101", "--study", "{tmp}/new"),
-         "runs x starts = 1000 x 101 exceeds 100,000; ask for fewer runs or starts"),
+    Case("search too large", ("design", "--runs", "1000", "--starts", "1000", "--model", "main + interactions", "--study", "{tmp}/new"),
+         "starts x runs x factors x p^2 = 1000 x 1000 x 3 x 10^2 = 300,000,000 exceeds 100,000,000"),
     Case("starts zero", ("design", "--starts", "0", "--study", "{tmp}/new"), "argument --starts: expected a whole number from 1 to 1000, got '0'"),
     Case("runs too few from the spec", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "runs = 2 is too few: the model has p = 3 parameters", spec('[study]\nruns = 2\n\n' + SPEED.replace("Speed", "A") + SPEED.replace("Speed", "B"))),
@@ -200,18 +200,18 @@ CASES = [
     Case("plan rows swapped", ("run", "--study", "{study}"), "plan.csv line 2: run N3W3X is out of plan order (run NGAC3 comes here)",
          plan_rows(lambda rows: [rows[0], rows[2], rows[1], *rows[3:]])),
     Case("plan setting edited", ("run", "--study", "{study}"),
-         "plan.csv line 4 (run 6PKG7): Pedestrians is '3', but the design has '4'", plan_rows(edit_cell(4, "Pedestrians", "3"))),
+         "plan.csv line 4 (run 6PKG7): Pedestrians is '3', but the design has '6'", plan_rows(edit_cell(4, "Pedestrians", "3"))),
     Case("plan edited (score)", ("score", "NGAC3", "2", "--study", "{study}"),
-         "plan.csv line 2 (run NGAC3): Direction is 'Crossing', but the design has 'ParallelCrossing'",
-         plan_rows(edit_cell(2, "Direction", "Crossing"))),
+         "plan.csv line 2 (run NGAC3): Direction is 'Parallel', but the design has 'Crossing'",
+         plan_rows(edit_cell(2, "Direction", "Parallel"))),
     Case("design.json emptied", ("report", "--study", "{study}"), "design.json is not a design record (its format field must be 'navtrials.design/1')",
          lambda tmp, study: (study / "design.json").write_text("{}")),
     Case("design.json seed gone", ("run", "--study", "{study}"), "design.json: field 'seed' is missing or not a int",
          lambda tmp, study: _edit_design(study, lambda d: d.pop("seed"))),
     Case("plan digest differs", ("run", "--study", "{study}"), "design.json: its plan digest does not match its own runs",
          lambda tmp, study: _edit_design(study, lambda d: d["plan"].update(sha256="0" * 64))),
-    Case("design settings edited", ("run", "--study", "{study}"), "plan.csv line 2 (run NGAC3): Pedestrians is '6', but the design has '2'",
-         lambda tmp, study: _edit_design(study, lambda d: d["design"][0]["settings"].__setitem__(0, -1.0))),
+    Case("design settings edited", ("run", "--study", "{study}"), "plan.csv line 2 (run NGAC3): Pedestrians is '2', but the design has '6'",
+         lambda tmp, study: _edit_design(study, lambda d: d["design"][0]["settings"].__setitem__(0, 1.0))),
     Case("outcomes not UTF-8", ("run", "--study", "{study}"), "outcomes.csv is not UTF-8 text (invalid start byte at byte 0)",
          lambda tmp, study: (study / "outcomes.csv").write_bytes(b"\xff\xfe")),
     Case("log show of an unfinished run", ("log", "show", "NGAC3", "--study", "{study}"), "no log of run NGAC3 in"),
@@ -256,7 +256,7 @@ def _snapshot(root: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def template(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The 18-run blinded A/B plan with seed 1 (its first run NGAC3, 6 pedestrians ParallelCrossing)."""
+    """The 18-run blinded A/B plan with seed 1 (its first run NGAC3, 2 pedestrians Crossing)."""
     root = tmp_path_factory.mktemp("template") / "study"
     assert main(["design", "--ab", "--seed", "1", "--study", str(root)]) == 0
     return root
@@ -288,7 +288,7 @@ def test_spreadsheet_resaves_read_as_the_plan(template: Path, tmp_path: Path) ->
     (study / "plan.csv").write_bytes(b"\xef\xbb\xbf" + "\r\n".join(padded).encode() + b"\r\n\r\n")
     again = StudyFolder(study).read_plan()
     assert again == original and list(again[0]) == ["order", "run_code", "Pedestrians", "Direction", "Controller", "CrossingDistance"]
-    assert again[0]["run_code"] == "NGAC3" and again[0]["Pedestrians"] == "6"
+    assert again[0]["run_code"] == "NGAC3" and again[0]["Pedestrians"] == "2"
 
 
 def test_a_log_column_may_be_added(template: Path, tmp_path: Path) -> None:

@@ -30,7 +30,7 @@ def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
     console = (captured.out + captured.err).lower()
     assert all(word not in console for word in CONTROLLER_WORDS)
     files = public_files(tmp_path)
-    assert sorted(p.name for p in files) == ["correlation_map.png", "design.json", "plan.csv", "study.toml"]
+    assert sorted(p.name for p in files) == ["correlation_map.png", "design.json", "design_evaluation.png", "plan.csv", "study.toml"]
     for path in files:
         content = path.read_bytes().lower()
         assert all(word.encode() not in content for word in CONTROLLER_WORDS), path.name

@@ -57,7 +57,7 @@ def test_qualitative_default_writes_the_study_folder(tmp_path, capsys):
     assert design(tmp_path, "--runs", "27", "--seed", "4") == 0
     out = capsys.readouterr().out
     assert "79.9157" in out and "80.2742" in out and "99.55 %" in out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["correlation_map.png", "design.json", "plan.csv", "study.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["correlation_map.png", "design.json", "design_evaluation.png", "plan.csv", "study.toml"]
     rows = read_plan(tmp_path)
     assert len(rows) == 27
     assert list(rows[0]) == ["order", "run_code", "Pedestrians", "Direction", "CrossingDistance"]
@@ -75,6 +75,7 @@ def test_qualitative_default_writes_the_study_folder(tmp_path, capsys):
     assert len(d["correlation_map"]["matrix"]) == 4
     assert [t["term"] for t in d["power"]["terms"]] == ["Intercept", "Pedestrians", "Direction", "CrossingDistance"]
     assert (tmp_path / "correlation_map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "design_evaluation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert record["seed"] == 4 and record["blinding"] is None
 
 

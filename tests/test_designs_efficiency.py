@@ -12,7 +12,7 @@ from scipy import stats
 from designs.bound import approximate_d_optimal
 from designs.diagnostics import diagnose
 from designs.errors import DesignError
-from designs.exchange import candidate_set, d_optimal
+from designs.exchange import candidate_set, optimal_design
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
 from designs.model import parse_model
 from designs.plan import build_plan
@@ -32,7 +32,7 @@ def _det(model, settings) -> float:
 @pytest.mark.parametrize("seed", [0, 1, 7, 2019, 123456789])
 def test_qualitative_plan_reaches_the_proven_optimum_from_any_seed(seed):
     model = _model(qualitative())
-    design = d_optimal(model, 27, seed=seed)
+    design = optimal_design(model, 27, seed=seed)
     assert model.p == 5
     assert _det(model, design.settings) == pytest.approx(4_677_120, rel=1e-9)
     assert diagnose(model, design.settings).d_efficiency == pytest.approx(79.9157, abs=1e-4)
@@ -44,18 +44,27 @@ def test_qualitative_plan_reaches_the_proven_optimum_from_any_seed(seed):
 @pytest.mark.parametrize("seed", [0, 3, 42, 99991])
 def test_ab_plan_reaches_the_proven_optimum_from_any_seed(seed):
     model = _model(ab(CONTROLLERS))
-    design = d_optimal(model, 18, seed=seed)
+    design = optimal_design(model, 18, seed=seed)
     assert model.p == 11
     assert _det(model, design.settings) == pytest.approx(106_420_469_760, rel=1e-9)
     assert diagnose(model, design.settings).d_efficiency == pytest.approx(55.8707, abs=1e-4)
 
 
-def test_cvxpy_bounds_of_the_presets():
+def test_approximate_design_bounds_of_the_presets():
     for spec, bound in [(qualitative(), 80.2742), (ab(CONTROLLERS), 57.9620)]:
         model = _model(spec)
         result = approximate_d_optimal(model.matrix(candidate_set(model)))
         assert result.d_efficiency == pytest.approx(bound, abs=1e-3)
         assert result.weights.sum() == pytest.approx(1.0)
+
+
+def test_bound_of_one_factor_quadratic_is_the_known_approximate_optimum():
+    """Quadratic on {-1, 0, 1}: the approximate D-optimum puts 1/3 on each point, det M = 4/27."""
+    model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
+    result = approximate_d_optimal(model.matrix(candidate_set(model)))
+    np.testing.assert_allclose(result.weights, [1 / 3] * 3, atol=1e-6)
+    assert result.d_efficiency == pytest.approx(100 * (4 / 27) ** (1 / 3), rel=1e-7)
+    assert result.d_efficiency >= 100 * (4 / 27) ** (1 / 3) * (1 - 1e-12)  # the certified bound never falls below the optimum
 
 
 def test_plan_reports_efficiency_relative_to_the_bound():
@@ -144,7 +153,7 @@ def test_ab_plan_power_with_jmp_coefficients():
     """The 18-run A/B plan: each term's power from scipy.stats' noncentral F on (X'X)^-1 with the
     alternating coefficients; every coefficient +1 gave 0.991, 0.947, 0.991 for the three two-column terms."""
     model = _model(ab(CONTROLLERS))
-    settings = d_optimal(model, 18, seed=0).settings
+    settings = optimal_design(model, 18, seed=0).settings
     x = model.matrix(settings)
     inv = np.linalg.inv(x.T @ x)
     power = {t.term: t.power for t in diagnose(model, settings).term_power}
@@ -177,7 +186,7 @@ def _brute_force_best_det(model, runs: int) -> float:
 )
 def test_exchange_matches_brute_force_on_small_problems(factors, expression, runs):
     model = parse_model(expression, factors)
-    design = d_optimal(model, runs, seed=11, starts=30)
+    design = optimal_design(model, runs, seed=11, starts=30)
     assert _det(model, design.settings) == pytest.approx(_brute_force_best_det(model, runs), rel=1e-9)
 
 
@@ -186,7 +195,7 @@ def test_continuous_factors_leave_the_grid_when_that_is_better():
     (Box & Draper), so it must beat the best design restricted to grid points."""
     factors = (ContinuousFactor("A", -1, 1), ContinuousFactor("B", -1, 1))
     model = parse_model("main + interactions + quadratic", factors)
-    design = d_optimal(model, 6, seed=5, starts=8)
+    design = optimal_design(model, 6, seed=5, starts=8)
     grid_best = _brute_force_best_det(model, 6)
     assert grid_best == pytest.approx(256.0)
     assert _det(model, design.settings) == pytest.approx(267.737, abs=1e-3)
@@ -198,5 +207,5 @@ def test_continuous_factors_leave_the_grid_when_that_is_better():
 def test_replicates_are_allowed():
     """One two-level factor, 4 runs: the optimum repeats each level twice."""
     model = parse_model("main", (CategoricalFactor("C", ("x", "y")),))
-    design = d_optimal(model, 4, seed=0, starts=5)
+    design = optimal_design(model, 4, seed=0, starts=5)
     assert sorted(design.settings[:, 0].tolist()) == [0.0, 0.0, 1.0, 1.0]

@@ -134,6 +134,7 @@ def test_settings_from_a_plan_row():
     row = {"order": "1", "run_code": "AAAAA", "Pedestrians": "6", "Direction": "Crossing", "CrossingDistance": "1.5", "Controller": "A"}
     assert settings_from_row(row, "row 1") == Settings(6, "Crossing", 1.5)
     assert settings_from_row({"Pedestrians": "2.0"}, "row 1") == Settings(2, "Crossing", 2.0)  # defaults for the rest
+    assert settings_from_row({**row, "Block": "2"}, "row 1") == Settings(6, "Crossing", 1.5)  # a blocked plan's column is the analysis's
 
 
 @pytest.mark.parametrize("column,value,message", [

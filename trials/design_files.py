@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from analysis.figures import correlation_map_figure
+from analysis.figures import correlation_map_figure, design_evaluation_figure
+from designs.diagnostics import fraction_of_design_space, variance_profiles
 from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
@@ -14,6 +15,7 @@ from trials.study import (
     ALLOCATION,
     CORRELATION_MAP,
     DESIGN,
+    DESIGN_EVALUATION,
     PLAN,
     SEALED,
     SEALED_SPEC,
@@ -28,7 +30,7 @@ from trials.study import (
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None) -> list[Path]:
-    """Write study.toml, plan.csv, design.json, correlation_map.png and the sealed key (sealed/ 0700,
+    """Write study.toml, plan.csv, design.json, correlation_map.png, design_evaluation.png and the sealed key (sealed/ 0700,
     its files 0600).
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
@@ -36,8 +38,10 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     """
     created = utc_now()
     d = plan.diagnostics
-    # The figure first: it does not need the cvxpy bound, which may still be solving.
     figure = correlation_map_figure(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns").png()
+    profiles = [(v.factor, v.x, v.variance, v.labels) for v in variance_profiles(plan.model, plan.design.settings)]
+    evaluation = design_evaluation_figure(fraction_of_design_space(plan.model, plan.design.settings), profiles,
+                                          f"{plan.spec.name}: prediction variance").png()
     table = plan_table(plan)
     record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
     public = {
@@ -45,6 +49,7 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
         folder.path(PLAN): plan_content(*table),
         folder.path(DESIGN): json_content(record),
         folder.path(CORRELATION_MAP): figure,
+        folder.path(DESIGN_EVALUATION): evaluation,
     }
     secret: dict[Path, bytes] = {}
     if plan.sealed is not None:

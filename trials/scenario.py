@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from designs.spec import BLOCK_COLUMN
 from trials.errors import StudyError
 
 PARALLEL, PARALLEL_CROSSING, CROSSING = "Parallel", "ParallelCrossing", "Crossing"
@@ -110,12 +111,13 @@ def _rounded(value: Any) -> Any:
 
 
 def settings_from_row(row: dict[str, str], where: str) -> Settings:
-    """The simulated factors of a plan row (`Controller` and `order`/`run_code` are left to the runner).
+    """The simulated factors of a plan row (`Controller` and `order`/`run_code` are left to the runner,
+    `Block` to the analysis).
 
     Raises:
         StudyError: an unknown factor, or a value the simulator cannot run; `where` names the row.
     """
-    unknown = [name for name in row if name not in (*DEFAULTS, CONTROLLER, "order", "run_code")]
+    unknown = [name for name in row if name not in (*DEFAULTS, CONTROLLER, "order", "run_code", BLOCK_COLUMN)]
     if unknown:
         known = ", ".join((*DEFAULTS, CONTROLLER))
         raise StudyError(f"{where}: factor {unknown[0]!r} cannot be simulated (the simulator knows {known})")

@@ -35,6 +35,7 @@ SPEC = "study.toml"
 PLAN = "plan.csv"
 DESIGN = "design.json"
 CORRELATION_MAP = "correlation_map.png"
+DESIGN_EVALUATION = "design_evaluation.png"
 #: The researcher's own thresholds for the report's rubric, if the study has any.
 RUBRIC = "rubric.toml"
 SEALED = "sealed"
@@ -72,7 +73,7 @@ LOGS = "logs"
 CONSOLE_ACCESS = "console/access.json"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:
@@ -213,6 +214,15 @@ class StudyFolder:
         target.mkdir(parents=True)
         for name in names:
             shutil.move(str(self.path(name)), str(target / Path(name).name))
+        return target
+
+    def copy_aside(self, names: tuple[str, ...]) -> Path:
+        """Copy existing entries (files) into superseded/<UTC time>/, leaving them in place; returns that folder."""
+        target = self.path(SUPERSEDED) / utc_now().replace(":", "")
+        target.mkdir(parents=True, exist_ok=True)
+        for name in names:
+            if self.path(name).exists():
+                shutil.copy2(self.path(name), target / Path(name).name)
         return target
 
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:

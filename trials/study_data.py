@@ -11,7 +11,6 @@ import json
 from typing import Any
 
 from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
-from designs.model import parse_model
 from designs.spec import read_spec
 from trials.controllers import registry
 from trials.errors import StudyError
@@ -39,7 +38,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
     spec = read_spec(folder.path(SPEC))
     design = folder.read_design()
     plan = folder.read_plan()
-    model = parse_model(spec.model, spec.design_factors, tuple(f.name for f in spec.fixed_factors))
+    model = spec.build_model()
     codes = [row["run_code"] for row in plan]
     notes: list[str] = []
 

@@ -3,9 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
+from designs.exchange import CRITERIA
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
+
+if TYPE_CHECKING:
+    from designs.spec import StudySpec
+    from trials.study import StudyFolder
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -15,15 +23,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Build the study's plan: the paper's 27-run qualitative plan by default, the 18-run "
             "blinded A/B plan with --ab, or any study from a study.toml. Writes study.toml, "
-            "plan.csv, design.json, correlation_map.png (and sealed/ when blinded)."
+            "plan.csv, design.json, correlation_map.png, design_evaluation.png (and sealed/ when blinded)."
         ),
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--ab", action="store_true", help="the paper's blinded A/B plan (NaviGAN-R vs the lattice planner)")
     source.add_argument("--spec", type=types.input_file, metavar="FILE",
                         help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
+    check = parser.add_mutually_exclusive_group()
+    check.add_argument("--evaluate", type=types.input_file, metavar="PLAN.csv",
+                       help="print the full diagnostics of a plan you have (its factor columns, under the spec's coding "
+                            "and model); writes nothing")
+    check.add_argument("--compare", type=types.input_file, nargs=2, metavar=("A.csv", "B.csv"),
+                       help="print two plans' diagnostics side by side; writes nothing")
+    check.add_argument("--augment", type=types.whole(1, MAX_RUNS), metavar="N",
+                       help="add N runs to the study's plan, keeping its runs and results (the old design files are "
+                            "copied to superseded/)")
     parser.add_argument("--runs", type=types.whole(1, MAX_RUNS), help=f"number of runs, at most {MAX_RUNS} (presets: 27, or 18 with --ab)")
     parser.add_argument("--model", help="model terms, e.g. 'main + interactions' or 'A + B + A*B + A^2'")
+    parser.add_argument("--criterion", choices=CRITERIA,
+                        help="D: largest det(X'X) (default); I: smallest average prediction variance; A: smallest trace((X'X)^-1)")
     parser.add_argument("--seed", type=types.seed, help="seed of the design search, run order and run codes (default: drawn and recorded)")
     parser.add_argument("--starts", type=types.whole(1, MAX_STARTS), help=f"random starts of the exchange algorithm (default 100, at most {MAX_STARTS})")
     parser.add_argument("--snr", type=types.number(0, MAX_SNR, above=True), help="signal-to-noise ratio for the power table (default 1)")
@@ -31,6 +50,76 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
     parser.set_defaults(handler=run)
+
+
+def _progress(done: int, starts: int) -> None:
+    """One line on a terminal that follows the exchange's starts."""
+    print(f"\rdesign search: start {done} of {starts}", end="", file=sys.stderr, flush=True)
+
+
+def _evaluate(spec: StudySpec, paths: list[Path]) -> int:
+    """Diagnose plans the researcher brings under the spec's factors, coding and model; print, write nothing."""
+    from designs.diagnostics import diagnose
+    from designs.errors import DesignError
+    from designs.evaluate import settings_from_rows
+    from designs.export import comparison_lines, diagnostics_lines
+    from trials.csv_table import read_rows
+
+    model = spec.build_model()
+    results = []
+    for path in paths:
+        header, rows = read_rows(path, same_width=True)
+        settings = settings_from_rows(model.factors, header, rows, path.name)
+        if len(settings) < model.p:
+            raise DesignError(f"{path.name}: {len(settings)} runs cannot estimate the model's p = {model.p} parameters")
+        results.append(diagnose(model, settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated))
+    if len(results) == 1:
+        print(f"{paths[0].name}: {results[0].n} runs, model {spec.model!r} with p = {results[0].p} parameters")
+        print("\n".join(diagnostics_lines(results[0])))
+    else:
+        print(f"Model {spec.model!r}")
+        print("\n".join(comparison_lines([p.name for p in paths], results)))
+    return 0
+
+
+def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
+    """Add runs to a study's plan around the runs it has; its results and sealed key stay as they are."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from designs.export import summary_lines
+    from designs.plan import KeptRuns, build_plan
+    from designs.spec import MAX_RUNS, read_spec
+    from trials.design_files import write_design
+    from trials.errors import StudyError
+    from trials.study import CORRELATION_MAP, DESIGN, DESIGN_EVALUATION, PLAN, SPEC
+
+    folder.require_plan()
+    spec = read_spec(folder.path(SPEC))
+    if spec.blocks > 1 or any(f.kind == "covariate" for f in spec.factors):
+        raise StudyError(f"{folder.path(SPEC)}: a study with blocks or covariates cannot be augmented (its runs' "
+                         "blocks and covariate values are fixed by the spec); make a new plan with trials design --force")
+    record = folder.read_design()
+    try:
+        kept = tuple((int(run["order"]), str(run["run_code"]), np.array(run["settings"], dtype=float)) for run in record["design"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise StudyError(f"{folder.path(DESIGN)}: its runs are damaged ({type(exc).__name__}: {exc})") from None
+    total = len(kept) + args.augment
+    if total > MAX_RUNS:
+        raise StudyError(f"--augment {args.augment}: the study would have {total} runs; at most {MAX_RUNS}")
+    overrides = {"seed": args.seed, "starts": args.starts, "snr": args.snr, "criterion": args.criterion}
+    spec = replace(spec, runs=total, **{k: v for k, v in overrides.items() if v is not None})
+    if args.seed is None:
+        spec = replace(spec, seed=None)  # a fresh seed for the new runs, recorded
+    sealed = folder.read_sealed() if spec.blind_factor is not None else None
+    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() else None)
+    copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION))
+    written = write_design(folder, plan)
+    print("\n".join(summary_lines(plan)))
+    print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
+          f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copied}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,14 +140,20 @@ def run(args: argparse.Namespace) -> int:
     )
 
     folder = StudyFolder(args.study)
+    if args.augment:
+        return _augment(folder, args)
     own_spec = folder.path(SPEC)
     spec_path = args.spec or (own_spec if own_spec.exists() and not args.ab else None)
     if spec_path is not None:
         spec = read_spec(spec_path)
     else:
         spec = presets.ab(registry.NAMES) if args.ab else presets.qualitative()
-    overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr}
+    overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr,
+                 "criterion": args.criterion}
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
+
+    if args.evaluate or args.compare:
+        return _evaluate(spec, args.compare or [args.evaluate])
 
     replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
     if (folder.has_plan() or replaces_own_spec) and not args.force:
@@ -70,8 +165,11 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
-    plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
-    # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
+    # every bad input fails here, before any write
+    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if sys.stderr.isatty() else None)
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    # Imported only now: matplotlib loads only when there is a plan to write.
     from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed

@@ -1,0 +1,321 @@
+"""Compiled kernels of the design search (numba, cached beside the sources): model rows, the
+disallowed-combination programs and one start of the coordinate exchange.
+
+The exchange keeps V = (X'X)^-1 and judges replacing a run's row x by a trial row y from
+y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx): O(p^2) a trial.
+
+- D: det rises by the factor (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta)
+- I and A: trace(W V) falls by the Woodbury identity with the 2 x 2 core of the exchange, W the
+  region's moment matrix (I) or the identity (A)
+
+A move taken updates V by the same rank-two Woodbury step; V is recomputed from X once a pass.
+A continuous coordinate enters each model column as a polynomial of degree at most 3, so those
+quantities are polynomials of degree at most 6 in it: seven probes fix them exactly, and the
+best value is found on a fine grid, then refined around its best point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from designs.constraints import ADD, AND, CATEGORICAL, CONST, DIV, EQ, GE, GT, LE, LT, MUL, NE, NEG, NOT, SUB, VAR
+
+kernel = njit(cache=True)
+
+#: Points of the fine grid a continuous coordinate is first searched on, and its refinements.
+_FINE_POINTS = 201
+_ZOOM_POINTS = 21
+_ZOOMS = 5
+
+
+@kernel
+def model_row(s, kinds, levels, col_factor, col_code, out):
+    """The model row of one point `s` (coded settings; level indices for categorical factors) into `out`."""
+    p, parts = col_factor.shape
+    for c in range(p):
+        value = 1.0
+        for q in range(parts):
+            f = col_factor[c, q]
+            if f < 0:
+                break
+            x = s[f]
+            if kinds[f] == CATEGORICAL:
+                level = int(x)
+                if level == levels[f] - 1:
+                    value = -value
+                elif level != col_code[c, q]:
+                    value = 0.0
+            else:
+                for _ in range(col_code[c, q]):
+                    value *= x
+        out[c] = value
+
+
+@kernel
+def _close(a, b):
+    return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
+
+
+@kernel
+def disallowed(s, centre, half, kinds, ops, args, bounds, stack):
+    """Whether point `s` satisfies any of the programs (program e is ops[bounds[e]:bounds[e + 1]]).
+
+    Numeric factors are read in their own units, categorical ones as level indices.
+    """
+    for e in range(len(bounds) - 1):
+        top = 0
+        for i in range(bounds[e], bounds[e + 1]):
+            op = ops[i]
+            if op == VAR:
+                f = int(args[i])
+                stack[top] = s[f] if kinds[f] == CATEGORICAL else centre[f] + half[f] * s[f]
+                top += 1
+            elif op == CONST:
+                stack[top] = args[i]
+                top += 1
+            elif op == NEG:
+                stack[top - 1] = -stack[top - 1]
+            elif op == NOT:
+                stack[top - 1] = 1.0 if stack[top - 1] == 0.0 else 0.0
+            else:
+                b = stack[top - 1]
+                a = stack[top - 2]
+                top -= 1
+                if op == ADD:
+                    r = a + b
+                elif op == SUB:
+                    r = a - b
+                elif op == MUL:
+                    r = a * b
+                elif op == DIV:
+                    r = a / b if b != 0.0 else np.nan
+                elif op == LT:
+                    r = 1.0 if a < b and not _close(a, b) else 0.0
+                elif op == LE:
+                    r = 1.0 if a < b or _close(a, b) else 0.0
+                elif op == GT:
+                    r = 1.0 if a > b and not _close(a, b) else 0.0
+                elif op == GE:
+                    r = 1.0 if a > b or _close(a, b) else 0.0
+                elif op == EQ:
+                    r = 1.0 if _close(a, b) else 0.0
+                elif op == NE:
+                    r = 0.0 if _close(a, b) else 1.0
+                elif op == AND:
+                    r = 1.0 if a != 0.0 and b != 0.0 else 0.0
+                else:
+                    r = 1.0 if a != 0.0 or b != 0.0 else 0.0
+                stack[top - 1] = r
+        if stack[0] != 0.0:
+            return True
+    return False
+
+
+@kernel
+def _mat_vec(matrix, vector, out):
+    n = len(vector)
+    for a in range(n):
+        total = 0.0
+        for b in range(n):
+            total += matrix[a, b] * vector[b]
+        out[a] = total
+
+
+@kernel
+def _dot(a, b):
+    total = 0.0
+    for j in range(len(a)):
+        total += a[j] * b[j]
+    return total
+
+
+@kernel
+def _trial(y, inv, b, wb, weight, trace, a, wa, out):
+    """Into `out`: y'Vy, x'Vy, a'Wa and a'Wb for trial row y (a = Vy, b = Vx, x the run's present row)."""
+    _mat_vec(inv, y, a)
+    out[0] = _dot(y, a)
+    out[1] = _dot(b, y)
+    if trace:
+        _mat_vec(weight, a, wa)
+        out[2] = _dot(a, wa)
+        out[3] = _dot(a, wb)
+
+
+@kernel
+def _gain(dy, dxy, awa, awb, dx, bwb, trace):
+    """What replacing the row x by y gains (larger is better; 0 for y = x).
+
+    D: log of det(M')/det(M) = (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta). I and A: the fall
+    of trace(W V), from the Woodbury identity with the 2 x 2 core S = [[1 + y'Vy, x'Vy], [x'Vy, x'Vx - 1]],
+    whose determinant is minus that ratio.
+    """
+    ratio = (1.0 - dx) * (1.0 + dy) + dxy * dxy
+    if ratio <= 1e-12:
+        return -np.inf
+    if trace:
+        return -((dx - 1.0) * awa - 2.0 * dxy * awb + (1.0 + dy) * bwb) / ratio
+    return np.log(ratio)
+
+
+@kernel
+def _poly(coefficients, t):
+    total = 0.0
+    for j in range(len(coefficients) - 1, -1, -1):
+        total = total * t + coefficients[j]
+    return total
+
+
+@kernel
+def _exchange_row(inv, x_old, y, b, a):
+    """V = (X'X)^-1 in place after the row x_old is replaced by y (rank-two Woodbury update)."""
+    _mat_vec(inv, y, a)
+    _mat_vec(inv, x_old, b)
+    dy = _dot(y, a)
+    dx = _dot(x_old, b)
+    dxy = _dot(b, y)
+    det = (1.0 + dy) * (dx - 1.0) - dxy * dxy
+    s11 = (dx - 1.0) / det
+    s12 = -dxy / det
+    s22 = (1.0 + dy) / det
+    p = len(y)
+    for r in range(p):
+        for c in range(p):
+            inv[r, c] -= s11 * a[r] * a[c] + s12 * (a[r] * b[c] + b[r] * a[c]) + s22 * b[r] * b[c]
+
+
+@kernel
+def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
+                   continuous, frozen, weight, trace, ops, args, bounds, cand_settings, probes, probe_inverse,
+                   max_passes, first_free):
+    """Coordinate exchange of one start, in place on `settings`; returns the passes made.
+
+    Rows before `first_free` are kept as they are (the runs of a study being augmented), and so are
+    the coordinates of `frozen` factors (a run's block or covariate).
+
+    `values[f, :value_count[f]]` are the settings factor f may take when it is not continuous;
+    `cand_settings` are whole points tried as row swaps (none: an empty array).
+    """
+    n, k = settings.shape
+    p = col_factor.shape[0]
+    x = np.empty((n, p))
+    for i in range(n):
+        model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
+    y = np.empty(p)
+    a = np.empty(p)
+    wa = np.empty(p)
+    b = np.empty(p)
+    wb = np.empty(p)
+    x_old = np.empty(p)
+    out = np.zeros(4)
+    stack = np.empty(max(len(ops), 1))
+    trial = np.empty(k)
+    best_point = np.empty(k)
+    n_probes = len(probes)
+    sampled = np.zeros((4, n_probes))
+    fitted = np.zeros((4, n_probes))
+    fine = np.linspace(-1.0, 1.0, _FINE_POINTS)
+    constrained = len(bounds) > 1
+    passes = 0
+    for _ in range(max_passes):
+        passes += 1
+        info = x.T @ x
+        sign, log_det = np.linalg.slogdet(info)
+        if sign <= 0 or log_det < -30.0:
+            ridge = 1e-6 * max(1.0, np.trace(info) / p)
+            for r in range(p):
+                info[r, r] += ridge
+        inv = np.linalg.inv(info)
+        tolerance = 1e-10
+        if trace:
+            tolerance = 1e-10 * max(np.sum(weight * inv), 1e-300)
+        improved = False
+        for i in range(first_free, n):
+            _mat_vec(inv, x[i], b)
+            dx = _dot(x[i], b)
+            bwb = 0.0
+            if trace:
+                _mat_vec(weight, b, wb)
+                bwb = _dot(b, wb)
+            best = 0.0
+            for j in range(k):
+                best_point[j] = settings[i, j]
+            for f in range(k):
+                if frozen[f]:
+                    continue
+                for j in range(k):
+                    trial[j] = best_point[j]
+                if continuous[f]:
+                    for r in range(n_probes):
+                        trial[f] = probes[r]
+                        model_row(trial, kinds, levels, col_factor, col_code, y)
+                        _trial(y, inv, b, wb, weight, trace, a, wa, out)
+                        for m in range(4):
+                            sampled[m, r] = out[m]
+                    for m in range(4):
+                        for r in range(n_probes):
+                            total = 0.0
+                            for c in range(n_probes):
+                                total += probe_inverse[r, c] * sampled[m, c]
+                            fitted[m, r] = total
+                    chosen = best_point[f]
+                    top = best
+                    centre_t = 0.0
+                    step = fine[1] - fine[0]
+                    for zoom in range(_ZOOMS + 1):
+                        count = _FINE_POINTS if zoom == 0 else _ZOOM_POINTS
+                        for r in range(count):
+                            t = fine[r] if zoom == 0 else centre_t + step * (r - (_ZOOM_POINTS - 1) / 2) / ((_ZOOM_POINTS - 1) / 2)
+                            if t < -1.0 or t > 1.0:
+                                continue
+                            g = _gain(_poly(fitted[0], t), _poly(fitted[1], t), _poly(fitted[2], t), _poly(fitted[3], t),
+                                      dx, bwb, trace)
+                            if g > top + tolerance:
+                                if constrained:
+                                    trial[f] = t
+                                    if disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
+                                        continue
+                                top = g
+                                chosen = t
+                        centre_t = chosen
+                        step = step / ((_ZOOM_POINTS - 1) / 2)
+                    if top > best + tolerance:
+                        best = top
+                        best_point[f] = chosen
+                else:
+                    for r in range(value_count[f]):
+                        value = values[f, r]
+                        if value == best_point[f]:
+                            continue
+                        trial[f] = value
+                        if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
+                            continue
+                        model_row(trial, kinds, levels, col_factor, col_code, y)
+                        _trial(y, inv, b, wb, weight, trace, a, wa, out)
+                        g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
+                        if g > best + tolerance:
+                            best = g
+                            best_point[f] = value
+            for c in range(len(cand_settings)):
+                for j in range(k):
+                    trial[j] = best_point[j] if frozen[j] else cand_settings[c, j]
+                if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
+                    continue
+                model_row(trial, kinds, levels, col_factor, col_code, y)
+                _trial(y, inv, b, wb, weight, trace, a, wa, out)
+                g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
+                if g > best + tolerance:
+                    best = g
+                    for j in range(k):
+                        best_point[j] = trial[j]
+            if best > tolerance:
+                improved = True
+                for j in range(k):
+                    settings[i, j] = best_point[j]
+                for r in range(p):
+                    x_old[r] = x[i, r]
+                model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
+                _exchange_row(inv, x_old, x[i], b, a)
+        if not improved:
+            break
+    return passes

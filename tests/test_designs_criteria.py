@@ -1,0 +1,185 @@
+"""Criteria D, I and A, higher-order terms and disallowed combinations against known optima."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from designs.constraints import compile_restrictions
+from designs.diagnostics import diagnose
+from designs.errors import DesignError
+from designs.exchange import optimal_design
+from designs.factors import BlockFactor, CategoricalFactor, ContinuousFactor, CovariateFactor, DiscreteFactor
+from designs.model import parse_model
+from designs.presets import qualitative
+
+
+def test_plackett_burman_12_runs_reach_d_efficiency_100():
+    """11 two-level factors, main effects, 12 runs: a Plackett-Burman design has X'X = 12 I."""
+    factors = tuple(DiscreteFactor(f"F{i}", (-1.0, 1.0)) for i in range(11))
+    model = parse_model("main", factors)
+    design = optimal_design(model, 12, seed=3, starts=20)
+    x = model.matrix(design.settings)
+    np.testing.assert_allclose(x.T @ x, 12 * np.eye(12), atol=1e-9)
+    assert diagnose(model, design.settings).d_efficiency == pytest.approx(100.0)
+
+
+def test_i_optimal_quadratic_puts_half_the_runs_at_the_centre():
+    """One factor, quadratic, 4 runs: the I-optimum (weights 1/4, 1/2, 1/4 on -1, 0, 1; Atkinson, Donev
+    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]; D-optimal differs."""
+    model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
+    design = optimal_design(model, 4, seed=1, starts=20, criterion="I")
+    assert sorted(np.round(design.settings[:, 0], 6)) == [-1.0, 0.0, 0.0, 1.0]
+    assert design.value == pytest.approx(8 / 15, rel=1e-9)
+    assert diagnose(model, design.settings).average_prediction_variance == pytest.approx(8 / 15, rel=1e-9)
+    d_design = optimal_design(model, 4, seed=1, starts=20, criterion="D")
+    assert diagnose(model, d_design.settings).average_prediction_variance > 8 / 15 + 0.01
+
+
+def test_a_optimal_two_level_factorial_has_trace_p_over_n():
+    """2^2 factorial is A-optimal for main effects in 4 runs: (X'X)^-1 = I/4, trace 3/4."""
+    model = parse_model("main", (ContinuousFactor("A", 0, 1), ContinuousFactor("B", 0, 1)))
+    design = optimal_design(model, 4, seed=0, starts=10, criterion="A")
+    assert design.value == pytest.approx(0.75)
+    assert sorted(map(tuple, design.settings)) == [(-1, -1), (-1, 1), (1, -1), (1, 1)]
+
+
+def test_box_draper_six_runs_reach_det_267_74():
+    model = parse_model("main + interactions + quadratic", (ContinuousFactor("A", -1, 1), ContinuousFactor("B", -1, 1)))
+    design = optimal_design(model, 6, seed=5, starts=20)
+    assert math.exp(design.value) == pytest.approx(267.737, abs=1e-3)
+
+
+def test_three_factor_interaction_and_cube_terms():
+    factors = tuple(ContinuousFactor(name, -1, 1) for name in "ABC")
+    model = parse_model("main + A*B*C + A^3 + A*B^2", factors)
+    assert model.term_names == ["Intercept", "A", "B", "C", "A*B*C", "A^3", "A*B^2"]
+    point = np.array([[0.5, -2.0, 3.0]])
+    np.testing.assert_allclose(model.matrix(point)[0], [1, 0.5, -2, 3, -3.0, 0.125, 2.0])
+    # 2^3 factorial plus centre runs cannot separate A from A^3 (equal on -1, 0, 1); the design must leave the grid
+    design = optimal_design(model, 12, seed=2, starts=10)
+    assert np.isfinite(design.value)
+    assert not np.all(np.isin(np.round(design.settings[:, 0], 9), [-1.0, 0.0, 1.0]))
+
+
+def test_compiled_rows_equal_the_model_matrix():
+    from designs.constraints import factor_arrays
+    from designs.kernels import model_row
+
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b", "c")), ContinuousFactor("X", 1, 3))
+    model = parse_model("main + interactions + P^2 + P*D*X + X^3", factors)
+    col_factor, col_code = model.column_codes()
+    _, _, kinds = factor_arrays(factors)
+    levels = np.array([0, 3, 0])
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.choice([-1.0, 0.0, 1.0], 20), rng.integers(0, 3, 20), rng.uniform(-1, 1, 20)])
+    out = np.empty(model.p)
+    for point in points:
+        model_row(point, kinds, levels, col_factor, col_code, out)
+        np.testing.assert_allclose(out, model.matrix(point)[0])
+
+
+@pytest.mark.parametrize("criterion", ["D", "I", "A"])
+def test_disallowed_combination_never_appears(criterion):
+    spec = qualitative()
+    model = parse_model(spec.model, spec.design_factors)
+    rules = compile_restrictions(("Direction == 'Crossing' and Pedestrians == 6", "CrossingDistance > 2.5 and Pedestrians < 3"),
+                                 (), model.factors, "test")
+    design = optimal_design(model, 27, seed=4, starts=10, criterion=criterion, restrictions=rules)
+    peds = np.array([spec.design_factors[0].decode(s) for s in design.settings[:, 0]])
+    direction = design.settings[:, 1]
+    distance = 2.0 + design.settings[:, 2]
+    assert not np.any((direction == 2) & (peds == 6))
+    assert not np.any((distance > 2.5 + 1e-9) & (peds < 3))
+    assert np.all(rules.allowed(design.settings, model.factors))
+
+
+def test_linear_constraint_holds_for_continuous_moves():
+    factors = (ContinuousFactor("A", 0, 1), ContinuousFactor("B", 0, 1))
+    model = parse_model("main + interactions + quadratic", factors)
+    rules = compile_restrictions((), ("A + B <= 1.5",), model.factors, "test")
+    design = optimal_design(model, 10, seed=0, starts=10, restrictions=rules)
+    natural = (design.settings + 1) / 2
+    assert np.all(natural.sum(axis=1) <= 1.5 + 1e-9)
+    assert np.any(np.isclose(natural.sum(axis=1), 1.5, atol=1e-4)), "the optimum presses against the constraint"
+
+
+def test_restrictions_read_only_the_whitelisted_forms():
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b")))
+    rules = compile_restrictions(("P in [2, 6] and not D != 'a'",), (), factors, "spec")
+    points = np.array(list(itertools.product([-1.0, 0.0, 1.0], [0.0, 1.0])))
+    assert rules.allowed(points, factors).tolist() == [False, True, True, True, False, True]
+    for text, message in [
+        ("__import__('os').system('true')", "expected a comparison"),
+        ("P.real > 1", "expected a factor name"),
+        ("Q == 2", "no design factor 'Q'"),
+        ("D == 'z'", "'z' is no level of D"),
+        ("D < 'a'", "D is categorical"),
+        ("P ==", "not an expression"),
+        ("P is 2", "unsupported comparison Is"),
+    ]:
+        with pytest.raises(DesignError, match=message):
+            compile_restrictions((text,), (), factors, "spec")
+    with pytest.raises(DesignError, match="blinded"):
+        compile_restrictions(("D == 'a'",), (), factors, "spec", blind="D")
+
+
+def test_bad_terms_are_refused():
+    factors = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b")), ContinuousFactor("X", 0, 1),
+               ContinuousFactor("Y", 0, 1))
+    for expression, message in [("P^3", "at least 4 levels"), ("D^2", "numeric factor"), ("X^4", "powers run from 1 to 3"),
+                                ("P*D*X*Y", "at most 3"), ("X^", "cannot read term")]:
+        with pytest.raises(DesignError, match=message):
+            parse_model(expression, factors)
+
+
+def test_blocks_are_orthogonal_to_the_effects_where_they_can_be():
+    """2^3 in two blocks of 4, main effects and two-factor interactions: the optimum confounds only ABC
+    with blocks (Box, Hunter and Hunter), so every effect column is orthogonal to the block and D = 100."""
+    from designs.spec import StudySpec
+
+    factors = tuple(ContinuousFactor(name, 0, 1) for name in "ABC")
+    spec = StudySpec("blocked", factors + (BlockFactor.of(2),), "main + interactions", 8)
+    model = spec.build_model()
+    assert model.term_names == ["Intercept", "A", "B", "C", "A*B", "A*C", "B*C", "Block"]
+    design = optimal_design(model, 8, seed=0, starts=20, per_run=spec.per_run())
+    assert design.settings[:, 3].tolist() == [0, 0, 0, 0, 1, 1, 1, 1]
+    x = model.matrix(design.settings)
+    np.testing.assert_allclose(x.T @ x, 8 * np.eye(8), atol=1e-9)
+    abc = np.prod(design.settings[:, :3], axis=1)
+    assert abs(np.corrcoef(abc, x[:, -1])[0, 1]) == pytest.approx(1.0)
+
+
+def test_covariate_values_stay_with_their_runs():
+    from designs.spec import StudySpec
+
+    ages = (23.0, 31.0, 45.0, 52.0, 60.0, 38.0, 27.0, 49.0)
+    factors = (ContinuousFactor("Speed", 0.4, 1.2), CovariateFactor("Age", 23.0, 60.0, "", ages))
+    spec = StudySpec("covariate", factors, "main", 8)
+    model = spec.build_model()
+    design = optimal_design(model, 8, seed=1, starts=10, per_run=spec.per_run())
+    np.testing.assert_allclose([factors[1].decode(s) for s in design.settings[:, 1]], ages)
+    assert set(np.round(design.settings[:, 0], 9)) <= {-1.0, 1.0}
+    x = model.matrix(design.settings)
+    # Speed is chosen to be as uncorrelated with Age as 8 runs of +-1 allow
+    assert abs(np.corrcoef(x[:, 1], x[:, 2])[0, 1]) < 0.15
+
+
+def test_fraction_of_design_space_and_variance_profile_of_a_2x2_factorial():
+    """Main effects on a 2^2 factorial: x'(X'X)^-1 x = (1 + a^2 + b^2) / 4, from 1/4 at the centre to 3/4 at a corner."""
+    from designs.diagnostics import fraction_of_design_space, variance_profiles
+
+    model = parse_model("main", (ContinuousFactor("A", 0, 10), ContinuousFactor("B", 0, 10)))
+    settings = np.array(list(itertools.product([-1.0, 1.0], repeat=2)))
+    fractions, variance = fraction_of_design_space(model, settings)
+    assert (fractions[0], fractions[-1]) == (0.0, 1.0)
+    assert (variance[0], variance[-1]) == pytest.approx((0.25, 0.75))
+    grid = np.linspace(-1, 1, 11)
+    expected = np.quantile([(1 + a * a + b * b) / 4 for a in grid for b in grid], 0.5)
+    assert variance[50] == pytest.approx(expected)
+    profile = variance_profiles(model, settings)[0]
+    assert profile.factor == "A" and profile.x[0] == 0.0 and profile.x[-1] == 10.0
+    np.testing.assert_allclose(profile.variance, (1 + np.linspace(-1, 1, 41) ** 2) / 4)

@@ -1,0 +1,193 @@
+"""Plans that already exist (`trials design --evaluate`, `--compare`, `--augment`) and the spec's criterion and
+disallowed combinations, end to end."""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+from pathlib import Path
+
+import pytest
+
+from trials.cli import main
+
+SPEC = """[study]
+name = "restricted"
+runs = 12
+model = "main + interactions"
+criterion = "I"
+disallowed = ["Layout == 'doorway' and Speed > 1.0"]
+
+[[factors]]
+name = "Speed"
+type = "continuous"
+low = 0.4
+high = 1.2
+
+[[factors]]
+name = "Layout"
+type = "categorical"
+levels = ["corridor", "hall", "doorway"]
+"""
+
+
+def _plan_rows(folder: Path) -> list[dict[str, str]]:
+    with (folder / "plan.csv").open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_evaluate_reproduces_the_diagnostics_of_a_generated_plan(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--study", str(study), "--seed", "3"]) == 0
+    record = json.loads((study / "design.json").read_text())["diagnostics"]
+    capsys.readouterr()
+    before = sorted(p.name for p in study.iterdir())
+    assert main(["design", "--study", str(study), "--evaluate", str(study / "plan.csv")]) == 0
+    out = capsys.readouterr().out
+    assert sorted(p.name for p in study.iterdir()) == before, "evaluate writes nothing"
+    assert f"D-efficiency                 {record['d_efficiency']:9.4f}   det(X'X) = {record['det_xtx']:.10g}" in out
+    assert f"A-efficiency                 {record['a_efficiency']:9.4f}" in out
+    assert f"G-efficiency                 {record['g_efficiency']:9.4f}" in out
+    assert f"Average prediction variance  {record['average_prediction_variance']:9.4f}" in out
+    for term in record["power"]["terms"]:
+        assert f"{term['parameters']} df  power {term['power']:.3f}" in out
+
+
+def test_compare_sets_the_optimum_beside_the_full_factorial(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--study", str(study), "--seed", "1"]) == 0
+    factorial = tmp_path / "factorial.csv"
+    rows = itertools.product([2, 4, 6], ["Parallel", "ParallelCrossing", "Crossing"], [1, 2, 3])
+    factorial.write_text("Pedestrians,Direction,CrossingDistance\n" + "".join(f"{a},{b},{c}\n" for a, b, c in rows))
+    capsys.readouterr()
+    assert main(["design", "--study", str(study), "--compare", str(study / "plan.csv"), str(factorial)]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("D-efficiency"))
+    assert line.split()[1:] == ["79.9157", "68.2558"]  # the proven optimum; the 3x3x3 closed form
+
+
+@pytest.mark.parametrize(("cells", "message"), [
+    ("5,Parallel,2", "factorial.csv line 2, column Pedestrians: 5 is no level of Pedestrians (levels: 2, 4, 6)"),
+    ("2,Sideways,2", "factorial.csv line 2, column Direction: 'Sideways' is no level of Direction"),
+    ("2,Parallel,9", "factorial.csv line 2, column CrossingDistance: 9 lies outside CrossingDistance's range [1, 3]"),
+])
+def test_a_bad_plan_to_evaluate_is_one_line(tmp_path, capsys, cells, message):
+    bad = tmp_path / "factorial.csv"
+    bad.write_text("Pedestrians,Direction,CrossingDistance\n" + f"{cells}\n" * 6)
+    assert main(["design", "--study", str(tmp_path / "s"), "--evaluate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f"error: {message}" or message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists() or not any((tmp_path / "s").iterdir())
+
+
+def test_spec_criterion_and_disallowed_reach_the_plan(tmp_path, capsys):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    study = tmp_path / "s"
+    assert main(["design", "--spec", str(spec), "--study", str(study), "--seed", "2"]) == 0
+    assert "criterion I (smallest average prediction variance)" in capsys.readouterr().out
+    rows = _plan_rows(study)
+    assert len(rows) == 12
+    assert not any(r["Layout"] == "doorway" and float(r["Speed"]) > 1.0 + 1e-9 for r in rows)
+    record = json.loads((study / "design.json").read_text())
+    assert record["criterion"] == "I" and record["search"]["criterion"] == "I"
+    assert record["search"]["criterion_value"] == pytest.approx(record["diagnostics"]["average_prediction_variance"], rel=1e-9)
+    assert record["disallowed"] == ["Layout == 'doorway' and Speed > 1.0"]
+    assert 'criterion = "I"' in (study / "study.toml").read_text()
+
+
+@pytest.mark.parametrize(("line", "message"), [
+    ('criterion = "E"', "spec.toml: [study]: criterion must be one of D, I, A, got 'E'"),
+    ('disallowed = ["Layout == \'attic\'"]', "'attic' is no level of Layout"),
+    ('disallowed = ["open(\'x\')"]', "expected a comparison"),
+    ('constraints = "Speed < 1"', "constraints must be a list of strings"),
+    ('disallowed = ["Layout == \'hall\' or Layout != \'hall\'"]', "leave no candidate point"),
+])
+def test_bad_criterion_or_restriction_is_one_line_exit_2(tmp_path, capsys, line, message):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('criterion = "I"\ndisallowed = ["Layout == \'doorway\' and Speed > 1.0"]', line))
+    assert main(["design", "--spec", str(spec), "--study", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists() or not any((tmp_path / "s").iterdir())
+
+
+def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--ab", "--seed", "1", "--study", str(study)]) == 0
+    before = json.loads((study / "design.json").read_text())
+    old_plan = (study / "plan.csv").read_text().splitlines()
+    (study / "outcomes.csv").write_text("kept results\n")
+    key = (study / "sealed" / "allocation.json").read_bytes()
+    capsys.readouterr()
+    assert main(["design", "--augment", "6", "--seed", "4", "--study", str(study)]) == 0
+    assert "Kept the 18 planned runs and their results; added 6" in capsys.readouterr().out
+    new_plan = (study / "plan.csv").read_text().splitlines()
+    assert new_plan[: len(old_plan)] == old_plan and len(new_plan) == len(old_plan) + 6
+    assert (study / "outcomes.csv").read_text() == "kept results\n"
+    assert (study / "sealed" / "allocation.json").read_bytes() == key
+    after = json.loads((study / "design.json").read_text())
+    assert after["design"][:18] == before["design"]
+    assert [run["order"] for run in after["design"]] == list(range(1, 25))
+    assert len({run["run_code"] for run in after["design"]}) == 24
+    assert after["blinding"]["commitment"] == before["blinding"]["commitment"]
+    assert after["diagnostics"]["det_xtx"] > before["diagnostics"]["det_xtx"]
+    copies = list((study / "superseded").iterdir())
+    assert len(copies) == 1 and json.loads((copies[0] / "design.json").read_text()) == before
+
+
+def test_augment_needs_a_plan(tmp_path, capsys):
+    assert main(["design", "--augment", "3", "--study", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
+
+
+BLOCKED = """[study]
+name = "blocked"
+runs = 12
+model = "main"
+blocks = 3
+
+[[factors]]
+name = "Speed"
+type = "continuous"
+low = 0.4
+high = 1.2
+
+[[factors]]
+name = "Age"
+type = "covariate"
+file = "ages.csv"
+"""
+
+
+def test_blocks_and_a_covariate_file_reach_the_plan(tmp_path):
+    (tmp_path / "ages.csv").write_text("participant,Age\n" + "".join(f"P{i},{20 + 3 * i}\n" for i in range(12)))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(BLOCKED)
+    study = tmp_path / "s"
+    assert main(["design", "--spec", str(spec), "--study", str(study), "--seed", "5"]) == 0
+    rows = _plan_rows(study)
+    assert [r["Block"] for r in rows] == ["1"] * 4 + ["2"] * 4 + ["3"] * 4
+    assert [int(r["Age"]) for r in rows] == [20 + 3 * i for i in range(12)]
+    text = (study / "study.toml").read_text()
+    assert "blocks = 3" in text and "values = [" in text and "Block" not in text
+    record = json.loads((study / "design.json").read_text())
+    assert record["model"]["terms"] == ["Intercept", "Speed", "Age", "Block"]
+    # the written spec reads back to the same plan checks
+    assert main(["design", "--study", str(study), "--evaluate", str(study / "plan.csv")]) == 0
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("blocks = 3", "blocks = 5", "blocks = 5 must divide runs = 12"),
+    ('file = "ages.csv"', 'file = "none.csv"', "cannot read the covariate file"),
+    ('file = "ages.csv"', "values = [1, 2]", "covariate Age has 2 values for 12 runs"),
+    ('file = "ages.csv"', 'values = [1, "x"]', "covariate value (values[1]: 'x')"),
+])
+def test_bad_blocks_or_covariates_are_one_line(tmp_path, capsys, old, new, message):
+    (tmp_path / "ages.csv").write_text("Age\n" + "30\n" * 6 + "40\n" * 6)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(BLOCKED.replace(old, new))
+    assert main(["design", "--spec", str(spec), "--study", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
