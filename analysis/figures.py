@@ -8,7 +8,6 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from analysis.figure_files import Rendered, quiet_glyphs
-from analysis.intervals import wilson
 
 #: Panels a row in the report's trajectory figure.
 TRAJECTORY_COLUMNS = 4
@@ -74,6 +73,7 @@ def arm_colours(arms: list[str]) -> dict[str, str]:
 def score_distribution_figure(groups: dict[str, list[int]], paper: dict[int, float] | None, title: str) -> Rendered:
     """Share of runs scored 1, 2, 3 for each group (counts [n1, n2, n3]) with Wilson 95 % intervals, and the
     paper's shares as markers."""
+    from analysis.intervals import wilson  # here: statsmodels and scipy.stats cost `trials design` a second to import
     figure = Figure(figsize=(6.5, 3.6))
     axes = figure.add_subplot()
     width = 0.8 / max(len(groups), 1)
