@@ -47,6 +47,8 @@ RUN_LOCK = f"{RUNS}/.lock"
 RUN_LOG_SUFFIX = ".mcap"
 #: The picture of a run beside its log (`trials log show`).
 RUN_FIGURE_SUFFIX = ".png"
+#: Beside a run that failed, its one-line reason.
+RUN_FAILURE_SUFFIX = ".failed.txt"
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
@@ -118,6 +120,10 @@ class StudyFolder:
     def run_log(self, code: str) -> Path:
         """runs/<code>.mcap, the log of a run."""
         return self.path(RUNS) / f"{code}{RUN_LOG_SUFFIX}"
+
+    def run_failure(self, code: str) -> Path:
+        """runs/<code>.failed.txt, why the last attempt at a run failed (`trials.runner`; gone once it finishes)."""
+        return self.run_log(code).with_suffix(RUN_FAILURE_SUFFIX)
 
     def run_figure(self, code: str) -> Path:
         """runs/<code>.png, the picture of a run."""
