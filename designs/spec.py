@@ -121,9 +121,10 @@ def read_spec(path: Path) -> StudySpec:
 def spec_from_dict(data: dict[str, Any], source: str) -> StudySpec:
     """Validate the parsed TOML tables of a spec."""
     study = _table(data, "study", source)
-    unknown = set(data) - {"study", "factors", "anticipated"}
+    # [run] holds how the runs are made, not the design: trials.run_settings reads it.
+    unknown = set(data) - {"study", "factors", "anticipated", "run"}
     if unknown:
-        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally [anticipated])")
+        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally [anticipated] and [run])")
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")

@@ -82,6 +82,15 @@ def read_run_settings(spec: Path) -> RunSettings:
     return settings_from_table(table, f"{spec} [{TABLE}]")
 
 
+def run_table(spec: Path) -> dict[str, Any]:
+    """The `[run]` table of a study.toml exactly as written ({} without one), after checking it, so that
+    `trials design` can carry it into the study.toml it writes."""
+    settings = read_run_settings(spec)
+    written = {key: getattr(settings, name) for key, name in KEYS.items()}
+    table = tomllib.loads(spec.read_text(encoding="utf-8")).get(TABLE, {}) if spec.exists() else {}
+    return {key: written[key] for key in table}
+
+
 def settings_from_table(table: Mapping[str, Any], where: str) -> RunSettings:
     """RunSettings from a `[run]` table's keys, each checked; StudyError names `where` and the key."""
     unknown = sorted(set(table) - set(KEYS))

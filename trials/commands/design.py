@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from designs.spec import read_spec
     from trials.controllers import registry
     from trials.errors import StudyError
+    from trials.run_settings import run_table
     from trials.study import (
         ALLOCATION,
         PUBLIC_STUDY_FILES,
@@ -70,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
+    run = run_table(spec_path) if spec_path is not None else {}
     plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
     # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
     from trials.design_files import write_design
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
-    written = write_design(folder, plan, original)
+    written = write_design(folder, plan, original, run)
 
     print("\n".join(summary_lines(plan)))
     print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
