@@ -82,6 +82,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = str(exc).replace("\r", "\\r").replace("\n", "\\n")
         sys.stderr.write(f"error: {message}\n")
         return EXIT_USAGE
+    except BrokenPipeError:  # the reader went away (`| head`): the rest of the output is not wanted
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: finished work is kept; run the command again to continue\n")
         return 130

@@ -6,6 +6,7 @@ import argparse
 
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
+from trials.progress import add_quiet
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
+    add_quiet(parser)
+    parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
     parser.set_defaults(handler=run)
 
 
@@ -42,9 +45,11 @@ def run(args: argparse.Namespace) -> int:
     from designs.spec import read_spec
     from trials.controllers import registry
     from trials.errors import StudyError
+    from trials.progress import Progress
     from trials.run_settings import run_table
     from trials.study import (
         ALLOCATION,
+        DESIGN,
         PUBLIC_STUDY_FILES,
         SEALED_SPEC,
         SPEC,
@@ -72,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
     run = run_table(spec_path) if spec_path is not None else {}
+    Progress("start", "design", args.quiet or args.json).loading(
+        f"Searching for a D-optimal design of {spec.runs} runs ({spec.starts} exchange starts) and its cvxpy bound")
     plan = build_plan(spec, allocation_seed=args.allocation_seed)  # every bad input fails here, before any write
     # Imported only now (matplotlib loads) so that it overlaps the background cvxpy solve.
     from trials.design_files import write_design
@@ -81,6 +88,14 @@ def run(args: argparse.Namespace) -> int:
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
     written = write_design(folder, plan, original, run)
 
+    if args.json:
+        import json
+
+        print(json.dumps({"study": str(folder.root.resolve()), "files": [str(p) for p in written],
+                          "commitment": plan.sealed.commitment() if plan.sealed is not None else None,
+                          "superseded": str(moved) if moved is not None else None,
+                          "design": json.loads(folder.path(DESIGN).read_text(encoding="utf-8"))}))
+        return 0
     print("\n".join(summary_lines(plan)))
     print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
     if plan.sealed is not None:
