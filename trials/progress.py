@@ -1,8 +1,9 @@
 """The one progress convention of the `trials` commands that take a while.
 
-- a start-up line on standard error naming what is loading, before the first item can start;
-- on a terminal, a tqdm bar on standard error, with each item's line written above it;
-- piped or redirected, no bar: each item's line is printed as it comes, numbered `[n/N]`;
+- on a terminal, a start-up line on standard error naming what is loading before the first item can
+  start, then a tqdm bar on standard error, with each item's line written above it;
+- piped or redirected, no start-up line and no bar (a log keeps results, not transient status): each
+  item's line is printed as it comes, numbered `[n/N]`, and a bad input stays one `error:` line;
 - `--quiet`: none of this (no start-up line, bar or item lines); results and errors still print.
 
 Item lines go to standard output (failures to standard error), so `> file` keeps them and drops the bar.
@@ -42,8 +43,8 @@ class Progress:
         self._want_bar = bar and not quiet and on_terminal()
 
     def loading(self, what: str) -> None:
-        """The start-up line: what is being loaded or prepared before the first item."""
-        if not self.quiet:
+        """The start-up line (on a terminal): what is being loaded or prepared before the first item."""
+        if not self.quiet and on_terminal():
             sys.stderr.write(f"{what}...\n")
             sys.stderr.flush()
 
