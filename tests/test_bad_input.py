@@ -183,7 +183,8 @@ CASES = [
     Case("study is a file (run)", ("run", "--study", "{tmp}/afile"), "argument --study: {tmp}/afile is a file, not a folder", write("afile", "x")),
     Case("newline in a run code", ("run", "--only", "AB\nCD", "--study", "{study}"), "run AB\\nCD is not in"),
     # the [run] table of study.toml (trials/run_settings.py)
-    Case("run table unknown key", ("run", "--study", "{study}"), "study.toml [run]: unknown key 'speed' (expected perception, noise, dropout, timeout, weights)",
+    Case("run table unknown key", ("run", "--study", "{study}"),
+         "study.toml [run]: unknown key 'speed' (expected perception, noise, dropout, timeout, weights)",
          lambda tmp, study: append(study / "study.toml", "\n[run]\nspeed = 2\n")),
     Case("run table noise too large", ("run", "--study", "{study}"), "study.toml [run]: noise must be a number in [0, 10], got 11",
          lambda tmp, study: append(study / "study.toml", "\n[run]\nnoise = 11\n")),

@@ -33,7 +33,7 @@ def blind_run(tmp_path_factory):
     run = trials("run", "--blind", "--workers", "2", "--study", str(study))
     one_per_arm = {row["Controller"]: row["run_code"] for row in _plan(study)}
     shows = [trials("log", "show", code, "--study", str(study)) for code in one_per_arm.values()]
-    return study, [run, *shows]
+    return study, [run, *shows, trials("status", "--study", str(study)), trials("status", "--json", "--study", str(study))]
 
 
 def _plan(study: Path) -> list[dict[str, str]]:
@@ -50,6 +50,20 @@ def test_the_blind_run_finishes_every_row(blind_run):
     assert sorted(r["run_code"] for r in table) == sorted(r["run_code"] for r in _plan(study))
     assert "controller" not in table[0]
     assert all(show.returncode == 0 for show in shows)
+
+
+def test_status_counts_by_arm_label_and_the_run_lines_are_numbered(blind_run):
+    study, (run, *_, status, as_json) = blind_run
+    assert status.returncode == 0, status.stderr.decode()
+    text = status.stdout.decode()
+    assert "small-ab (blinded study)" in text and "runs: 6 of 6 finished" in text
+    assert "arm A: 3 planned" in text and "arm B: 3 planned" in text and "unblinded: no" in text
+    arms = json.loads(as_json.stdout)["arms"]
+    assert sorted(arms) == ["A", "B"] and all(sum(a["finished"].values()) == 3 and a["pending"] == 0 for a in arms.values())
+    numbered = [line for line in run.stdout.decode().splitlines() if line.startswith("[")]
+    assert [line.split("]")[0] for line in numbered] == [f"[{n}/6" for n in range(1, 7)]
+    assert all(", Controller A," in line or ", Controller B," in line for line in numbered)
+    assert not (study / "runs" / ".lock").exists()
 
 
 def test_nothing_public_names_a_controller(blind_run):
