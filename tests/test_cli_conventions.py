@@ -258,3 +258,13 @@ def test_json_of_design_holds_the_record_it_wrote(tmp_path, capsys):
     assert printed["design"] == json.loads((folder / "design.json").read_text())
     assert printed["commitment"] == printed["design"]["blinding"]["commitment"]["digest"]
     assert printed["design"]["seed"] == 5 and Path(printed["files"][0]).parent == folder
+
+
+def test_playback_goes_into_the_study_folder_and_prints_json(eth_ucy_dir, tmp_path, capsys):
+    assert main(["playback", "--data", str(eth_ucy_dir), "--study", str(tmp_path), "--split", "zara1", "--models", "human",
+                 "--episodes", "3", "--json", "--quiet"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["out"] == str(tmp_path / "playback") and (tmp_path / "playback" / "table1.md").exists()
+    pooled = printed["tables"][0]
+    assert pooled["values"]["human"]["episodes"] == 3 and 0 <= pooled["values"]["human"]["A"] <= 1
+    assert {t["scope"] for t in printed["tables"][2:]} == {"zara1"}

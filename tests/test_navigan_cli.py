@@ -68,6 +68,16 @@ def test_checkpoint_records_the_recipe_and_the_command_that_reproduce_it(data, t
     assert record.train.seed == 4 and record.train.epochs == 1
 
 
+def test_train_without_out_writes_into_the_study_folder(data, tmp_path, capsys):
+    study = tmp_path / "study"
+    study.mkdir()
+    mine = recipe_file(tmp_path, 'model = "goal-social-lstm"\n[network]\nhidden = 16\n[train]\nbatch = 48\n')
+    assert main(["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+                 "--study", str(study), "--quiet"]) == 0
+    assert capsys.readouterr().out.startswith(f"{study / 'goal-social-lstm-zara2.pt'}: ")
+    assert load(study / "goal-social-lstm-zara2.pt").train.epochs == 1
+
+
 def test_recipe_sets_the_social_training_settings(data, tmp_path):
     out = tmp_path / "r.pt"
     mine = recipe_file(tmp_path, '''model = "navigan-r"

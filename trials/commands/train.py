@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--epochs", type=int, help="most epochs (default: the recipe's)")
     parser.add_argument("--patience", type=int,
                         help="stop after this many epochs without a better validation loss (default: the recipe's)")
-    parser.add_argument("--seed", type=int,
+    parser.add_argument("--seed", type=types.seed,
                         help="seed of weights, batch order and noise (default: the recipe's)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), help="CPU threads for torch (default: torch's choice)")
