@@ -268,3 +268,10 @@ def test_playback_goes_into_the_study_folder_and_prints_json(eth_ucy_dir, tmp_pa
     pooled = printed["tables"][0]
     assert pooled["values"]["human"]["episodes"] == 3 and 0 <= pooled["values"]["human"]["A"] <= 1
     assert {t["scope"] for t in printed["tables"][2:]} == {"zara1"}
+
+
+def test_piped_playback_prints_a_numbered_line_per_column_walked(eth_ucy_dir, tmp_path, capsys):
+    assert main(["playback", "--data", str(eth_ucy_dir), "--out", str(tmp_path / "pb"), "--split", "zara1",
+                 "--models", "human,navigan-r", "--episodes", "2"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("[")]
+    assert [line.split(":")[0] for line in lines] == ["[1/2] zara1 R", "[2/2] zara1 human"]

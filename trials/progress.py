@@ -32,6 +32,17 @@ def show_bars(quiet: bool) -> bool:
     return not quiet and on_terminal()
 
 
+def numbered(n: int, total: int, line: str) -> str:
+    """An item's line as the convention numbers it: `[n/N] line`."""
+    return f"[{n}/{total}] {line}"
+
+
+def piped_lines(quiet: bool) -> bool:
+    """Whether a command whose library draws its own bar should print `[n/N]` lines instead: when
+    piped or redirected (no bar is drawn there) and not quiet."""
+    return not quiet and not on_terminal()
+
+
 class Progress:
     """Counts items of a long command, as a bar on a terminal or `[n/N]` lines when piped; nothing when quiet."""
 
@@ -58,8 +69,7 @@ class Progress:
 
     def numbered(self, line: str, count: int | None = None) -> str:
         """`[n/N] line`, n the item's number (the next one by default)."""
-        n = self.count + 1 if count is None else count
-        return f"[{n}/{self.total}] {line}"
+        return numbered(self.count + 1 if count is None else count, self.total, line)
 
     def item(self, line: str | None, error: bool = False, count: int | None = None) -> None:
         """One item done: its line (numbered) printed, the bar advanced."""

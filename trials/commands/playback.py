@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.playback.evaluate import Playback, Settings
     from navigan.playback.metrics import Scoring
     from navigan.playback.paper import PAPER_FILE, load_paper
-    from trials.progress import Progress, show_bars
+    from trials.progress import Progress, numbered, piped_lines, show_bars
 
     speed = subgoal_speed(args.subgoal_speed)
     out = args.out or args.study / "playback"
@@ -123,7 +123,11 @@ def run(args: argparse.Namespace) -> int:
                           speed, args.shield, args.protocol),
         paper=args.paper or PAPER_FILE,
     )
-    tables = playback.evaluate(splits, models, progress=show_bars(args.quiet))
+    def walked(n: int, total: int, split: str, column: str) -> None:
+        print(numbered(n, total, f"{split} {column}: walked, stored in {out / 'episodes' / split}"), flush=True)
+
+    quiet = args.quiet or args.json
+    tables = playback.evaluate(splits, models, progress=show_bars(quiet), on_walked=walked if piped_lines(quiet) else None)
     if args.json:
         print(json.dumps({"out": str(out), "tables": [{"scope": t.scope, "values": t.values,
                                                         "intervals": {m: {k: list(v) for k, v in i.items()} for m, i in t.intervals.items()}}

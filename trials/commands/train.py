@@ -56,12 +56,13 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from navigan import checkpoint as ckpt
     from navigan import recipes
     from navigan.config import TrainConfig
     from navigan.data import Scenes, data_dir, load_split
     from navigan.errors import NaviganError
     from navigan.training import train
-    from trials.progress import Progress, show_bars
+    from trials.progress import Progress, numbered, piped_lines, show_bars
 
     for name in OVERRIDES:
         value = getattr(args, name)
@@ -82,9 +83,15 @@ def run(args: argparse.Namespace) -> int:
         for name, count in scenes.skipped.items():
             if count:
                 sys.stderr.write(f"{name}: skipped {count} rows with NaN or missing values\n")
+    def trained(checkpoint: ckpt.Checkpoint) -> None:
+        val = checkpoint.history[-1]["val"]
+        print(numbered(checkpoint.epoch, config.epochs, f"epoch {checkpoint.epoch}: validation loss {val['loss']:.4f}, "
+                       f"ADE {val['ade']:.3f} m; best epoch {checkpoint.best['epoch'] if checkpoint.best else '-'}"), flush=True)
+
     record = train(
         model, config, train_scenes, val_scenes, split.describe(), out,
         command=command_line(args, out), recipe=recipe.record(), device=args.device, progress=show_bars(args.quiet),
+        on_epoch=trained if piped_lines(args.quiet) else None,
     )
     best = record.best or {"epoch": 0, "val": {}}
     status = record.finished or "unfinished"
