@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import fcntl
 import json
+import os
 import shutil
 from importlib.metadata import version
 from pathlib import Path
@@ -205,6 +206,12 @@ def test_run_records_its_settings_refuses_a_mix_and_the_report_flags_it(study, c
     report = (study / "report" / "report.md").read_text()
     assert "The runs were not all made with the same settings (1 with perception positions, noise_std_m 0.100" in report
     assert "1 with perception positions, noise_std_m 0.300" in report
+    assert main(["status", "--study", str(study)]) == 0
+    assert "report: up to date with the data" in capsys.readouterr().out
+    later = (study / "report" / "report.json").stat().st_mtime + 60
+    os.utime(study / "outcomes.csv", (later, later))  # data newer than the report
+    assert main(["status", "--study", str(study)]) == 0
+    assert "report: older than the data: run `trials report` again" in capsys.readouterr().out
 
 
 @pytest.mark.slow
