@@ -83,6 +83,14 @@ def test_run_table_is_read_and_checked(tmp_path):
     assert tuple(settings.recorded()) == setting_names()
 
 
+def test_relative_weights_in_the_run_table_are_the_studys_own(tmp_path):
+    spec = tmp_path / "study.toml"
+    spec.write_text('[run]\nweights = "mine.pt"\n')
+    assert read_run_settings(spec).weights == "mine.pt"  # no such file beside it: a shipped name, as written
+    (tmp_path / "mine.pt").write_bytes(b"weights")
+    assert read_run_settings(spec).weights == str(tmp_path / "mine.pt")
+
+
 def test_differences_name_each_changed_setting_and_skip_unrecorded_and_logged_runs():
     recorded = RunSettings().recorded()
     assert differences(recorded, RunSettings(noise_std_m=0.3)) == ["noise_std_m 0.050 -> 0.300"]
@@ -171,6 +179,22 @@ def test_status_tells_failed_aborted_stale_and_held(study, capsys):
     text = capsys.readouterr().out
     assert "a `trials run` is running on the study (pid 4242)" in text and "1 running" in text
     assert third not in text
+
+
+def test_status_of_a_blinded_study_counts_arm_labels_without_opening_the_key(tmp_path, monkeypatch, capsys):
+    study = tmp_path / "blind"
+    design_small_study(study, blind=True)
+    capsys.readouterr()
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("trials status opened the sealed key")
+
+    monkeypatch.setattr(StudyFolder, "open_sealed", refuse)
+    monkeypatch.setattr(StudyFolder, "read_sealed", refuse)
+    assert main(["status", "--study", str(study)]) == 0
+    text = capsys.readouterr().out
+    assert "arm A: 3 planned" in text and "arm B: 3 planned" in text and "unblinded: no (the sealed key is closed)" in text
+    assert "NaviGAN" not in text and "Lattice" not in text
 
 
 # --- runs end to end -----------------------------------------------------------------------------

@@ -8,7 +8,7 @@ The table is optional; every key in it is too (the defaults are the simulator's)
     noise = 0.05               # positions: noise of each coordinate, standard deviation in m
     dropout = 0.05             # positions: chance a pedestrian is missed at a step
     timeout = 60               # simulated seconds before a run times out
-    weights = "my-navigan.pt"  # NaviGAN-R checkpoint (default: the shipped weights)
+    weights = "my-navigan.pt"  # NaviGAN-R checkpoint, beside study.toml or a shipped name (default: the shipped weights)
 
 `designs.spec` reads the rest of study.toml and leaves this table to this module.
 """
@@ -79,7 +79,10 @@ def read_run_settings(spec: Path) -> RunSettings:
     table = data.get(TABLE, {})
     if not isinstance(table, dict):
         raise StudyError(f"{spec}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
-    return settings_from_table(table, f"{spec} [{TABLE}]")
+    settings = settings_from_table(table, f"{spec} [{TABLE}]")
+    beside = spec.parent / settings.weights if settings.weights else None
+    # A checkpoint named by a relative path is the study's own, beside study.toml; else a shipped name.
+    return replace(settings, weights=str(beside)) if beside is not None and beside.is_file() else settings
 
 
 def run_table(spec: Path) -> dict[str, Any]:
