@@ -115,9 +115,9 @@ def test_outcomes_written_before_the_settings_columns_still_read(tmp_path):
 def test_a_run_line_names_order_code_settings_outcome_and_the_gap():
     plan_row = {"order": "3", "run_code": "PE7Y9", "Pedestrians": "2", "Controller": "A"}
     outcome = {"status": "goal", "duration_s": "10.700", "min_distance_m": "1.429"}
-    assert run_line(3, plan_row, outcome) == (
+    assert run_line(plan_row, outcome) == (
         "order 3, PE7Y9 (Pedestrians 2, Controller A): goal after 10.7 s; smallest gap robot footprint to pedestrian 1.43 m")
-    assert run_line(3, plan_row, {**outcome, "min_distance_m": ""}).endswith("goal after 10.7 s; no pedestrian")
+    assert run_line(plan_row, {**outcome, "min_distance_m": ""}).endswith("goal after 10.7 s; no pedestrian")
 
 
 def test_piped_progress_numbers_each_line_and_shows_no_bar_or_startup_line(capsys):

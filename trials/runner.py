@@ -17,9 +17,9 @@ the minute, as `finished_utc` is. A run that fails leaves runs/<code>.failed.txt
 reason; removed when the run later finishes), so `trials status` can tell failed from pending runs.
 
 Every run records the settings it was made with (`trials.run_settings`); runs are not mixed with
-finished runs made with other settings unless the command says so (`settings_differ`). A full disk (`DiskFullError`, in
-the parent or a worker) stops the command at its first failed write, since every later run would
-fail alike; the partial files are deleted as it stops.
+finished runs made with other settings unless the command says so (`settings_differ`). A full disk
+(`DiskFullError`, in the parent or a worker) stops the command at its first failed write, since
+every later run would fail alike; the partial files are deleted as it stops.
 """
 
 from __future__ import annotations
@@ -329,9 +329,9 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         summary.done = len(finished & set(study.codes))
         if not todo:
             return summary
-        simulated = [c for c in todo if log_of(study.task(c).row, folder.root, options.replay) is None]
-        if simulated and not options.settings_differ:
-            _same_settings(outcomes, set(rerun), options.settings)
+        simulates = any(log_of(study.task(c).row, folder.root, options.replay) is None for c in todo)
+        if simulates and not options.settings_differ:
+            _same_settings(outcomes, set(rerun), options.settings, folder.path(SPEC))
         recorded = {row.run_code: row.seed for row in outcomes.rows}
         tasks = with_scenes([study.task(code, recorded.get(code) if code in rerun else None) for code in todo],
                             folder.root, options.replay)
@@ -368,18 +368,13 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
     return summary
 
 
-def _same_settings(outcomes: Outcomes, rerun: set[str], settings: RunSettings) -> None:
-    """StudyError when a kept finished run was simulated with other settings than these."""
+def _same_settings(outcomes: Outcomes, rerun: set[str], settings: RunSettings, spec: Path) -> None:
+    """StudyError when a kept finished run was simulated with other settings than these (`spec`: where they are set)."""
     for row in outcomes.rows:
         changed = [] if row.run_code in rerun else differences(outcome_cells(row), settings)
         if changed:
             raise StudyError(f"run {row.run_code} ran with other settings ({'; '.join(changed)}); set them in the [run] "
-                             f"table of {folder_spec(outcomes)} to match, or pass --settings-differ to mix them (the report flags it)")
-
-
-def folder_spec(outcomes: Outcomes) -> Path:
-    """The study.toml beside an outcomes.csv."""
-    return outcomes.path.with_name(SPEC)
+                             f"table of {spec} to match, or pass --settings-differ to mix them (the report flags it)")
 
 
 def _record_failure(folder: StudyFolder, code: str, message: str, blind: bool) -> None:

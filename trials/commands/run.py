@@ -113,7 +113,6 @@ def run(args: argparse.Namespace) -> int:
     progress.loading(f"Loading the controllers ({settings.describe()}) in {args.workers} worker "
                      f"process{'es' if args.workers > 1 else ''}")
     held: dict[str, tuple[str, bool]] = {}
-    number = {code: n for n, code in enumerate(study.codes, start=1)}
 
     def say(code: str, line: str, error: bool = False) -> None:
         if study.blind:
@@ -128,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         progress.start(count)
 
     def done(run: RunDone) -> None:
-        say(run.code, run_line(number[run.code], study.task(run.code).row, run.row) + _replayed(run))
+        say(run.code, run_line(study.task(run.code).row, run.row) + _replayed(run))
         if not args.no_responses and not run.logged:
             # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
             # logged trial's robot drove as recorded, not as its controller planned, so it is not judged.
@@ -137,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
                 to_the_minute(study.folder.path(RESPONSES), study.folder.root)
 
     def failed(code: str, message: str) -> None:
-        say(code, f"{run_label(number[code], study.task(code).row)}: failed: {message}", error=True)
+        say(code, f"{run_label(study.task(code).row)}: failed: {message}", error=True)
 
     try:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
@@ -173,22 +172,22 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_label(order: int, plan_row: dict[str, str]) -> str:
+def run_label(plan_row: dict[str, str]) -> str:
     """`order 3, PE7Y9 (Pedestrians 2, Direction Crossing, Controller A)`: a run's place in the plan, its
     code and its factor settings as plan.csv has them (the arm label, never the controller, when blinded)."""
     from trials.log_trial import LOG_COLUMN
 
     factors = ", ".join(f"{k} {v}" for k, v in plan_row.items() if k not in ("order", "run_code", LOG_COLUMN))
-    return f"order {plan_row.get('order', order)}, {plan_row['run_code']} ({factors})"
+    return f"order {plan_row['order']}, {plan_row['run_code']} ({factors})"
 
 
-def run_line(order: int, plan_row: dict[str, str], outcome: dict[str, str]) -> str:
+def run_line(plan_row: dict[str, str], outcome: dict[str, str]) -> str:
     """A finished run's console line: its label, how it ended after how long (to the simulator's 0.1 s
     step), and the smallest gap between the robot's footprint and a pedestrian's body."""
     duration = float(outcome["duration_s"])
     gap = outcome["min_distance_m"]
     near = f"; smallest gap robot footprint to pedestrian {float(gap):.2f} m" if gap else "; no pedestrian"
-    return f"{run_label(order, plan_row)}: {outcome['status']} after {duration:.1f} s{near}"
+    return f"{run_label(plan_row)}: {outcome['status']} after {duration:.1f} s{near}"
 
 
 def _replayed(run: RunDone) -> str:
