@@ -44,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
 
 def status_lines(status: StudyStatus) -> list[str]:
     """The text of `trials status`."""
+    from trials.study import RUN_LOCK, SPEC
+
     kind = "blinded" if status.blinded else "open"
     lines = [f"{status.name} ({kind} study) in {status.root}",
              f"runs: {status.finished} of {status.planned} finished"]
@@ -60,7 +62,7 @@ def status_lines(status: StudyStatus) -> list[str]:
         lines.append(f"  aborted (a partial log left; the next `trials run` redoes them): {', '.join(status.aborted)}")
     lines.append(f"judgments: {status.responses['human']} human, {status.responses['simulated']} simulated, "
                  f"of {status.judged_runs} runs; scores: {status.scores}, of {status.scored_runs} runs")
-    lines.append(f"run settings ([run] of study.toml): {status.settings.describe()}")
+    lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
     if len(status.recorded_settings) > 1:
         from trials.run_settings import recorded_text
 
@@ -76,5 +78,5 @@ def status_lines(status: StudyStatus) -> list[str]:
     if lock.held:
         lines.append(f"lock: a `trials run` is running on the study (pid {lock.pid})")
     elif lock.stale:
-        lines.append(f"lock: runs/.lock is stale (pid {lock.pid}, a `trials run` that was killed); the next `trials run` takes it over")
+        lines.append(f"lock: {RUN_LOCK} is stale (pid {lock.pid}, a `trials run` that was killed); the next `trials run` takes it over")
     return lines
