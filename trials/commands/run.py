@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
     from robot_logs.topics import TopicNames
     from trials.log_trial import ReplayOptions
+    from trials.outcomes import columns
     from trials.progress import Progress
     from trials.run_settings import override, read_run_settings
     from trials.runner import RunOptions, StudyRun, run_study
@@ -150,8 +151,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: {study.folder.path(RUN_LOCK)} was left by pid {summary.stale_lock}, a `trials run` that was "
               "killed; it was taken over", file=sys.stderr)
     if args.json:
+        # In plan order, as outcomes.csv's columns: the order runs ended in would time them (blinding).
+        finished = {run.code: {k: v for k, v in run.row.items() if k in columns(study.blind)} for run in summary.finished}
         print(json.dumps({"study": str(study.folder.root), "settings": settings.recorded(),
-                          "finished": [run.row for run in summary.finished],
+                          "finished": [finished[code] for code in study.codes if code in finished],
                           "failed": [{"run_code": c, "message": m} for c, m in summary.failed],
                           "already_finished": summary.skipped, "done": summary.done, "planned": len(study.codes),
                           "superseded": str(summary.superseded) if summary.superseded else None}))
