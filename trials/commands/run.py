@@ -148,8 +148,8 @@ def run(args: argparse.Namespace) -> int:
             line, error = held[code]
             progress.item(line, error, count=n)
     if summary.stale_lock is not None:
-        print(f"note: {study.folder.path(RUN_LOCK)} was left by pid {summary.stale_lock}, a `trials run` that was "
-              "killed; it was taken over", file=sys.stderr)
+        print(f"note: {study.folder.path(RUN_LOCK)} was left by pid {summary.stale_lock}, a `trials run` that no "
+              "longer runs (killed, or of an earlier release); it was taken over", file=sys.stderr)
     if args.json:
         # In plan order, as outcomes.csv's columns: the order runs ended in would time them (blinding).
         finished = {run.code: {k: v for k, v in run.row.items() if k in columns(study.blind)} for run in summary.finished}

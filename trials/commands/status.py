@@ -78,5 +78,6 @@ def status_lines(status: StudyStatus) -> list[str]:
     if lock.held:
         lines.append(f"lock: a `trials run` is running on the study (pid {lock.pid})")
     elif lock.stale:
-        lines.append(f"lock: {RUN_LOCK} is stale (pid {lock.pid}, a `trials run` that was killed); the next `trials run` takes it over")
+        lines.append(f"lock: {RUN_LOCK} is stale (pid {lock.pid}, a `trials run` that no longer runs: killed, or of an earlier "
+                     "release); the next `trials run` takes it over")
     return lines
