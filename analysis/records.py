@@ -52,10 +52,16 @@ class RunMetrics:
 @dataclass(frozen=True)
 class Outcome(RunMetrics, RunKey):
     """One row of outcomes.csv. Its fields are the file's columns in order: `RunKey`'s, then
-    `RunMetrics`', then the controller (None, and no column, in a blinded study) and the finish time."""
+    `RunMetrics`', then the controller (None, and no column, in a blinded study), the finish time, and
+    the settings the run was made with (`trials.run_settings`; None in a row written before they were
+    recorded, and noise, dropout and timeout None for a trial played from a robot log)."""
 
     controller: str | None = field(default=None, kw_only=True)
     finished_utc: str
+    noise_std_m: float | None = field(default=None, kw_only=True)
+    dropout: float | None = field(default=None, kw_only=True)
+    timeout_s: float | None = field(default=None, kw_only=True)
+    weights: str | None = field(default=None, kw_only=True)
 
 
 @dataclass(frozen=True)

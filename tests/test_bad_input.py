@@ -84,6 +84,11 @@ def write(name: str, content: str | bytes) -> Callable[[Path, Path], None]:
     return prepare
 
 
+def append(path: Path, text: str) -> None:
+    """Add text at the end of a file, as a researcher's edit would."""
+    path.write_text(path.read_text(encoding="utf-8") + text, encoding="utf-8")
+
+
 def folder(name: str) -> Callable[[Path, Path], None]:
     return lambda tmp, study: (tmp / name).mkdir()
 
@@ -98,7 +103,7 @@ CASES = [
     Case("existing plan", ("design", "--study", "{study}"), "already has a plan; pass --force to replace it"),
     # trials design: options
     Case("negative seed", ("design", "--seed", "-1", "--study", "{tmp}/new"),
-         "argument --seed: expected a whole number from 0 to 9223372036854775807, got '-1'"),
+         "argument --seed: expected a whole number from 0 to 9007199254740991, got '-1'"),
     Case("negative allocation seed", ("design", "--ab", "--allocation-seed", "-3", "--study", "{tmp}/new"),
          "argument --allocation-seed: expected a whole number from 0"),
     Case("snr nan", ("design", "--snr", "nan", "--study", "{tmp}/new"), "argument --snr: expected a finite number in (0, 100], got 'nan'"),
@@ -160,7 +165,7 @@ CASES = [
          "spec.toml: every factor is fixed; a design needs at least one varying factor",
          spec(SPEC_HEAD + '[[factors]]\nname = "A"\ntype = "fixed"\nvalue = 1\n')),
     Case("unknown table", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
-         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]])",
+         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]] and [run])",
          spec(SPEC_HEAD + "[extra]\n" + SPEED)),
     Case("arms without blind", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "factors[0] (A): arms are only for a blind factor; use levels",
@@ -178,6 +183,24 @@ CASES = [
     Case("duration zero", ("run", "--duration", "0", "--study", "{study}"), "argument --duration: expected a finite number in (0, inf), got '0'"),
     Case("study is a file (run)", ("run", "--study", "{tmp}/afile"), "argument --study: {tmp}/afile is a file, not a folder", write("afile", "x")),
     Case("newline in a run code", ("run", "--only", "AB\nCD", "--study", "{study}"), "run AB\\nCD is not in"),
+    # the [run] table of study.toml (trials/run_settings.py)
+    Case("run table unknown key", ("run", "--study", "{study}"),
+         "study.toml [run]: unknown key 'speed' (expected perception, noise, dropout, timeout, weights)",
+         lambda tmp, study: append(study / "study.toml", "\n[run]\nspeed = 2\n")),
+    Case("run table noise too large", ("run", "--study", "{study}"), "study.toml [run]: noise must be a number in [0, 10], got 11",
+         lambda tmp, study: append(study / "study.toml", "\n[run]\nnoise = 11\n")),
+    Case("run table dropout of one", ("status", "--study", "{study}"), "study.toml [run]: dropout must be a number in [0, 1), got 1",
+         lambda tmp, study: append(study / "study.toml", "\n[run]\ndropout = 1\n")),
+    Case("run table unknown perception", ("run", "--study", "{study}"), "study.toml [run]: perception must be one of positions, lidar, got 'sonar'",
+         lambda tmp, study: append(study / "study.toml", '\n[run]\nperception = "sonar"\n')),
+    # usage errors point to the --help of the command typed; seeds stay exact as doubles
+    Case("unknown option of design", ("design", "--bogus", "--study", "{tmp}/new"), "unrecognized arguments: --bogus (see `trials design --help`)"),
+    Case("unknown option of log inspect", ("log", "inspect", "x.mcap", "--bogus"), "unrecognized arguments: --bogus (see `trials log inspect --help`)"),
+    Case("seed of 2^53", ("design", "--seed", "9007199254740992", "--study", "{tmp}/new"),
+         "argument --seed: expected a whole number from 0 to 9007199254740991, got '9007199254740992'"),
+    # trials status and run codes for log inspect
+    Case("status of no study", ("status", "--study", "{tmp}/new"), "no plan in"),
+    Case("log inspect of an unknown run", ("log", "inspect", "ZZZZZ", "--study", "{study}"), "no log of run ZZZZZ in"),
     # trials run: plan.csv damaged or edited
     Case("plan not UTF-8", ("run", "--study", "{study}"), "plan.csv is not UTF-8 text (invalid start byte at byte 20)",
          plan_bytes(lambda b: b[:20] + b"\xff" + b[21:])),

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import gzip
 import json
+import re
 import stat
 from pathlib import Path
 
@@ -112,6 +113,10 @@ def test_the_adversary_finds_what_the_sealed_records_hold(studies):
         assert max(v for c, v in spaced.items() if truth[c] == "NaviGAN-R") == 0
 
 
+#: A run's console line, `[n/N] order k, CODE (settings): ...`.
+RUN_LINE = re.compile(r"\[\d+/\d+\] order \d+, (\w+) \(")
+
+
 def test_the_public_record_is_what_an_observer_could_see(studies):
     for study, run in studies:
         assert stat.S_IMODE((study / "sealed").stat().st_mode) == 0o700
@@ -124,4 +129,5 @@ def test_the_public_record_is_what_an_observer_could_see(studies):
         # Every run's line comes once all have ended, in plan order, not in the order the runs ended.
         with (study / "plan.csv").open(newline="") as handle:
             plan = [row["run_code"] for row in csv.DictReader(handle)]
-        assert [line.split(":")[0] for _, line in run.lines if line.split(":")[0] in plan] == plan
+        named = [match.group(1) for _, line in run.lines if (match := RUN_LINE.match(line))]
+        assert named == plan

@@ -34,6 +34,11 @@ def test_json_report(sbpl_dir, capsys):
     assert report["start"] == [10, 50, 0] and report["goal"] == [190, 50, 0]
 
 
+def test_relative_files_are_read_from_the_study_folder(sbpl_dir, capsys):
+    assert main(["lattice", "ped2_10cm.cfg", "pr2_10cm.mprim", "--study", str(sbpl_dir), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["goal"] == [190, 50, 0]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--footprint", "0.5,0.3 -0.5"], 'error: --footprint: expected points "x,y" separated by spaces, got "-0.5"'),
     (["--footprint", "0,0 1,1"], "error: --footprint: a polygon needs at least 3 points, got 2 (use --point "

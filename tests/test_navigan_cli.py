@@ -68,6 +68,18 @@ def test_checkpoint_records_the_recipe_and_the_command_that_reproduce_it(data, t
     assert record.train.seed == 4 and record.train.epochs == 1
 
 
+def test_train_without_out_writes_into_the_study_folder_with_a_line_per_epoch(data, tmp_path, capsys):
+    study = tmp_path / "study"
+    study.mkdir()
+    mine = recipe_file(tmp_path, 'model = "goal-social-lstm"\n[network]\nhidden = 16\n[train]\nbatch = 48\n')
+    assert main(["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+                 "--study", str(study)]) == 0
+    first, last = capsys.readouterr().out.splitlines()  # piped: one numbered line per epoch, no bar
+    assert first.startswith("[1/1] epoch 1: validation loss ") and "best epoch 1" in first
+    assert last.startswith(f"{study / 'goal-social-lstm-zara2.pt'}: ")
+    assert load(study / "goal-social-lstm-zara2.pt").train.epochs == 1
+
+
 def test_recipe_sets_the_social_training_settings(data, tmp_path):
     out = tmp_path / "r.pt"
     mine = recipe_file(tmp_path, '''model = "navigan-r"

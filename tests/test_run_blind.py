@@ -34,7 +34,8 @@ def blind_run(tmp_path_factory):
     run = trials("run", "--blind", "--workers", "2", "--study", str(study), "--wall-clock")
     one_per_arm = {row["Controller"]: row["run_code"] for row in _plan(study)}
     shows = [trials("log", "show", code, "--study", str(study)) for code in one_per_arm.values()]
-    return study, [run, *shows]
+    rerun = trials("run", "--rerun", *reversed(one_per_arm.values()), "--workers", "2", "--json", "--study", str(study))
+    return study, [run, *shows, rerun, trials("status", "--study", str(study)), trials("status", "--json", "--study", str(study))]
 
 
 def _plan(study: Path) -> list[dict[str, str]]:
@@ -51,6 +52,25 @@ def test_the_blind_run_finishes_every_row(blind_run):
     assert sorted(r["run_code"] for r in table) == sorted(r["run_code"] for r in _plan(study))
     assert "controller" not in table[0]
     assert all(show.returncode == 0 for show in shows)
+
+
+def test_status_counts_by_arm_label_and_the_run_lines_are_numbered(blind_run):
+    study, (run, *_, rerun, status, as_json) = blind_run
+    assert status.returncode == 0, status.stderr.decode()
+    text = status.stdout.decode()
+    assert "small-ab (blinded study)" in text and "runs: 6 of 6 finished" in text
+    assert "arm A: 3 planned" in text and "arm B: 3 planned" in text and "unblinded: no" in text
+    arms = json.loads(as_json.stdout)["arms"]
+    assert sorted(arms) == ["A", "B"] and all(sum(a["finished"].values()) == 3 and a["pending"] == 0 for a in arms.values())
+    numbered = [line for line in run.stdout.decode().splitlines() if line.startswith("[")]
+    assert [line.split("]")[0] for line in numbered] == [f"[{n}/6" for n in range(1, 7)]
+    assert all(", Controller A," in line or ", Controller B," in line for line in numbered)
+    assert not (study / "runs" / ".lock").exists()
+    printed = json.loads(rerun.stdout)  # in plan order, whichever ended first, and with no controller column
+    plan = [row["run_code"] for row in _plan(study)]
+    codes = [row["run_code"] for row in printed["finished"]]
+    assert len(codes) == 2 and codes == sorted(codes, key=plan.index)
+    assert all("controller" not in row for row in printed["finished"])
 
 
 def test_nothing_public_names_a_controller(blind_run):

@@ -149,7 +149,7 @@ def test_only_runs_the_rows_named(study, capsys):
     assert main(["run", "--only", codes[3], codes[1], "--study", str(study)]) == 0
     assert [r["run_code"] for r in rows(study)] == [codes[1], codes[3]]
     assert main(["run", "--only", codes[1], "--study", str(study)]) == 0
-    assert f"{codes[1]} has already finished" in capsys.readouterr().out
+    assert f"1 of the runs asked for have already finished ({codes[1]})" in capsys.readouterr().out
     assert len(rows(study)) == 2
 
 

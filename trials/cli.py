@@ -1,6 +1,7 @@
 """The `trials` console command: one subcommand per module of `trials.commands`.
 
-User mistakes (`trials.errors.USER_ERRORS`, every package's error type) print `error: ...` on one line and exit 2.
+User mistakes (`trials.errors.USER_ERRORS`, every package's error type) print `error: ...` on one line and exit 2;
+a usage error points to the `--help` of the (sub)command that was typed.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from collections.abc import Sequence
 from trials.errors import USER_ERRORS
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report", "serve")
+COMMANDS: tuple[str, ...] = ("design", "run", "status", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report", "serve")
 
 EXIT_USAGE = 2
 
@@ -26,23 +27,52 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
+#: Where each parsed namespace keeps the innermost (sub)command parser that read it.
+USAGE_PARSER = "usage_parser"
+
+
+def version() -> str:
+    """The installed distribution's version (`trials --version`)."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    try:
+        return installed("navtrials")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full parser with every registered subcommand."""
     parser = _Parser(
         prog="trials",
         description="Design, run and report field trials of socially compliant robot navigation.",
     )
+    parser.add_argument("--version", action="version", version=f"trials (navtrials) {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name in COMMANDS:
         importlib.import_module(f"trials.commands.{name}").register(sub)
+    _name_usage_parsers(parser)
     return parser
+
+
+def _name_usage_parsers(parser: argparse.ArgumentParser) -> None:
+    """Give every subcommand parser a default naming itself, so that an argument left over after
+    parsing is reported by the innermost command that was typed, with its own `--help`."""
+    parser.set_defaults(**{USAGE_PARSER: parser})
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in dict.fromkeys(action.choices.values()):
+                _name_usage_parsers(child)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `trials` command; returns the process exit code."""
     try:
-        args = build_parser().parse_args(argv)
+        args, extras = build_parser().parse_known_args(argv)
+        if extras:
+            getattr(args, USAGE_PARSER).error(f"unrecognized arguments: {' '.join(extras)}")
     except SystemExit as exc:  # --help, or a usage error already printed as one line
         return int(exc.code or 0)
     try:
@@ -52,6 +82,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = str(exc).replace("\r", "\\r").replace("\n", "\\n")
         sys.stderr.write(f"error: {message}\n")
         return EXIT_USAGE
+    except BrokenPipeError:  # the reader went away (`| head`): the rest of the output is not wanted
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: finished work is kept; run the command again to continue\n")
         return 130

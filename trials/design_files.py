@@ -3,7 +3,11 @@ content from `trials.study`, `designs.spec` and the correlation figure)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
+
+import tomli_w
 
 from analysis.figures import correlation_map_figure, design_evaluation_figure
 from designs.diagnostics import fraction_of_design_space, variance_profiles
@@ -11,6 +15,7 @@ from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
 from trials.atomic import write_files
+from trials.run_settings import TABLE
 from trials.study import (
     ALLOCATION,
     CORRELATION_MAP,
@@ -29,12 +34,14 @@ from trials.study import (
 )
 
 
-def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None) -> list[Path]:
+def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None,
+                 run: Mapping[str, Any] | None = None) -> list[Path]:
     """Write study.toml, plan.csv, design.json, correlation_map.png, design_evaluation.png and the sealed key (sealed/ 0700,
     its files 0600).
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
-    it is kept under sealed/. Returns the public files written.
+    it is kept under sealed/. `run` is the spec's `[run]` table (`trials.run_settings`), written
+    after the design's tables. Returns the public files written.
     """
     created = utc_now()
     d = plan.diagnostics
@@ -45,7 +52,7 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     table = plan_table(plan)
     record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
     public = {
-        folder.path(SPEC): spec_to_toml(plan.spec).encode(),
+        folder.path(SPEC): (spec_to_toml(plan.spec) + (f"\n{tomli_w.dumps({TABLE: dict(run)})}" if run else "")).encode(),
         folder.path(PLAN): plan_content(*table),
         folder.path(DESIGN): json_content(record),
         folder.path(CORRELATION_MAP): figure,

@@ -12,8 +12,9 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-#: Seeds are recorded in JSON and CSV files and fed to numpy's SeedSequence: whole numbers 0 .. 2^63 - 1.
-SEED_MAX = 2**63 - 1
+#: Seeds are recorded in JSON and CSV files and fed to numpy's SeedSequence: whole numbers 0 .. 2^53 - 1, which
+#: a spreadsheet, R or JMP (reading every number as a double) keeps exact.
+SEED_MAX = 2**53 - 1
 #: Torch threads a command may ask for.
 MAX_THREADS = 256
 

@@ -28,11 +28,14 @@ from trials.study import OUTCOMES, PLAN, StudyFolder
 
 CONTROLLER = "controller"
 STATUSES = ("goal", "collision", "timeout")
+#: The settings columns (`trials.run_settings`), last; files written before them lack them and still read.
+SETTINGS = ("noise_std_m", "dropout", "timeout_s", "weights")
 
 
-def columns(blind: bool) -> tuple[str, ...]:
-    """The header of outcomes.csv for a blind or an open study."""
-    return tuple(c for c in record_columns(Outcome) if not (blind and c == CONTROLLER))
+def columns(blind: bool, settings: bool = True) -> tuple[str, ...]:
+    """The header of outcomes.csv for a blind or an open study (without `settings`: as written before
+    the settings columns existed)."""
+    return tuple(c for c in record_columns(Outcome) if not (blind and c == CONTROLLER) and (settings or c not in SETTINGS))
 
 
 def outcome_cells(record: Outcome | RunMetrics) -> dict[str, str]:
@@ -43,10 +46,11 @@ def outcome_cells(record: Outcome | RunMetrics) -> dict[str, str]:
 def read_outcomes(path: Path, blind: bool | None = None) -> list[Outcome]:
     """The rows of an outcomes.csv in the order runs finished ([] when there is none).
 
-    With `blind` given, the header must be exactly that of a blinded or an open study.
+    With `blind` given, the header must be exactly that of a blinded or an open study (with or without
+    the settings columns; rows without them have no settings recorded, and the next write adds them).
     """
-    table = read_table(path, [c for c in columns(blind=False) if c != CONTROLLER])
-    if blind is not None and table.header and table.header != columns(blind):
+    table = read_table(path, [c for c in columns(blind=False, settings=False) if c != CONTROLLER])
+    if blind is not None and table.header and table.header not in (columns(blind), columns(blind, settings=False)):
         what = "a blinded" if blind else "an open"
         raise StudyError(f"{path} has the columns {','.join(table.header)}, not those of {what} study ({','.join(columns(blind))})")
     return parse_rows(path, table, _outcome)

@@ -13,9 +13,13 @@ is written; the MCAP is renamed into place; the outcome row is appended (outcome
 through a temporary name). A run without a row is pending and runs again (with the same seed);
 partial files of interrupted runs are deleted when the next `trials run` starts. In a blinded
 study every public file a run writes, and its folder, gets its modification time rounded down to
-the minute, as `finished_utc` is. A full disk (`DiskFullError`, in
-the parent or a worker) stops the command at its first failed write, since every later run would
-fail alike; the partial files are deleted as it stops.
+the minute, as `finished_utc` is. A run that fails leaves runs/<code>.failed.txt (its one-line
+reason; removed when the run later finishes), so `trials status` can tell failed from pending runs.
+
+Every run records the settings it was made with (`trials.run_settings`); runs are not mixed with
+finished runs made with other settings unless the command says so (`settings_differ`). A full disk
+(`DiskFullError`, in the parent or a worker) stops the command at its first failed write, since
+every later run would fail alike; the partial files are deleted as it stops.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from analysis.records import Outcome, RunMetrics
-from trials.atomic import no_space, write_files
+from trials.atomic import no_space, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, DiskFullError, StudyError
@@ -44,6 +48,7 @@ from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
 from trials.run_log import RunLog, jsonable
+from trials.run_settings import LOGGED, PERCEPTIONS, RunSettings, differences
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sealed_runs import SEALED_RUN_FORMAT, write_sealed
 from trials.sim.perception import PositionNoise
@@ -56,6 +61,7 @@ from trials.study import (
     RUNS,
     SEALED,
     SEALED_RUNS,
+    SPEC,
     SUPERSEDED,
     StudyFolder,
     private_folder,
@@ -63,20 +69,24 @@ from trials.study import (
     utc_now,
 )
 
-PERCEPTIONS = ("positions", "lidar")
+#: Run seeds stay below 2^53, so that a spreadsheet, R or JMP (which read numbers as doubles) keeps them exact.
+SEED_BITS = 53
 
 
 @dataclass(frozen=True)
 class RunOptions:
-    """How runs are simulated (the perception model and its noise) or played from logs, and NaviGAN-R's weights."""
+    """How runs are simulated (perception, noise, timeout, NaviGAN-R's weights) or played from logs, and
+    whether they may be mixed with finished runs made with other settings."""
 
-    perception: str = "positions"
-    noise: PositionNoise = PositionNoise()
-    weights: str | None = None
-    timeout_s: float = 60.0
+    settings: RunSettings = RunSettings()
     replay: ReplayOptions = ReplayOptions()
+    settings_differ: bool = False
     #: Stamp logs with the wall-clock start (blinded runs: to the minute) instead of from 1970-01-01.
     wall_clock: bool = False
+
+    @property
+    def noise(self) -> PositionNoise:
+        return PositionNoise(self.settings.noise_std_m, self.settings.dropout)
 
 
 @dataclass(frozen=True)
@@ -115,12 +125,18 @@ class Summary:
     skipped: list[str] = field(default_factory=list)
     superseded: Path | None = None
     done: int = 0
+    #: The pid a stale runs/.lock recorded (a `trials run` that was killed), when one was taken over.
+    stale_lock: str | None = None
 
 
 def run_seed(study_seed: int, code: str) -> int:
-    """The seed of run `code`: a 63-bit hash of the study's seed and the run code."""
+    """The seed of run `code`: a 53-bit hash of the study's seed and the run code (exact as a double).
+
+    Studies run before seeds were shortened recorded 63-bit seeds; their reruns take the seed recorded
+    in outcomes.csv (`StudyRun.task`), so every recorded run still reproduces.
+    """
     digest = hashlib.sha256(f"navtrials-run:{study_seed}:{code}".encode()).digest()
-    return int.from_bytes(digest[:8], "big") >> 1
+    return int.from_bytes(digest[:8], "big") >> (64 - SEED_BITS)
 
 
 def utc_stamp(blind: bool) -> str:
@@ -175,27 +191,68 @@ class StudyRun:
     def codes(self) -> list[str]:
         return [row["run_code"] for row in self.plan]
 
-    def task(self, code: str) -> RunTask:
+    def task(self, code: str, recorded_seed: int | None = None) -> RunTask:
+        """Row `code` to run, with the seed its finished run recorded (a rerun) or its derived one."""
         row = next(r for r in self.plan if r["run_code"] == code)
-        return RunTask(code, dict(row), run_seed(self.seed, code))
+        return RunTask(code, dict(row), run_seed(self.seed, code) if recorded_seed is None else recorded_seed)
+
+
+@dataclass(frozen=True)
+class LockState:
+    """runs/.lock as found: absent, held by a running `trials run` (its pid), or stale (left by a
+    `trials run` that was killed, with the pid it recorded)."""
+
+    held: bool
+    stale: bool
+    pid: str
+
+
+def lock_state(folder: StudyFolder) -> LockState:
+    """Whether runs/.lock is there, and held or stale; tries the lock without taking it for long."""
+    lock = folder.path(RUN_LOCK)
+    try:
+        handle = lock.open("r")
+    except FileNotFoundError:
+        return LockState(False, False, "")
+    with handle:
+        pid = handle.read().strip() or "?"
+        try:
+            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return LockState(True, False, pid)
+        fcntl.flock(handle, fcntl.LOCK_UN)
+    return LockState(False, True, pid)
 
 
 @contextmanager
-def study_lock(folder: StudyFolder) -> Iterator[None]:
-    """Hold the study's run lock (one `trials run` per study at a time)."""
+def study_lock(folder: StudyFolder) -> Iterator[LockState]:
+    """Hold the study's run lock (one `trials run` per study at a time); yields what was found before
+    (a stale lock of a killed run is taken over). The lock file is removed when the block is left."""
     lock = folder.path(RUN_LOCK)
     lock.parent.mkdir(parents=True, exist_ok=True)
-    with lock.open("a+") as handle:
+    found = lock_state(folder)
+    while True:
+        handle = lock.open("a+")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             handle.seek(0)
-            raise StudyError(f"another `trials run` is running on {folder.root} (pid {handle.read().strip() or '?'}); wait for it or stop it") from None
+            pid = handle.read().strip() or "?"
+            handle.close()
+            raise StudyError(f"another `trials run` is running on {folder.root} (pid {pid}); wait for it or stop it") from None
+        # Another run may have removed the file between our open and our lock: then lock the new one.
+        if lock.exists() and os.path.samestat(os.fstat(handle.fileno()), lock.stat()):
+            break
+        handle.close()
+    try:
         handle.seek(0)
         handle.truncate()
         handle.write(str(os.getpid()))
         handle.flush()
-        yield
+        yield found
+    finally:
+        lock.unlink(missing_ok=True)
+        handle.close()
 
 
 def clean_partials(folder: StudyFolder) -> list[Path]:
@@ -248,18 +305,21 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
 
     Raises:
         StudyError: unknown codes, a --rerun of an unfinished run, outcomes.csv of another study
-            kind, a broken sealed key, unreadable weights or a controller that cannot be built.
+            kind, runs to be made with other settings than the finished ones (without
+            `options.settings_differ`), a broken sealed key, unreadable weights or a controller
+            that cannot be built.
     """
     folder = study.folder
     if workers < 1:
         raise StudyError(f"--workers must be at least 1, got {workers}")
-    if options.perception not in PERCEPTIONS:
-        raise StudyError(f"--perception must be one of {', '.join(PERCEPTIONS)}, got {options.perception!r}")
+    if options.settings.perception not in PERCEPTIONS:
+        raise StudyError(f"--perception must be one of {', '.join(PERCEPTIONS)}, got {options.settings.perception!r}")
     unknown = [code for code in only + rerun if code not in study.codes]
     if unknown:
         raise StudyError(f"run {unknown[0]} is not in {folder.path(PLAN)}")
     summary = Summary()
-    with study_lock(folder):
+    with study_lock(folder) as found:
+        summary.stale_lock = found.pid if found.stale else None
         clean_partials(folder)
         outcomes = Outcomes(folder, study.blind)
         finished = outcomes.finished
@@ -272,7 +332,12 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         summary.done = len(finished & set(study.codes))
         if not todo:
             return summary
-        tasks = with_scenes([study.task(code) for code in todo], folder.root, options.replay)
+        simulates = any(log_of(study.task(c).row, folder.root, options.replay) is None for c in todo)
+        if simulates and not options.settings_differ:
+            _same_settings(outcomes, set(rerun), options.settings, folder.path(SPEC))
+        recorded = {row.run_code: row.seed for row in outcomes.rows}
+        tasks = with_scenes([study.task(code, recorded.get(code) if code in rerun else None) for code in todo],
+                            folder.root, options.replay)
         try:
             setup = (str(folder.root), study.name, study.blind, study.levels, options)
             with WorkerPool(min(workers, len(todo)), setup_worker, setup, USER_ERRORS) as pool:
@@ -291,9 +356,11 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                     if isinstance(answer, Failure):
                         message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
                         summary.failed.append((code, message))
+                        _record_failure(folder, code, message, study.blind)
                         on_failed(code, message)
                         continue
                     outcomes.append(answer.outcome)
+                    folder.run_failure(code).unlink(missing_ok=True)
                     if study.blind:
                         to_the_minute(folder.path(OUTCOMES), folder.root)
                     summary.finished.append(answer)
@@ -302,6 +369,23 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
             clean_partials(folder)
             summary.done = len(outcomes.finished & set(study.codes))
     return summary
+
+
+def _same_settings(outcomes: Outcomes, rerun: set[str], settings: RunSettings, spec: Path) -> None:
+    """StudyError when a kept finished run was simulated with other settings than these (`spec`: where they are set)."""
+    for row in outcomes.rows:
+        changed = [] if row.run_code in rerun else differences(outcome_cells(row), settings)
+        if changed:
+            raise StudyError(f"run {row.run_code} ran with other settings ({'; '.join(changed)}); set them in the [run] "
+                             f"table of {spec} to match, or pass --settings-differ to mix them (the report flags it)")
+
+
+def _record_failure(folder: StudyFolder, code: str, message: str, blind: bool) -> None:
+    """runs/<code>.failed.txt: why the run failed (one line), until it finishes; to the minute when blind."""
+    path = folder.run_failure(code)
+    write_text(path, message.splitlines()[0] + "\n" if message else "failed\n")
+    if blind:
+        to_the_minute(path, path.parent)
 
 
 def with_scenes(tasks: list[RunTask], root: Path, options: ReplayOptions) -> list[RunTask]:
@@ -348,7 +432,7 @@ class TrialWorker:
         self.folder, self.name, self.blind, self.options = folder, name, blind, options
         self._arms: dict[str, str] = folder.read_sealed().arms if blind else {}
         wanted = tuple(dict.fromkeys(self._arms.values())) if blind else levels
-        built = registry.ControllerOptions(weights=options.weights)
+        built = registry.ControllerOptions(weights=options.settings.weights)
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
@@ -381,11 +465,15 @@ class TrialWorker:
         controller.reset(seeds[3])
         path = self.folder.run_log(task.code)
         replay: dict[str, str] = {}
+        settings = self.options.settings
         if task.scene is None:
-            (status, metrics), perception = self._simulate(task, level, arm, controller, seeds, path), self.options.perception
+            status, metrics = self._simulate(task, level, arm, controller, seeds, path)
+            recorded: dict[str, Any] = {"perception": settings.perception, "noise_std_m": settings.noise_std_m,
+                                        "dropout": settings.dropout, "timeout_s": settings.timeout_s}
         else:
-            perception = "log"
-            metadata = self._metadata(task, level, {"perception": perception, **self._factors(task), **task.scene.metadata()})
+            recorded = {"perception": LOGGED}
+            metadata = self._metadata(task, level, {"perception": LOGGED, "weights": settings.recorded()["weights"],
+                                                    **self._factors(task), **task.scene.metadata()})
             with RunLog(path, metadata, tuple(task.scene.goal), None, self.blind, start_ns=self._start_ns(task.scene)) as log:
                 played = play(task.scene, controller, log)
                 self._seal(task, level, arm, log)
@@ -393,8 +481,9 @@ class TrialWorker:
             replay = {} if self.blind else played.summary()
         if self.blind:
             to_the_minute(path, path.parent)
-        outcome = Outcome(run_code=task.code, status=status, seed=task.seed, perception=perception, **asdict(metrics),
-                          controller=None if self.blind else level, finished_utc=utc_stamp(self.blind))
+        outcome = Outcome(run_code=task.code, status=status, seed=task.seed, **recorded, **asdict(metrics),
+                          controller=None if self.blind else level, finished_utc=utc_stamp(self.blind),
+                          weights=settings.recorded()["weights"])
         return RunDone(task.code, outcome, task.scene is not None, replay)
 
     def _start_ns(self, scene: LoggedScene | None = None) -> int:
@@ -418,12 +507,13 @@ class TrialWorker:
         options = self.options
         scenario_seed, crowd_seed, perception_seed, _ = seeds
         scenario = build_scenario(settings_from_row(self._factors(task), f"run {task.code}"), scenario_seed)
-        perception = (LidarPerception(perception_seed) if options.perception == "lidar"
+        perception = (LidarPerception(perception_seed) if options.settings.perception == "lidar"
                       else PositionPerception(options.noise, perception_seed))
-        config = SimConfig(timeout_s=options.timeout_s)
-        entries = {"perception": options.perception, "timeout_s": f"{options.timeout_s:g}", **self._factors(task),
+        config = SimConfig(timeout_s=options.settings.timeout_s)
+        entries = {"perception": options.settings.perception, "timeout_s": f"{options.settings.timeout_s:g}",
+                   "weights": options.settings.recorded()["weights"], **self._factors(task),
                    "variation": json.dumps(scenario.variation())}
-        if options.perception == "positions":
+        if options.settings.perception == "positions":
             noise = options.noise
             entries.update(noise_std_m=f"{noise.std_m:g}", dropout=f"{noise.dropout:g}", range_m=f"{noise.range_m:g}")
         with RunLog(path, self._metadata(task, level, entries), scenario.goal, scenario.cone, self.blind, config.limits,

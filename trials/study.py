@@ -50,6 +50,8 @@ RUN_LOCK = f"{RUNS}/.lock"
 RUN_LOG_SUFFIX = ".mcap"
 #: The picture of a run beside its log (`trials log show`), in every format a figure is saved in.
 RUN_FIGURE_SUFFIXES = FORMATS
+#: Beside a run that failed, its one-line reason.
+RUN_FAILURE_SUFFIX = ".failed.txt"
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
@@ -131,6 +133,10 @@ class StudyFolder:
     def run_figures(self, code: str) -> tuple[Path, ...]:
         """runs/<code>.png and .svg, the picture of a run."""
         return tuple(self.run_log(code).with_suffix(suffix) for suffix in RUN_FIGURE_SUFFIXES)
+
+    def run_failure(self, code: str) -> Path:
+        """runs/<code>.failed.txt, why the last attempt at a run failed (`trials.runner`; gone once it finishes)."""
+        return self.run_log(code).with_suffix(RUN_FAILURE_SUFFIX)
 
     def sealed_run(self, code: str) -> Path:
         """sealed/runs/<code>.json.gz, a blinded run's controller output (`trials.sealed_runs`)."""

@@ -14,8 +14,9 @@ from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
 from designs.spec import read_spec
 from trials.controllers import registry
 from trials.errors import StudyError
-from trials.outcomes import read_outcomes
+from trials.outcomes import outcome_cells, read_outcomes
 from trials.responses import read_responses
+from trials.run_settings import distinct, recorded_text
 from trials.scores import read_scores
 from trials.study import (
     OUTCOMES,
@@ -49,6 +50,11 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         if outcome.run_code in latest:
             notes.append(f"{OUTCOMES} holds run {outcome.run_code} twice; the later row (finished {outcome.finished_utc}) is used.")
         latest[outcome.run_code] = outcome
+    mixed = distinct(outcome_cells(o) for o in latest.values())
+    if len(mixed) > 1:
+        groups = "; ".join(f"{n} with {recorded_text(key)}" for key, n in mixed.items())
+        notes.append(f"The runs were not all made with the same settings ({groups}); their results are pooled "
+                     "as if they had been (`trials run --settings-differ`).")
     scores: list[HumanScore] = read_scores(folder.path(SCORES))
     _no_unknown_codes([s.run_code for s in scores], codes, f"{SCORES} has scores")
     responses: list[Response] = read_responses(folder.path(RESPONSES))

@@ -214,8 +214,12 @@ class Playback:
                  "kept_epoch": (record.best or {}).get("epoch"), "finished": record.finished}
         return roll_out(policy, episodes, progress=progress, subgoal_speed=self.settings.subgoal_speed), about
 
-    def evaluate(self, splits: Sequence[str], models: Sequence[str], progress: bool = True) -> list[Table]:
+    def evaluate(self, splits: Sequence[str], models: Sequence[str], progress: bool = True,
+                 on_walked: Callable[[int, int, str, str], object] | None = None) -> list[Table]:
         """Evaluate what is not stored yet, then write the tables, the episode CSV and the figures.
+
+        `progress` shows a tqdm bar; `on_walked(n, total, split, column)` is called as each of the
+        `total` columns still to walk has been walked and stored.
 
         Raises:
             NaviganError: unknown split or model, missing checkpoint or data, a bad transcription
@@ -237,7 +241,7 @@ class Playback:
                     results[split, model] = record
         learned = sum(1 for _, m, _ in pending if m != HUMAN)
         with tqdm(total=learned * CUTOFF_STEPS, disable=not progress, unit="step", desc="playback") as bar:
-            for split, model, identity in pending:
+            for done, (split, model, identity) in enumerate(pending, start=1):
                 bar.set_description(f"playback {split} {COLUMNS[model]}")
                 episodes = loaded[split][0]
                 rollout, about = self.walk(split, model, episodes, bar.update)
@@ -247,6 +251,8 @@ class Playback:
                           "identity": identity, "results": score_rollout(episodes, rollout, self.settings.scoring)}
                 write_atomic(self.result_file(split, model), (json.dumps(record) + "\n").encode())
                 results[split, model] = record
+                if on_walked is not None:
+                    on_walked(done, len(pending), split, COLUMNS[model])
         tables = self.write_tables(splits, models, loaded, results, paper)
         self.write_figures(splits, models, loaded, results)
         return tables

@@ -88,7 +88,7 @@ def console_gaps(run: TimedRun, codes: list[str]) -> dict[str, float]:
     """For each run, the time its console line came minus the previous line's."""
     gaps, last = {}, 0.0
     for stamp, line in run.lines:
-        code = next((c for c in codes if line.startswith(f"{c}:")), None)
+        code = next((c for c in codes if f", {c} (" in line), None)  # "[n/N] order k, CODE (settings): ..."
         if code is not None:
             gaps[code] = stamp - last
         last = stamp

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from designs.exchange import CRITERIA
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
+from trials.progress import add_quiet
 
 if TYPE_CHECKING:
     from designs.spec import StudySpec
@@ -49,6 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
+    add_quiet(parser)
+    parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
     parser.set_defaults(handler=run)
 
 
@@ -93,6 +96,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from designs.spec import MAX_RUNS, read_spec
     from trials.design_files import write_design
     from trials.errors import StudyError
+    from trials.run_settings import run_table
     from trials.study import CORRELATION_MAP, DESIGN, DESIGN_EVALUATION, PLAN, SPEC
 
     folder.require_plan()
@@ -113,9 +117,10 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     if args.seed is None:
         spec = replace(spec, seed=None)  # a fresh seed for the new runs, recorded
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
-    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() else None)
+    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None)
+    run = run_table(folder.path(SPEC))  # the [run] table stays with the study
     copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION))
-    written = write_design(folder, plan)
+    written = write_design(folder, plan, None, run)
     print("\n".join(summary_lines(plan)))
     print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
           f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copied}")
@@ -131,8 +136,11 @@ def run(args: argparse.Namespace) -> int:
     from designs.spec import read_spec
     from trials.controllers import registry
     from trials.errors import StudyError
+    from trials.progress import Progress
+    from trials.run_settings import run_table
     from trials.study import (
         ALLOCATION,
+        DESIGN,
         PUBLIC_STUDY_FILES,
         SEALED_SPEC,
         SPEC,
@@ -165,9 +173,12 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
-    # every bad input fails here, before any write
-    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if sys.stderr.isatty() else None)
-    if sys.stderr.isatty():
+    run = run_table(spec_path) if spec_path is not None else {}
+    quiet = args.quiet or args.json
+    Progress("start", "design", quiet).loading(f"Searching for a {spec.criterion}-optimal design of {spec.runs} runs ({spec.starts} exchange starts)")
+    follow = sys.stderr.isatty() and not quiet
+    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None)  # every bad input fails here
+    if follow:
         print(file=sys.stderr)
     # Imported only now: matplotlib loads only when there is a plan to write.
     from trials.design_files import write_design
@@ -175,8 +186,16 @@ def run(args: argparse.Namespace) -> int:
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
-    written = write_design(folder, plan, original)
+    written = write_design(folder, plan, original, run)
 
+    if args.json:
+        import json
+
+        print(json.dumps({"study": str(folder.root.resolve()), "files": [str(p) for p in written],
+                          "commitment": plan.sealed.commitment() if plan.sealed is not None else None,
+                          "superseded": str(moved) if moved is not None else None,
+                          "design": json.loads(folder.path(DESIGN).read_text(encoding="utf-8"))}))
+        return 0
     print("\n".join(summary_lines(plan)))
     print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
     if plan.sealed is not None:

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from trials import option_types as types
+from trials.progress import add_quiet
 
 BASELINES = ("constant-velocity",)
 LABELS = {"goal-social-lstm": "Goal-Social-LSTM", "navil2": "NaviL2", "navigan": "NaviGAN", "navigan-r": "NaviGAN-R"}
@@ -31,7 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--json", type=types.output_file, metavar="FILE",
-                        help="where to write the result (default: NAME-SPLIT-eval.json here)")
+                        help="where to write the result (default: NAME-SPLIT-eval.json in the study folder)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR",
+                        help="the study folder the result goes into (default: current folder)")
+    add_quiet(parser)
     parser.set_defaults(handler=run)
 
 
@@ -43,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan.errors import NaviganError
     from navigan.evaluation import evaluate, evaluate_constant_velocity
     from trials.atomic import write_text
+    from trials.progress import Progress
 
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
@@ -61,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         record.update(baseline=args.baseline)
     if split_name == ALL_SCENES:
         raise NaviganError("the all-scenes split has no test scene; pass --split eth|hotel|univ|zara1|zara2")
+    Progress("target", "evaluating", args.quiet).loading(f"Loading the {split_name} test scene")
     split = load_split(data_dir(args.data), split_name)
     scenes = Scenes.from_files(split.test)
     record.update(split=split_name, test_files=split.describe()["test"], targets=scenes.n_targets,
@@ -79,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{name} on the {split_name} test scene ({', '.join(record['test_files'])}; {scenes.n_targets} targets)")
     for row_label, m in rows:
         print(f"  {row_label:<20} ADE {m['ade']:.3f} m   FDE {m['fde']:.3f} m")
-    out = args.json or Path(f"{name}-{split_name}-eval.json")
+    out = args.json or args.study / f"{name}-{split_name}-eval.json"
     write_text(out, json.dumps(record, indent=1) + "\n")
     print(f"wrote {out}")
     return 0

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from trials import option_types as types
+from trials.progress import add_quiet
 
 if TYPE_CHECKING:
     from robot_logs.summary import LogSummary
@@ -37,8 +38,30 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_log_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("file", type=Path, metavar="FILE", help="a ROS1 .bag, a ROS2 bag folder, an .mcap or a .db3 file")
+    parser.add_argument("file", metavar="FILE|RUN", help="a ROS1 .bag, a ROS2 bag folder, an .mcap or a .db3 file, "
+                        "or a run code of the study (its runs/<code>.mcap)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR",
+                        help="the study folder whose run codes FILE may name (default: current folder)")
     parser.add_argument("--salvage", action="store_true", help="read what can be read of a damaged log instead of refusing it")
+    add_quiet(parser)
+
+
+def study_log(text: str, study: Path) -> Path:
+    """The log a FILE|RUN argument names: an existing path, else the study's log of that run code.
+
+    Raises:
+        StudyError: a bare name that is neither a file nor a finished run of the study.
+    """
+    from trials.errors import StudyError
+    from trials.study import OUTCOMES, RUN_LOG_SUFFIX, RUNS, StudyFolder
+
+    path = Path(text)
+    if path.exists() or path.suffix == RUN_LOG_SUFFIX or len(path.parts) != 1:
+        return path
+    log = StudyFolder(study).run_log(text)
+    if not log.exists():
+        raise StudyError(f"no log of run {text} in {(study / RUNS).resolve()} (has it finished? see {OUTCOMES})")
+    return log
 
 
 def _register_inspect(group: argparse._SubParsersAction) -> None:
@@ -50,6 +73,7 @@ def _register_inspect(group: argparse._SubParsersAction) -> None:
         "Times are header stamps; record times are shown where they differ.",
     )
     _add_log_argument(parser)
+    parser.add_argument("--json", action="store_true", help="print the log's format, topics and spans as one JSON object")
     parser.set_defaults(handler=inspect)
 
 
@@ -76,17 +100,29 @@ def _warn_damage(damage: str | None) -> None:
 
 
 def inspect(args: argparse.Namespace) -> int:
+    import json
+    from dataclasses import asdict
+
     from tqdm import tqdm
 
     from robot_logs.reader import LogReader
     from robot_logs.summary import summarise
+    from trials.progress import Progress, show_bars
 
-    with LogReader(args.file, salvage=args.salvage) as log:
+    path = study_log(args.file, args.study)
+    Progress("msg", "reading", args.quiet).loading(f"Reading {path}")
+    with LogReader(path, salvage=args.salvage) as log:
         total = sum(t.count for t in log.topics if not t.service)
-        with tqdm(total=total, unit="msg", desc="reading", disable=None, leave=False) as bar:
+        with tqdm(total=total, unit="msg", desc="reading", disable=not show_bars(args.quiet), leave=False) as bar:
             summary = summarise(log, bar.update)
-    for line in summary_lines(summary) + schema_lines(args.file):
-        print(line)
+    if args.json:
+        record = asdict(summary)
+        for topic in record["topics"]:
+            topic["frames"] = sorted(topic["frames"])
+        print(json.dumps({**record, "span_s": summary.span_s(), "record_span_s": summary.span_s(record=True)}))
+    else:
+        for line in summary_lines(summary) + schema_lines(path):
+            print(line)
     _warn_damage(summary.damage)
     return 0
 
@@ -165,16 +201,20 @@ def track(args: argparse.Namespace) -> int:
     from robot_logs.topics import TopicNames
     from robot_logs.track_mcap import write_tracked_scan
     from robot_logs.tracks import TrackTable, write_rows
+    from trials.progress import Progress, show_bars
 
     topics = TopicNames(scan=args.scan_topic, odometry=args.odom_topic)
     rows = []
+    args.file = study_log(args.file, args.study)
+    Progress("scan", "tracking", args.quiet).loading(f"Reading {args.file}")
     with LogReader(args.file, salvage=args.salvage) as log, ExitStack() as outputs:
         tracking = LogTracking(log, args.frame, topics)
         writer = None
         if args.mcap is not None:
             meta = {"source": str(args.file), "frame": args.frame, "scan_topic": tracking.scan_topic.name}
             writer = outputs.enter_context(FoxgloveWriter(args.mcap, metadata={"tracking": meta}))
-        bar = outputs.enter_context(tqdm(total=tracking.scan_topic.count, unit="scan", desc="tracking", disable=None, leave=False))
+        bar = outputs.enter_context(tqdm(total=tracking.scan_topic.count, unit="scan", desc="tracking",
+                                         disable=not show_bars(args.quiet), leave=False))
         last_stamp = 0
         for scan, result in tracking:
             last_stamp = scan.stamp_ns
@@ -195,5 +235,6 @@ def track(args: argparse.Namespace) -> int:
     if tracking.skipped:
         sys.stderr.write(f"warning: {tracking.skipped} scans fell outside the odometry's time span and were left out\n")
     where = f" -> {args.out}" if args.out else ""
-    sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}\n")
+    if not args.quiet:
+        sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}\n")
     return 0

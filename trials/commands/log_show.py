@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from trials import option_types as types
 
@@ -30,6 +29,7 @@ def register(group: argparse._SubParsersAction) -> None:
 def show(args: argparse.Namespace) -> int:
     from robot_logs.run_log import LAYOUT, read_run
     from trials.atomic import write_files
+    from trials.commands.log import study_log
     from trials.errors import StudyError
     from trials.metrics import measure
     from trials.outcomes import outcome_cells
@@ -37,19 +37,12 @@ def show(args: argparse.Namespace) -> int:
     from trials.scenario import CONE, GOAL
     from trials.sealed_runs import unsealed_lines
     from trials.study import (
-        OUTCOMES,
-        RUN_LOG_SUFFIX,
-        RUNS,
         StudyFolder,
     )
 
     if args.commitment is not None and not args.unblind:
         raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
-    path = Path(args.run)
-    if not path.is_file() and path.suffix != RUN_LOG_SUFFIX and len(path.parts) == 1:  # a run code
-        path = StudyFolder(args.study).run_log(args.run)
-        if not path.exists():
-            raise StudyError(f"no log of run {args.run} in {(args.study / RUNS).resolve()} (has it finished? see {OUTCOMES})")
+    path = study_log(args.run, args.study)
     run = read_run(path)
     meta = dict(run.metadata)
     code = meta.pop("run_code", path.stem)

@@ -9,6 +9,7 @@ from pathlib import Path
 from navigan.playback.protocols import DEFAULT_PROTOCOL, PROTOCOLS
 from trials import option_types as types
 from trials.option_types import MAX_THREADS
+from trials.progress import add_quiet
 
 SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
 #: Upper ends of the scoring options: beyond them a value is a typing slip.
@@ -34,8 +35,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"comma-separated columns (default: all, {ALL_MODELS})")
     parser.add_argument("--checkpoints", type=Path, metavar="DIR",
                         help="folder of MODEL-SPLIT.pt checkpoints (default: the shipped weights)")
-    parser.add_argument("--out", type=types.folder, default=Path("playback"), metavar="DIR",
-                        help="where results go (default: ./playback)")
+    parser.add_argument("--out", type=types.folder, metavar="DIR",
+                        help="where results go (default: playback/ in the study folder)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR",
+                        help="the study folder the results go into (default: current folder)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
     parser.add_argument("--gamma", type=types.number(0, 1, above=True), default=0.9,
@@ -64,7 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="only the first N episodes of each split (a quick look)")
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), default=1,
                         help="CPU threads for torch (default 1: small batches; more threads thrash on a busy machine)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(parser)
+    parser.add_argument("--json", action="store_true", help="print the tables as one JSON object instead of Markdown")
     parser.set_defaults(handler=run)
 
 
@@ -89,6 +93,8 @@ def subgoal_speed(text: str) -> float | str | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import json
+
     import torch
 
     from navigan import checkpoint as ckpt
@@ -97,8 +103,10 @@ def run(args: argparse.Namespace) -> int:
     from navigan.playback.evaluate import Playback, Settings
     from navigan.playback.metrics import Scoring
     from navigan.playback.paper import PAPER_FILE, load_paper
+    from trials.progress import Progress, numbered, piped_lines, show_bars
 
     speed = subgoal_speed(args.subgoal_speed)
+    out = args.out or args.study / "playback"
     torch.set_num_threads(args.threads)
     splits = list(SPLITS) if args.split == "all" else [args.split]
     models = [m.strip() for m in args.models.split(",") if m.strip()]
@@ -107,13 +115,24 @@ def run(args: argparse.Namespace) -> int:
     checkpoints = args.checkpoints or ckpt.WEIGHTS_DIR
     if not checkpoints.is_dir():
         raise NaviganError(f"--checkpoints: {checkpoints} is not a folder")
+    Progress("step", "playback", args.quiet).loading(
+        f"Loading the {', '.join(splits)} test scenes and the checkpoints of {', '.join(models)}")
     playback = Playback(
-        data=data_dir(args.data), out=args.out, checkpoints=checkpoints,
+        data=data_dir(args.data), out=out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
                           speed, args.shield, args.protocol),
         paper=args.paper or PAPER_FILE,
     )
-    tables = playback.evaluate(splits, models, progress=not args.quiet)
+    def walked(n: int, total: int, split: str, column: str) -> None:
+        print(numbered(n, total, f"{split} {column}: walked, stored in {out / 'episodes' / split}"), flush=True)
+
+    quiet = args.quiet or args.json
+    tables = playback.evaluate(splits, models, progress=show_bars(quiet), on_walked=walked if piped_lines(quiet) else None)
+    if args.json:
+        print(json.dumps({"out": str(out), "tables": [{"scope": t.scope, "values": t.values,
+                                                        "intervals": {m: {k: list(v) for k, v in i.items()} for m, i in t.intervals.items()}}
+                                                       for t in tables]}))
+        return 0
     paper = load_paper(args.paper or PAPER_FILE)
     print("All splits pooled:")
     print(tables[0].markdown(paper).rstrip())
@@ -121,5 +140,5 @@ def run(args: argparse.Namespace) -> int:
     print(tables[1].markdown(paper).rstrip())
     counts = ", ".join(f"{t.scope} {int(next(iter(t.values.values()))['episodes'])}" for t in tables[2:])
     print(f"episodes per split: {counts}")
-    print(f"wrote {args.out / 'table1.md'}, table1.csv, episodes.csv, figures/")
+    print(f"wrote {out / 'table1.md'}, table1.csv, episodes.csv, figures/")
     return 0

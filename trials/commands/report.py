@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from trials import option_types as types
+from trials.progress import add_quiet
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,6 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")
     types.add_dpi(parser)
+    add_quiet(parser)
+    parser.add_argument("--json", action="store_true", help="print the files written and the report's record (report.json) as one JSON object")
     parser.set_defaults(handler=run)
 
 
@@ -46,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.scoring import Rubric, read_rubric
     from trials.atomic import write_files
     from trials.errors import StudyError
+    from trials.progress import Progress
     from trials.study import (
         OUTCOMES,
         REPORT,
@@ -65,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
     if args.commitment is not None and not args.unblind:
         raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
     now = utc_now()
+    Progress("figure", "report", args.quiet or args.json).loading(
+        f"Reading the study in {folder.root} and fitting its model{' (opening the sealed key)' if args.unblind else ''}")
     data = load_study(folder, args.unblind, now, args.commitment)
     if not data.finished:
         raise StudyError(f"no finished runs in {folder.path(OUTCOMES)} yet: nothing to report (run `trials run` first)")
@@ -90,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     for stale in [*figures.glob("*.png"), *figures.glob("*.svg"), *tables.glob("*.csv")]:
         if stale not in files:
             stale.unlink()
+    if args.json:
+        print(json.dumps({"report": str(out.resolve()), "files": sorted(str(p) for p in files),
+                          "blinded_report_kept": str(kept) if kept else None, "record": report.record}))
+        return 0
     print("\n".join(report.summary))
     print(f"Wrote report.md, report.html, report.json, {len(report.figures)} figures (PNG and SVG) and {len(report.tables())} tables (CSV) in {out.resolve()}")
     if data.blinding.revealed:

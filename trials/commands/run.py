@@ -13,11 +13,11 @@ if TYPE_CHECKING:
 
 from robot_logs.physical import STEP_S
 from trials import option_types as types
+from trials.progress import add_quiet
+from trials.run_settings import MAX_NOISE_M, MAX_TIMEOUT_S, PERCEPTIONS
 
 #: Upper ends of the options' ranges: beyond them a value is a typing slip, not a study.
 MAX_WORKERS = 256
-MAX_NOISE_M = 10.0
-MAX_TIMEOUT_S = 3600.0
 MAX_PARTICIPANTS = 1000
 MAX_GOAL_M = 1e4
 
@@ -42,19 +42,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--workers", type=types.whole(1, MAX_WORKERS), default=1, metavar="N", help="runs in parallel, one process each (default 1)")
     parser.add_argument("--only", nargs="+", default=[], metavar="CODE", help="run only these rows (if pending)")
     parser.add_argument("--rerun", nargs="+", default=[], metavar="CODE", help="redo these finished runs; the old log and row move to superseded/")
-    parser.add_argument("--perception", choices=("positions", "lidar"), default="positions",
-                        help="what the controller is told: true positions with noise and dropouts (default), or "
-                        "simulated laser scans through the person tracker")
-    parser.add_argument("--noise", type=types.number(0, MAX_NOISE_M), default=0.05, metavar="M",
-                        help="positions: position noise, standard deviation in metres (default 0.05)")
-    parser.add_argument("--dropout", type=types.number(0, 1, below=True), default=0.05, metavar="P",
-                        help="positions: chance a pedestrian is missed at a step (default 0.05)")
+    settings = parser.add_argument_group(
+        "run settings", "each overrides the [run] table of study.toml (whose values, else the defaults shown, are used); "
+        "every run records its settings in outcomes.csv and its log")
+    settings.add_argument("--perception", choices=PERCEPTIONS,
+                          help="what the controller is told: true positions with noise and dropouts (default), or "
+                          "simulated laser scans through the person tracker")
+    settings.add_argument("--noise", type=types.number(0, MAX_NOISE_M), metavar="M",
+                          help="positions: position noise, standard deviation in metres (default 0.05)")
+    settings.add_argument("--dropout", type=types.number(0, 1, below=True), metavar="P",
+                          help="positions: chance a pedestrian is missed at a step (default 0.05)")
+    settings.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
+    settings.add_argument("--timeout", type=types.number(STEP_S, MAX_TIMEOUT_S), metavar="S",
+                          help=f"simulated seconds before a run times out, from one {STEP_S} s step to {MAX_TIMEOUT_S:g} (default 60)")
+    settings.add_argument("--settings-differ", action="store_true",
+                          help="run even though finished runs were made with other settings (the report flags the mix)")
     parser.add_argument("--wall-clock", action="store_true",
                         help="stamp each run's MCAP log with the time it ran (blinded: to the minute; a logged trial: "
                         "when its log was recorded) instead of from 1970-01-01")
-    parser.add_argument("--weights", metavar="FILE", help="NaviGAN-R checkpoint (default: the shipped all-scenes weights)")
-    parser.add_argument("--timeout", type=types.number(STEP_S, MAX_TIMEOUT_S), default=60.0, metavar="S",
-                        help=f"simulated seconds before a run times out, from one {STEP_S} s step to {MAX_TIMEOUT_S:g} (default 60)")
     parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
@@ -73,27 +78,32 @@ def register(sub: argparse._SubParsersAction) -> None:
     logs.add_argument("--odom-topic", metavar="TOPIC",
                       help="Odometry topic (default: the log's only one; a log without one has a robot standing still)")
     logs.add_argument("--salvage", action="store_true", help="read what can be read of a damaged log instead of refusing it")
+    add_quiet(parser)
+    parser.add_argument("--json", action="store_true", help="print what was run as one JSON object instead of lines")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import json
     import signal
     import sys
 
-    from tqdm import tqdm
-
     from robot_logs.topics import TopicNames
     from trials.log_trial import ReplayOptions
+    from trials.outcomes import columns
+    from trials.progress import Progress
+    from trials.run_settings import override, read_run_settings
     from trials.runner import RunOptions, StudyRun, run_study
-    from trials.sim.perception import PositionNoise
     from trials.simulated_participants import simulate_run
-    from trials.study import OUTCOMES, RESPONSES, StudyFolder, to_the_minute
+    from trials.study import OUTCOMES, RESPONSES, RUN_LOCK, SPEC, StudyFolder, to_the_minute
 
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
                            TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage)
-    options = RunOptions(args.perception, PositionNoise(args.noise, args.dropout), args.weights, args.timeout, replay,
-                         wall_clock=args.wall_clock)
+    given = {"perception": args.perception, "noise_std_m": args.noise, "dropout": args.dropout,
+             "timeout_s": args.timeout, "weights": args.weights}
+    settings = override(read_run_settings(study.folder.path(SPEC)), given, "the command line")
+    options = RunOptions(settings, replay, args.settings_differ, wall_clock=args.wall_clock)
 
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
@@ -103,46 +113,59 @@ def run(args: argparse.Namespace) -> int:
     # A blinded study's console shows no run times, nor when each run ended (the time between two
     # lines is a run's time, which differs by controller): no progress bar, and every run's line
     # comes only when all have ended, in plan order.
-    bar = tqdm(total=0, unit="run", desc="running", disable=True if study.blind else None)
+    progress = Progress("run", "running", quiet=args.quiet or args.json, bar=not study.blind)
+    progress.loading(f"Loading the controllers ({settings.describe()}) in {args.workers} worker "
+                     f"process{'es' if args.workers > 1 else ''}")
     held: dict[str, tuple[str, bool]] = {}
 
     def say(code: str, line: str, error: bool = False) -> None:
         if study.blind:
             held[code] = (line, error)
         else:
-            bar.write(line, file=sys.stderr if error else None)
-            bar.update(1)
+            progress.item(line, error)
 
     def started(count: int) -> None:
-        if study.blind:
+        if study.blind and not (args.quiet or args.json):
             print(f"Blinded study: {count} runs; each worker opens the sealed key itself, controller output goes to "
                   "sealed/runs/. Run times stay hidden: each run's line comes when all have ended.", flush=True)
-        bar.reset(total=count)
+        progress.start(count)
 
     def done(run: RunDone) -> None:
-        row = run.row
-        gap = f", closest {row['min_distance_m']} m" if row["min_distance_m"] else ""
-        say(run.code, f"{run.code}: {row['status']} after {row['duration_s']} s{gap}{_replayed(run)}")
+        say(run.code, run_line(study.task(run.code).row, run.row) + _replayed(run))
         if not args.no_responses and not run.logged:
             # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
             # logged trial's robot drove as recorded, not as its controller planned, so it is not judged.
-            simulate_run(study.folder, run.code, int(row["seed"]), args.participants, row["finished_utc"])
+            simulate_run(study.folder, run.code, int(run.row["seed"]), args.participants, run.row["finished_utc"])
             if study.blind:
                 to_the_minute(study.folder.path(RESPONSES), study.folder.root)
 
     def failed(code: str, message: str) -> None:
-        say(code, f"{code}: failed: {message}", error=True)
+        say(code, f"{run_label(study.task(code).row)}: failed: {message}", error=True)
 
     try:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
     finally:
-        bar.close()
+        progress.close()
         signal.signal(signal.SIGTERM, previous)
-        for code in (c for c in study.codes if c in held):
+        for n, code in enumerate((c for c in study.codes if c in held), start=1):
             line, error = held[code]
-            print(line, file=sys.stderr if error else sys.stdout)
-    for code in summary.skipped:
-        print(f"{code} has already finished (`trials run --rerun {code}` redoes it)")
+            progress.item(line, error, count=n)
+    if summary.stale_lock is not None:
+        print(f"note: {study.folder.path(RUN_LOCK)} was left by pid {summary.stale_lock}, a `trials run` that no "
+              "longer runs (killed, or of an earlier release); it was taken over", file=sys.stderr)
+    if args.json:
+        # In plan order, as outcomes.csv's columns: the order runs ended in would time them (blinding).
+        finished = {run.code: {k: v for k, v in run.row.items() if k in columns(study.blind)} for run in summary.finished}
+        print(json.dumps({"study": str(study.folder.root), "settings": settings.recorded(),
+                          "finished": [finished[code] for code in study.codes if code in finished],
+                          "failed": [{"run_code": c, "message": m} for c, m in summary.failed],
+                          "already_finished": summary.skipped, "done": summary.done, "planned": len(study.codes),
+                          "superseded": str(summary.superseded) if summary.superseded else None}))
+        return 1 if summary.failed else 0
+    if summary.skipped:
+        shown = ", ".join(summary.skipped[:5]) + (", ..." if len(summary.skipped) > 5 else "")
+        print(f"{len(summary.skipped)} of the runs asked for have already finished ({shown}); `trials run --rerun CODE` "
+              "redoes one, `trials status` lists them")
     if summary.superseded is not None:
         print(f"The earlier logs and rows of {', '.join(args.rerun)} moved to {summary.superseded}")
     statuses = [run.row["status"] for run in summary.finished]
@@ -153,6 +176,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def run_label(plan_row: dict[str, str]) -> str:
+    """`order 3, PE7Y9 (Pedestrians 2, Direction Crossing, Controller A)`: a run's place in the plan, its
+    code and its factor settings as plan.csv has them (the arm label, never the controller, when blinded)."""
+    from trials.log_trial import LOG_COLUMN
+
+    factors = ", ".join(f"{k} {v}" for k, v in plan_row.items() if k not in ("order", "run_code", LOG_COLUMN))
+    return f"order {plan_row['order']}, {plan_row['run_code']} ({factors})"
+
+
+def run_line(plan_row: dict[str, str], outcome: dict[str, str]) -> str:
+    """A finished run's console line: its label, how it ended after how long (to the simulator's 0.1 s
+    step), and the smallest gap between the robot's footprint and a pedestrian's body."""
+    duration = float(outcome["duration_s"])
+    gap = outcome["min_distance_m"]
+    near = f"; smallest gap robot footprint to pedestrian {float(gap):.2f} m" if gap else "; no pedestrian"
+    return f"{run_label(plan_row)}: {outcome['status']} after {duration:.1f} s{near}"
 
 
 def _replayed(run: RunDone) -> str:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from trials import option_types as types
 from trials.option_types import MAX_THREADS
+from trials.progress import add_quiet
 
 #: Training settings the command may override, each a whole number (None: the recipe's).
 OVERRIDES = ("epochs", "patience", "seed")
@@ -33,14 +34,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--epochs", type=int, help="most epochs (default: the recipe's)")
     parser.add_argument("--patience", type=int,
                         help="stop after this many epochs without a better validation loss (default: the recipe's)")
-    parser.add_argument("--seed", type=int,
+    parser.add_argument("--seed", type=types.seed,
                         help="seed of weights, batch order and noise (default: the recipe's)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
                         help="ETH/UCY folder with splits.json (default: $TRIALS_DATA, else the copy shipped with navigan)")
-    parser.add_argument("--out", type=types.output_file, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt here)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument("--out", type=types.output_file, metavar="FILE", help="checkpoint file (default: MODEL-SPLIT.pt in the study folder)")
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR",
+                        help="the study folder the checkpoint goes into (default: current folder)")
+    add_quiet(parser)
     parser.set_defaults(handler=run)
 
 
@@ -53,11 +56,13 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from navigan import checkpoint as ckpt
     from navigan import recipes
     from navigan.config import TrainConfig
     from navigan.data import Scenes, data_dir, load_split
     from navigan.errors import NaviganError
     from navigan.training import train
+    from trials.progress import Progress, numbered, piped_lines, show_bars
 
     for name in OVERRIDES:
         value = getattr(args, name)
@@ -70,16 +75,23 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
     if args.threads:
         torch.set_num_threads(args.threads)
+    Progress("epoch", "training", args.quiet).loading(f"Loading the {args.split} split's recordings for {model.model}")
     split = load_split(data_dir(args.data), args.split)
-    out = args.out or Path(f"{model.model}-{args.split}.pt")
+    out = args.out or args.study / f"{model.model}-{args.split}.pt"
     train_scenes, val_scenes = Scenes.from_files(split.train), Scenes.from_files(split.val)
     for scenes in (train_scenes, val_scenes):
         for name, count in scenes.skipped.items():
             if count:
                 sys.stderr.write(f"{name}: skipped {count} rows with NaN or missing values\n")
+    def trained(checkpoint: ckpt.Checkpoint) -> None:
+        val = checkpoint.history[-1]["val"]
+        print(numbered(checkpoint.epoch, config.epochs, f"epoch {checkpoint.epoch}: validation loss {val['loss']:.4f}, "
+                       f"ADE {val['ade']:.3f} m; best epoch {checkpoint.best['epoch'] if checkpoint.best else '-'}"), flush=True)
+
     record = train(
         model, config, train_scenes, val_scenes, split.describe(), out,
-        command=command_line(args, out), recipe=recipe.record(), device=args.device, progress=not args.quiet,
+        command=command_line(args, out), recipe=recipe.record(), device=args.device, progress=show_bars(args.quiet),
+        on_epoch=trained if piped_lines(args.quiet) else None,
     )
     best = record.best or {"epoch": 0, "val": {}}
     status = record.finished or "unfinished"

@@ -38,6 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--budget", type=float, default=10.0, metavar="SECONDS",
                         help="planning time limit, heuristic included (default 10)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    parser.add_argument("--study", type=Path, default=Path("."), metavar="DIR",
+                        help="the folder relative ENV.cfg and PRIMS.mprim paths are read from (default: current folder)")
 
 
 def parse_footprint(text: str) -> list[tuple[float, float]]:
@@ -76,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.budget > 0:
         raise LatticeError(f"--budget: expected a positive number of seconds, got {args.budget}")
     polygon = [] if args.point else parse_footprint(args.footprint)
-    env = read_cfg(args.env)
-    prims = read_mprim(args.prims)
+    env = read_cfg(args.study / args.env)  # an absolute path stays as it is
+    prims = read_mprim(args.study / args.prims)
     planner = make_planner(env, prims, polygon)
     result = planner.plan(eps=args.eps, eps_step=args.eps_step, budget=args.budget)
     iterations = [{"eps": it.eps, "cost": it.cost, "expansions": it.expansions, "seconds": it.seconds}

@@ -1,0 +1,83 @@
+"""`trials status`: a study's state at a glance, from its public files only (never the sealed key)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from trials import option_types as types
+
+if TYPE_CHECKING:
+    from trials.study_status import StudyStatus
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "status",
+        help="a study's state: runs finished, pending, aborted and failed, judgments, scores, report, blinding",
+        description=(
+            "Show the runs planned, finished (by how they ended), pending, aborted (interrupted, a partial log left) "
+            "and failed, per arm label in a blinded study (per controller in an open one); the judgments and scores "
+            "collected; whether the report is older than the data; whether the study has been unblinded; the run "
+            "settings; and whether runs/.lock is held or was left stale by a killed `trials run`. Reads only "
+            "public files: the sealed key is never opened."
+        ),
+    )
+    parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
+    parser.add_argument("--json", action="store_true", help="print the status as one JSON object")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from trials.study import StudyFolder
+    from trials.study_status import study_status
+
+    status = study_status(StudyFolder(args.study))
+    if args.json:
+        print(json.dumps(status.record()))
+    else:
+        print("\n".join(status_lines(status)))
+    return 0
+
+
+def status_lines(status: StudyStatus) -> list[str]:
+    """The text of `trials status`."""
+    from trials.study import RUN_LOCK, SPEC
+
+    kind = "blinded" if status.blinded else "open"
+    lines = [f"{status.name} ({kind} study) in {status.root}",
+             f"runs: {status.finished} of {status.planned} finished"]
+    word = "arm" if status.blinded else (status.arm_factor or "").lower()
+    for arm, counts in status.arms.items():
+        ended = ", ".join(f"{n} {s}" for s, n in counts.finished.items())
+        rest = ", ".join(f"{getattr(counts, what)} {what}" for what in ("pending", "running", "aborted", "failed")
+                         if getattr(counts, what) or what == "pending")
+        label = f"{word} {arm}" if status.arm_factor else "all runs"
+        lines.append(f"  {label}: {counts.planned} planned; finished {ended}; {rest}")
+    for code, reason in status.failed.items():
+        lines.append(f"  failed {code}: {reason}")
+    if status.aborted:
+        lines.append(f"  aborted (a partial log left; the next `trials run` redoes them): {', '.join(status.aborted)}")
+    lines.append(f"judgments: {status.responses['human']} human, {status.responses['simulated']} simulated, "
+                 f"of {status.judged_runs} runs; scores: {status.scores}, of {status.scored_runs} runs")
+    lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
+    if len(status.recorded_settings) > 1:
+        from trials.run_settings import recorded_text
+
+        mixed = "; ".join(f"{n} runs with {recorded_text(key)}" for key, n in status.recorded_settings.items())
+        lines.append(f"  finished runs were made with different settings: {mixed}")
+    report = {"none": "none yet (`trials report`)", "current": "up to date with the data",
+              "older than the data": "older than the data: run `trials report` again"}[status.report]
+    lines.append(f"report: {report}")
+    if status.blinded:
+        opened = f"yes, on {', '.join(status.unblinded_utc)}" if status.unblinded_utc else "no (the sealed key is closed)"
+        lines.append(f"unblinded: {opened}")
+    lock = status.lock
+    if lock.held:
+        lines.append(f"lock: a `trials run` is running on the study (pid {lock.pid})")
+    elif lock.stale:
+        lines.append(f"lock: {RUN_LOCK} is stale (pid {lock.pid}, a `trials run` that no longer runs: killed, or of an earlier "
+                     "release); the next `trials run` takes it over")
+    return lines
