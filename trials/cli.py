@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from trials.errors import USER_ERRORS
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report")
+COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report", "power")
 
 EXIT_USAGE = 2
 

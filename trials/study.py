@@ -5,7 +5,8 @@ This module is the one place that names the study's files (docs/study_folder.md,
 each other file has one module: study.toml `designs.spec`, rubric.toml `analysis.scoring`,
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
 runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
-report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
+report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
+`trials.power.campaigns`, the rest of power/ `trials.commands.power`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
 """
@@ -62,6 +63,12 @@ REPORT_TABLES = f"{REPORT}/tables"
 #: When the sealed key of the design was opened, every time.
 UNBLINDING = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
+#: `trials power`'s folder (or --out): finished closed-loop campaigns, every figure (JSON), the tables (Markdown), the plot.
+POWER = "power"
+POWER_CAMPAIGNS = f"{POWER}/power.csv"
+POWER_RECORD = f"{POWER}/power.json"
+POWER_MARKDOWN = f"{POWER}/power.md"
+POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
 PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT)
