@@ -107,15 +107,27 @@ class RayWorker:
         return self.handler(batch)
 
 
-def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_batch: Callable[[list[CampaignResult]], None]) -> None:
+def check_ray(address: str) -> None:
+    """Ray is installed and, unless `local`, something answers at `address`; checked before any work starts.
+
+    Raises:
+        StudyError: Ray missing, a malformed address or an unreachable cluster.
+    """
     try:
-        import ray
-        from ray.util import ActorPool
+        import ray  # noqa: F401
     except ImportError:
         raise StudyError("--ray needs Ray, an optional extra: pip install 'navtrials[ray]'") from None
-    address = None if where.ray == LOCAL else where.ray
-    if address is not None:
+    if address != LOCAL:
         check_reachable(address)
+
+
+def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_batch: Callable[[list[CampaignResult]], None]) -> None:
+    import ray
+    from ray.util import ActorPool
+
+    assert where.ray is not None
+    check_ray(where.ray)
+    address = None if where.ray == LOCAL else where.ray
     ray.init(address=address, num_cpus=where.workers if address is None else None, include_dashboard=False,
              logging_level=logging.ERROR, log_to_driver=False, configure_logging=True)
     try:

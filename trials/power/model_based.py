@@ -79,15 +79,19 @@ def judgments_per_run(plan: PowerPlan, participants: int | None) -> np.ndarray:
     return np.maximum(np.array(plan.pedestrians()), 1)
 
 
-def simulate(plan: PowerPlan, beta: Coefficients, anticipated: Anticipated, seed: int) -> tuple[Verdict, Verdict]:
-    """One simulated data set of the plan, analysed: (judgments' verdict, Gaussian outcome's verdict)."""
-    rng = np.random.default_rng(seed)
+def draw(plan: PowerPlan, beta: Coefficients, anticipated: Anticipated, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One data set of the plan: yes and total judgments per run, and the Gaussian outcome per run."""
     x = plan.model.matrix(plan.settings)
     total = judgments_per_run(plan, anticipated.participants)
     chance = expit(x @ beta.logit + rng.normal(0.0, anticipated.run_sd, plan.runs))
     yes = rng.binomial(total, chance)
-    y = x @ beta.gaussian + rng.standard_normal(plan.runs)
-    return judgments_verdict(plan, yes.astype(float), total.astype(float)), gaussian_verdict(plan, y)
+    return yes.astype(float), total.astype(float), x @ beta.gaussian + rng.standard_normal(plan.runs)
+
+
+def simulate(plan: PowerPlan, beta: Coefficients, anticipated: Anticipated, seed: int) -> tuple[Verdict, Verdict]:
+    """One seeded data set of the plan, analysed: (judgments' verdict, Gaussian outcome's verdict)."""
+    yes, total, y = draw(plan, beta, anticipated, np.random.default_rng(seed))
+    return judgments_verdict(plan, yes, total), gaussian_verdict(plan, y)
 
 
 def simulation_seed(power_seed: int, plan: PowerPlan, index: int) -> int:

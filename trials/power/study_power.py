@@ -19,7 +19,7 @@ from trials.errors import StudyError
 from trials.power import campaigns as campaign_file
 from trials.power import model_based
 from trials.power.closed_loop import CampaignResult, campaign_seed
-from trials.power.execution import Where, batches, run_batches
+from trials.power.execution import Where, batches, check_ray, run_batches
 from trials.power.figure import power_figure
 from trials.power.plans import PowerPlan, plans_to_test, study_spec
 from trials.power.seeds import fresh_seed
@@ -155,6 +155,10 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
         model_based.coefficients(plan, spec, anticipated)  # checks --terms before any work
     options = RunOptions(perception=request.perception, weights=request.weights, timeout_s=request.timeout_s)
     where = Where(request.workers or 1, request.ray)
+    if request.ray is not None:
+        if not request.campaigns:
+            raise StudyError("--ray runs closed-loop campaigns: give --campaigns K too")
+        check_ray(request.ray)
     controllers = controllers_for(plans, request.controllers) if request.campaigns else ()
     out.mkdir(parents=True, exist_ok=True)
     settings: dict[str, Any] = {
