@@ -92,5 +92,7 @@ def test_campaigns_resume_reproduce_and_never_open_the_sealed_key(small, tmp_pat
     assert record["closed_loop"]["campaigns"] == 4 and record["plans"][0]["campaigns"] == 4
     shares = record["plans"][0]["shares"]
     assert set(shares["2"]) == {"NaviGAN-R", "Lattice"}
-    # A different seed is other settings: refused rather than mixed in.
+    # A different seed is other settings: refused rather than mixed in, and nothing written is replaced.
+    before = {p.name: p.read_bytes() for p in one.iterdir()}
     assert main([*base[:-4], "--seed", "13", "--campaigns", "4", "--out", str(one)]) == 2
+    assert {p.name: p.read_bytes() for p in one.iterdir()} == before

@@ -6,7 +6,7 @@ each other file has one module: study.toml `designs.spec`, rubric.toml `analysis
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
 runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
 report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
-`trials.power.campaigns`, the rest of power/ `trials.commands.power`. Files a
+`trials.power.campaigns`, the rest of power/ `trials.power.study_power`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
 """

@@ -23,7 +23,7 @@ from trials.power.execution import Where, batches, check_ray, run_batches
 from trials.power.figure import power_figure
 from trials.power.plans import PowerPlan, plans_to_test, study_spec
 from trials.power.seeds import fresh_seed
-from trials.power.summary import PlanPower, focus_terms, plan_power, power_json, power_markdown, power_record
+from trials.power.summary import FORMAT, PlanPower, focus_terms, plan_power, power_json, power_markdown, power_record
 from trials.runner import RunOptions
 from trials.study import POWER_CAMPAIGNS, POWER_FIGURE, POWER_MARKDOWN, POWER_RECORD, StudyFolder
 
@@ -120,13 +120,17 @@ def _model_based(plans: list[PowerPlan], spec: StudySpec, anticipated: model_bas
     return verdicts
 
 
-def _closed_loop(plans: list[PowerPlan], controllers: tuple[str, ...], options: RunOptions, request: PowerRequest, seed: int,
-                 out: Path, where: Where) -> list[list[CampaignResult]]:
+def _closed_loop(plans: list[PowerPlan], controllers: tuple[str, ...], options: RunOptions, request: PowerRequest,
+                 settings: dict[str, Any], out: Path, where: Where) -> list[list[CampaignResult]]:
+    """Run the campaigns power.csv does not hold yet; every campaign of every plan, in campaign order."""
     path = _name(out, POWER_CAMPAIGNS)
     columns = campaign_file.header(plans, controllers)
-    digest = settings_digest(seed, plans, controllers, options, request.participants)
+    seed = settings["power_seed"]
+    digest = settings["closed_loop"]["settings_digest"]
     assert request.campaigns is not None
     done = {(r.runs, r.campaign): r for r in campaign_file.read_campaigns(path, columns, digest)}
+    # Recorded before the first campaign, so an interrupted run resumes with the same power seed.
+    write_files({_name(out, POWER_RECORD): power_json({"format": FORMAT, **settings, "status": "running"}).encode()})
     pending = [(i, c, campaign_seed(seed, plan, c)) for i, plan in enumerate(plans)
                for c in range(request.campaigns) if (plan.runs, c) not in done]
     total = request.campaigns * len(plans)
@@ -171,9 +175,8 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
         settings["closed_loop"] = {"campaigns": request.campaigns, "controllers": list(controllers), "perception": request.perception,
                                    "timeout_s": request.timeout_s, "weights": request.weights, "participants": request.participants,
                                    "settings_digest": settings_digest(seed, plans, controllers, options, request.participants)}
-        write_files({_name(out, POWER_RECORD): power_json({"format": "navtrials.power/1", **settings, "status": "running"}).encode()})
     model_verdicts = _model_based(plans, spec, anticipated, seed, request.simulations)
-    campaigns = _closed_loop(plans, controllers, options, request, seed, out, where) if request.campaigns else [[] for _ in plans]
+    campaigns = _closed_loop(plans, controllers, options, request, settings, out, where) if request.campaigns else [[] for _ in plans]
     powers = []
     for plan, verdicts, results in zip(plans, model_verdicts, campaigns):
         analytic = {t.term: t.power for t in diagnose(plan.model, plan.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated).term_power}
