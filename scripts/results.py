@@ -38,7 +38,7 @@ AB_ALLOCATION_SEED = 0
 #: The power section: its power seed, data sets per plan, and the plan sizes compared.
 POWER_SEED = 2026
 POWER_SIMULATIONS = 200
-POWER_SIZES = (18, 72, 144, 288)
+POWER_SIZES = (18, 72, 144, 288, 432)
 #: Table I columns, in the order `trials playback` prints them.
 TABLE1_ROWS = (
     ("S", "S (social score)"),
