@@ -51,17 +51,17 @@ def test_no_plan_is_one_line(tmp_path, capsys):
 
 def test_model_based_only_writes_json_md_and_figure_with_the_seed(small, tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["power", "--study", str(small), "--out", str(out), "--simulations", "30", "--seed", str(2**53 - 1)]) == 0
+    assert main(["power", "--study", str(small), "--out", str(out), "--simulations", "12", "--seed", str(2**53 - 1)]) == 0
     record = json.loads((out / "power.json").read_text())
-    assert record["power_seed"] == 2**53 - 1 and record["model_based"]["simulations"] == 30
+    assert record["power_seed"] == 2**53 - 1 and record["model_based"]["simulations"] == 12
     (plan,) = record["plans"]
     assert plan["runs"] == 6 and set(plan["judgments"]) == {"Pedestrians", "Direction", "Controller"}
-    assert all(e["total"] == 30 and e["low"] <= e["power"] <= e["high"] for e in plan["judgments"].values())
+    assert all(e["total"] == 12 and e["low"] <= e["power"] <= e["high"] for e in plan["judgments"].values())
     assert (out / "power.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not (out / "power.csv").exists()
     assert "Controller model-based" in capsys.readouterr().out
     # The same seed gives the same numbers.
     again = tmp_path / "again"
-    assert main(["power", "--study", str(small), "--out", str(again), "--simulations", "30", "--seed", str(2**53 - 1)]) == 0
+    assert main(["power", "--study", str(small), "--out", str(again), "--simulations", "12", "--seed", str(2**53 - 1)]) == 0
     assert json.loads((again / "power.json").read_text())["plans"] == record["plans"]
 
 

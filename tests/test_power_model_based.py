@@ -68,7 +68,7 @@ def test_simulated_gaussian_power_agrees_with_the_analytic_power(ab_study, runs)
         assert analytic == pytest.approx({t["term"]: t["power"] for t in recorded if t["term"] in analytic})
     beta = model_based.coefficients(plan, spec, model_based.Anticipated())
     rng = np.random.default_rng(derived(5, "test", runs))
-    simulations = 1500
+    simulations = 1000
     verdicts = [gaussian_verdict(plan, model_based.draw(plan, beta, model_based.Anticipated(), rng)[2]) for _ in range(simulations)]
     assert 0.3 < min(analytic.values()) and max(analytic.values()) < 0.995  # powers where Monte Carlo error is informative
     for term, power in analytic.items():
