@@ -34,7 +34,7 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -71,6 +71,12 @@ from trials.study import (
 
 #: Run seeds stay below 2^53, so that a spreadsheet, R or JMP (which read numbers as doubles) keeps them exact.
 SEED_BITS = 53
+
+if TYPE_CHECKING:
+    from trials.scenario import Scenario
+    from trials.sim.closed_loop import SimConfig
+    from trials.sim.perception import Perception
+
 
 
 @dataclass(frozen=True)
@@ -413,6 +419,28 @@ def _answers(pool: WorkerPool, tasks: Iterator[tuple[str, RunTask]]) -> Iterator
 
 # --- the workers: running one row ----------------------------------------------------------------
 
+def row_seeds(seed: int) -> list[int]:
+    """A run's four seeds from its seed: scenario, crowd, perception and controller."""
+    return [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(seed).spawn(4)]
+
+
+def scene_of(factors: dict[str, str], where: str, options: RunOptions, seeds: list[int]) -> tuple[Scenario, Perception, SimConfig]:
+    """A simulated row's scene, perception and simulation settings, seeded by `row_seeds`.
+
+    Raises:
+        StudyError: factor values the simulator cannot run (`where` names the row).
+    """
+    from trials.scenario import build_scenario
+    from trials.sim.closed_loop import SimConfig
+    from trials.sim.perception import LidarPerception, PositionPerception
+
+    scenario_seed, _, perception_seed, _ = seeds
+    scenario = build_scenario(settings_from_row(factors, where), scenario_seed)
+    perception: Perception = (LidarPerception(perception_seed) if options.settings.perception == "lidar"
+                              else PositionPerception(options.noise, perception_seed))
+    return scenario, perception, SimConfig(timeout_s=options.settings.timeout_s)
+
+
 def setup_worker(root: str, name: str, blind: bool, levels: tuple[str, ...], options: RunOptions) -> Callable[[RunTask], RunDone]:
     """Build a worker's controllers once (opening the sealed key when blind); returns its task handler."""
     import warnings
@@ -461,7 +489,7 @@ class TrialWorker:
     def _run(self, task: RunTask) -> RunDone:
         level, arm = self._level(task.row)
         controller = self._controllers[level]
-        seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(task.seed).spawn(4)]
+        seeds = row_seeds(task.seed)
         controller.reset(seeds[3])
         path = self.folder.run_log(task.code)
         replay: dict[str, str] = {}
@@ -500,16 +528,11 @@ class TrialWorker:
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
                   path: Path) -> tuple[str, RunMetrics]:
         """Simulate a row in closed loop, writing its log; returns how it ended and its metrics."""
-        from trials.scenario import build_scenario
-        from trials.sim.closed_loop import SimConfig, simulate
-        from trials.sim.perception import LidarPerception, PositionPerception
+        from trials.sim.closed_loop import simulate
 
         options = self.options
-        scenario_seed, crowd_seed, perception_seed, _ = seeds
-        scenario = build_scenario(settings_from_row(self._factors(task), f"run {task.code}"), scenario_seed)
-        perception = (LidarPerception(perception_seed) if options.settings.perception == "lidar"
-                      else PositionPerception(options.noise, perception_seed))
-        config = SimConfig(timeout_s=options.settings.timeout_s)
+        scenario, perception, config = scene_of(self._factors(task), f"run {task.code}", options, seeds)
+        crowd_seed = seeds[1]
         entries = {"perception": options.settings.perception, "timeout_s": f"{options.settings.timeout_s:g}",
                    "weights": options.settings.recorded()["weights"], **self._factors(task),
                    "variation": json.dumps(scenario.variation())}

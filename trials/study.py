@@ -6,7 +6,8 @@ each other file has one module: study.toml `designs.spec`, rubric.toml `analysis
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
 runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
 run_events.csv `trials.run_events`, logs/ `trials.attached_logs`, console/access.json `trials.console.access`,
-report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`. Files a
+report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
+`trials.power.campaigns`, the rest of power/ `trials.power.study_power`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/), never deleted.
 """
@@ -73,6 +74,12 @@ RUN_EVENTS = "run_events.csv"
 LOGS = "logs"
 #: The console's owner-only access keys: the experimenter's token and the key that signs links and cookies.
 CONSOLE_ACCESS = "console/access.json"
+#: `trials power`'s folder (or --out): finished closed-loop campaigns, every figure (JSON), the tables (Markdown), the plot.
+POWER = "power"
+POWER_CAMPAIGNS = f"{POWER}/power.csv"
+POWER_RECORD = f"{POWER}/power.json"
+POWER_MARKDOWN = f"{POWER}/power.md"
+POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
 PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)

@@ -1,0 +1,146 @@
+"""Running closed-loop campaigns in batches: in local worker processes (`trials.pool`) or on a Ray
+cluster (one actor per CPU, each building its controllers once), handing each finished batch back
+as soon as it arrives so the caller can append it to power.csv.
+
+Only the driver reads the study folder and writes power/: the workers get the plans and options
+with their task and send results back, so on a cluster the study's files stay on the driver's machine.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from trials.errors import USER_ERRORS, StudyError
+from trials.pool import Failure, PoolError, WorkerPool
+from trials.power.closed_loop import CampaignBatch, CampaignResult, setup_worker
+
+#: `--ray local`: start a Ray instance on this machine instead of joining a cluster.
+LOCAL = "local"
+#: How long to wait for a Ray cluster's address to answer before calling it unreachable.
+CONNECT_TIMEOUT_S = 3.0
+
+
+@dataclass(frozen=True)
+class Where:
+    """Where campaigns run: `workers` local processes, or Ray (`ray` is `local` or the cluster's address)."""
+
+    workers: int = 1
+    ray: str | None = None
+
+    def describe(self) -> str:
+        if self.ray is None:
+            return f"{self.workers} local worker process{'es' if self.workers > 1 else ''}"
+        return f"a local Ray instance ({self.workers} CPUs)" if self.ray == LOCAL else f"the Ray cluster at {self.ray}"
+
+
+def batches(pending: Sequence[tuple[int, int, int]], size: int) -> list[CampaignBatch]:
+    """(plan, campaign, seed) triples in batches of at most `size` campaigns of one plan each."""
+    out: list[CampaignBatch] = []
+    for plan in dict.fromkeys(p for p, _, _ in pending):
+        mine = [(c, s) for p, c, s in pending if p == plan]
+        out += [CampaignBatch(plan, tuple(mine[i:i + size])) for i in range(0, len(mine), size)]
+    return out
+
+
+def run_batches(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_batch: Callable[[list[CampaignResult]], None]) -> None:
+    """Run every batch where `where` says; `on_batch` gets each batch's results as it finishes.
+
+    Raises:
+        StudyError: a worker's user error (bad weights, a row the simulator cannot run), Ray missing or unreachable.
+    """
+    if not work:
+        return
+    if where.ray is None:
+        _local(work, setup, where.workers, on_batch)
+    else:
+        _on_ray(work, setup, where, on_batch)
+
+
+def _local(work: list[CampaignBatch], setup: tuple[Any, ...], workers: int, on_batch: Callable[[list[CampaignResult]], None]) -> None:
+    with WorkerPool(min(workers, len(work)), setup_worker, setup, USER_ERRORS) as pool:
+        try:
+            pool.ready()
+            for _, answer in pool.run(enumerate(work)):
+                if isinstance(answer, Failure):
+                    _raise(answer)
+                on_batch(answer)
+        except PoolError as exc:
+            if exc.failure is not None:
+                _raise(exc.failure)
+            raise StudyError(f"{exc}; the finished campaigns are kept, run `trials power` again to continue") from None
+
+
+def _raise(failure: Failure) -> None:
+    if failure.user_error:
+        raise StudyError(failure.message.splitlines()[0])
+    raise RuntimeError(f"a campaign failed: {failure.kind}: {failure.message}\n{failure.details}")
+
+
+def check_reachable(address: str) -> None:
+    """Fail fast, in one line, when nothing answers at a Ray cluster's HOST:PORT (Ray itself waits long).
+
+    Raises:
+        StudyError: a malformed address, or no answer within CONNECT_TIMEOUT_S.
+    """
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise StudyError(f"--ray: expected HOST:PORT of a Ray cluster (or `local`), got {address!r}")
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise StudyError(f"--ray {address}: no Ray cluster answers there ({exc.strerror or exc}); start one with "
+                         "`ray start --head` or check the address") from None
+
+
+class RayWorker:
+    """A Ray actor's state: the campaign handler, built once when the actor starts."""
+
+    def __init__(self, *setup: Any) -> None:
+        self.handler = setup_worker(*setup)
+
+    def run(self, batch: CampaignBatch) -> list[CampaignResult]:
+        return self.handler(batch)
+
+
+def check_ray(address: str) -> None:
+    """Ray is installed and, unless `local`, something answers at `address`; checked before any work starts.
+
+    Raises:
+        StudyError: Ray missing, a malformed address or an unreachable cluster.
+    """
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise StudyError("--ray needs Ray, an optional extra: pip install 'navtrials[ray]'") from None
+    if address != LOCAL:
+        check_reachable(address)
+
+
+def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_batch: Callable[[list[CampaignResult]], None]) -> None:
+    import ray
+    from ray.util import ActorPool
+
+    assert where.ray is not None
+    check_ray(where.ray)
+    address = None if where.ray == LOCAL else where.ray
+    ray.init(address=address, num_cpus=where.workers if address is None else None, include_dashboard=False,
+             logging_level=logging.ERROR, log_to_driver=False, configure_logging=True)
+    try:
+        cpus = max(int(ray.cluster_resources().get("CPU", 1)), 1)
+        actor = ray.remote(num_cpus=1)(RayWorker)
+        pool = ActorPool([actor.remote(*setup) for _ in range(min(cpus, len(work)))])
+        try:
+            for results in pool.map_unordered(lambda a, batch: a.run.remote(batch), work):
+                on_batch(results)
+        except ray.exceptions.RayTaskError as exc:
+            cause = exc.cause if isinstance(exc.cause, BaseException) else None
+            if isinstance(cause, USER_ERRORS):
+                raise StudyError(str(cause).splitlines()[0]) from None
+            raise
+    finally:
+        ray.shutdown()
