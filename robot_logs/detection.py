@@ -132,7 +132,7 @@ def leg_probabilities(segments: Segments, config: DetectorConfig, classifier: Le
     candidates = (segments.counts >= config.min_points) & (segments.widths < config.candidate_width)
     probability = np.zeros(len(segments.counts))
     if candidates.any():
-        features = segment_features(segments.points, segments.starts)[candidates]
+        features = segment_features(segments.points, segments.starts, candidates)
         probability[candidates] = classifier.probability(features)
     return probability
 
@@ -146,8 +146,8 @@ def detect(
     """Legs and people in one scan (scan frame); a single unpaired leg counts as a person.
 
     With a classifier, legs are the segments it scores at or above its threshold; without,
-    legs and bodies are told by width. `reject` maps (L, 2) leg centroids to (L,) True for legs
-    to leave out before pairing (those on the static world). The people are as many as the
+    legs and bodies are told by width. `reject` maps (K, 2) segment centroids to (K,) True for
+    segments to leave out before pairing (those on the static world). The people are as many as the
     leg pairs, lone legs and (by width rules) body-wide segments together.
     """
     segments = segment(scan, config.jump_distance)
@@ -163,10 +163,10 @@ def detect(
         is_leg = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
         is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
         leg_scores = np.ones(int(is_leg.sum()))
-    if reject is not None and is_leg.any():
-        kept = ~reject(segments.centroids[is_leg])  # the points' own cells, not the pushed-back centre
-        leg_scores = leg_scores[kept]
-        is_leg[np.flatnonzero(is_leg)[~kept]] = False
+    if reject is not None and (is_leg | is_body).any():
+        rejected = reject(segments.centroids)  # the points' own cells, not the pushed-back centres
+        leg_scores = leg_scores[~rejected[is_leg]]
+        is_leg, is_body = is_leg & ~rejected, is_body & ~rejected
     legs = centres[is_leg]
     pairs, singles = pair_legs(legs, config.pair_distance)
     people = [legs[[i, j]].mean(axis=0) for i, j in pairs]

@@ -105,7 +105,7 @@ def _labelled(scans: list[tuple[Scan, np.ndarray]], settings: TrainingSettings, 
             cost = np.hypot(*(centroids[:, None, :] - labels[None, :, :]).transpose(2, 0, 1))
             rows, cols = linear_sum_assignment(cost)
             positive[rows[cost[rows, cols] <= settings.label_radius]] = True
-        features.append(segment_features(segments.points, segments.starts)[mask])
+        features.append(segment_features(segments.points, segments.starts, mask))
         is_leg.append(positive)
         stamps.append(np.full(len(centroids), scan.stamp))
     return features, is_leg, stamps

@@ -39,12 +39,14 @@ def _sums(labels: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
     return np.bincount(labels, weights=values, minlength=count)
 
 
-def segment_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """(K, len(FEATURE_NAMES)) features of K segments.
+def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray | None = None) -> np.ndarray:
+    """(K, len(FEATURE_NAMES)) features of K segments (or of the `select`ed ones).
 
     Args:
         points: (M, 2) scan points in beam order, in the sensor frame (m).
         starts: (K,) index of each segment's first point; segment k ends where k + 1 starts.
+        select: (K,) True for the segments wanted (default: all); the context features still
+            look at every segment.
 
     The columns: point count; end-to-end width; centroid distance from the sensor; root mean
     square distance of the points from their centroid; root mean square residual of the best
@@ -55,9 +57,30 @@ def segment_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
     to the nearest other segment's centroid (a leg's partner is near) and how far in front of
     its neighbouring beams the segment stands (foreground); both capped at FAR.
     """
-    count = len(starts)
-    if count == 0:
+    ends = np.append(starts[1:], len(points))
+    wanted = np.ones(len(starts), dtype=bool) if select is None else np.asarray(select, dtype=bool)
+    if not wanted.any():
         return np.zeros((0, len(FEATURE_NAMES)))
+    lengths = ends[wanted] - starts[wanted]
+    first = np.cumsum(lengths) - lengths
+    taken = np.repeat(starts[wanted] - first, lengths) + np.arange(lengths.sum())
+    shape = _shape_features(points[taken], first)
+    centroids = np.add.reduceat(points, starts, axis=0) / (ends - starts)[:, None]
+    apart = np.hypot(*(centroids[wanted][:, None, :] - centroids[None, :, :]).transpose(2, 0, 1))
+    apart[np.arange(len(apart)), np.flatnonzero(wanted)] = np.inf
+    neighbour = np.minimum(apart.min(axis=1), FAR)
+    ranges = np.hypot(points[:, 0], points[:, 1])
+    total = len(points)
+    head, tail = starts[wanted], ends[wanted]
+    before = np.where(head > 0, ranges[np.maximum(head - 1, 0)] - ranges[head], FAR)
+    after = np.where(tail < total, ranges[np.minimum(tail, total - 1)] - ranges[tail - 1], FAR)
+    foreground = np.clip(np.minimum(before, after), -FAR, FAR)
+    return np.column_stack((shape, neighbour, foreground))
+
+
+def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The first 12 columns (all but the context) of consecutive segments."""
+    count = len(starts)
     total = len(points)
     ends = np.append(starts[1:], total)
     n = (ends - starts).astype(float)
@@ -125,14 +148,6 @@ def segment_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         sagitta = np.where(width > 0.0, np.abs(chord[:, 0] * middle[:, 1] - chord[:, 1] * middle[:, 0]) / width, 0.0)
     distance = np.hypot(centroid[:, 0], centroid[:, 1])
-    apart = np.hypot(*(centroid[:, None, :] - centroid[None, :, :]).transpose(2, 0, 1))
-    np.fill_diagonal(apart, np.inf)
-    neighbour = np.minimum(apart.min(axis=1), FAR)
-    ranges = np.hypot(x, y)
-    before = np.where(starts > 0, ranges[np.maximum(starts - 1, 0)] - ranges[starts], FAR)
-    after = np.where(ends < total, ranges[np.minimum(ends, total - 1)] - ranges[ends - 1], FAR)
-    foreground = np.clip(np.minimum(before, after), -FAR, FAR)
     return np.column_stack(
-        (n, width, distance, spread, linearity, circularity, radius, boundary, regularity, mean_curvature, mean_turn,
-         sagitta, neighbour, foreground)
+        (n, width, distance, spread, linearity, circularity, radius, boundary, regularity, mean_curvature, mean_turn, sagitta)
     )

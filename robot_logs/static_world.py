@@ -53,6 +53,9 @@ class StaticWorld:
         self.first_hit = np.full(self.side * self.side, np.inf)
         self.time = -np.inf
         self._known = np.zeros(0, dtype=np.int64)
+        self._is_known = np.zeros(self.side * self.side, dtype=bool)
+        self._marked = np.zeros(self.side * self.side, dtype=np.int64)
+        self._scans = 0
 
     def cells(self, points: np.ndarray) -> np.ndarray:
         """(N,) flat cell index of each point; -1 outside the grid."""
@@ -71,16 +74,24 @@ class StaticWorld:
         if len(people) and len(points):
             near = np.hypot(*(points[:, None, :] - np.asarray(people)[None, :, :]).transpose(2, 0, 1)).min(axis=1)
             points = points[near > self.config.keep_out]
-        hit = np.unique(self.cells(points))
-        hit = hit[hit >= 0]
+        cells = self.cells(points)
+        hit = np.unique(cells[cells >= 0])
+        self._scans += 1
         self._free_pass(scan, sensor_pose, hit)
         self.hits[hit] += 1
         self.time = scan.stamp
         self.first_hit[hit] = np.minimum(self.first_hit[hit], scan.stamp)
-        self._known = np.union1d(self._known, hit)
+        new = hit[~self._is_known[hit]]
+        self._is_known[new] = True
+        self._known = np.concatenate((self._known, new))
 
     def _free_pass(self, scan: Scan, sensor_pose: Pose2D, hit: np.ndarray) -> None:
-        known = np.setdiff1d(self._known, hit, assume_unique=True)
+        # Cells beside a hit one are not counted free: a beam grazing a wall passes the centre of
+        # a wall cell that this scan's points happened to skip.
+        offsets = (np.arange(-1, 2)[:, None] * self.side + np.arange(-1, 2)[None, :]).ravel()
+        beside = np.clip(hit[:, None] + offsets[None, :], 0, len(self.hits) - 1)
+        self._marked[beside] = self._scans
+        known = self._known[self._marked[self._known] != self._scans]
         if len(known) == 0:
             return
         local = sensor_pose.inverse().apply(self.centres(known))
