@@ -54,6 +54,12 @@ class Segments:
     points: np.ndarray
     starts: np.ndarray
 
+    def middles(self) -> np.ndarray:
+        """(K, 2) the middle point of each segment: a point the lidar hit, unlike the centroid of
+        a wide arc, which lies inside the object."""
+        ends = np.append(self.starts[1:], len(self.points))
+        return self.points[(self.starts + ends - 1) // 2].reshape(-1, 2)
+
     def centres(self) -> np.ndarray:
         """(K, 2) centres of the round objects seen: a lidar sees the near half of a leg or
         body, whose centroid lies about width / pi in front of the centre, so push it back."""
@@ -146,8 +152,8 @@ def detect(
     """Legs and people in one scan (scan frame); a single unpaired leg counts as a person.
 
     With a classifier, legs are the segments it scores at or above its threshold; without,
-    legs and bodies are told by width. `reject` maps (K, 2) segment centroids to (K,) True for
-    segments to leave out before pairing (those on the static world). The people are as many as the
+    legs and bodies are told by width. `reject` maps (K, 2) segment middle points to (K,) True
+    for segments to leave out before pairing (those on the static world). The people are as many as the
     leg pairs, lone legs and (by width rules) body-wide segments together.
     """
     segments = segment(scan, config.jump_distance)
@@ -164,7 +170,7 @@ def detect(
         is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
         leg_scores = np.ones(int(is_leg.sum()))
     if reject is not None and (is_leg | is_body).any():
-        rejected = reject(segments.centroids)  # the points' own cells, not the pushed-back centres
+        rejected = reject(segments.middles())
         leg_scores = leg_scores[~rejected[is_leg]]
         is_leg, is_body = is_leg & ~rejected, is_body & ~rejected
     legs = centres[is_leg]

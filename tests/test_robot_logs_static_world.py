@@ -68,3 +68,15 @@ def test_furnished_rooms_are_seeded() -> None:
     table = room.centres[:4]
     sides = sorted(np.hypot(*(table[1:] - table[0]).T))
     assert sides == pytest.approx([0.8, 1.2, math.hypot(0.8, 1.2)])
+
+
+def test_a_pillar_taken_for_a_body_by_width_rules_is_dropped_too() -> None:
+    lidar = LidarSimulator(seed=4, posts=(np.array([[3.0, 1.0]]), np.array([0.25])))
+    grid = PersonTracker(static_world=StaticWorldConfig(protect_confidence=math.inf))  # width rules: no confidence
+    alone = PersonTracker()
+    for k in range(40):
+        t = 0.1 * k
+        scan = lidar.scan(t, Pose2D(), np.array([[1.5 + t, -1.0]]), np.array([[1.0, 0.0]]))
+        with_grid, without = grid.process(scan).tracks, alone.process(scan).tracks
+    assert near(without, (3.0, 1.0)) and not near(with_grid, (3.0, 1.0))
+    assert near(with_grid, (5.4, -1.0))
