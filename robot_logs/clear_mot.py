@@ -46,7 +46,10 @@ class ClearMot:
 
     @property
     def mota(self) -> float:
-        return 1.0 - (self.misses + self.false_positives + self.id_switches) / max(self.objects, 1)
+        """NaN when no person was labelled."""
+        if not self.objects:
+            return float("nan")
+        return 1.0 - (self.misses + self.false_positives + self.id_switches) / self.objects
 
     @property
     def motp(self) -> float:

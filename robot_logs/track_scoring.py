@@ -28,9 +28,11 @@ from robot_logs.tracks import TrackTable
 
 @dataclass(frozen=True)
 class Labels:
-    """One label message: stamp (ns), frame, (N,) person ids and (N, 2) positions."""
+    """One label message: stamp and record time (ns; equal when the label was unstamped),
+    frame, (N,) person ids and (N, 2) positions."""
 
     stamp_ns: int
+    record_ns: int
     frame: str
     ids: np.ndarray
     points: np.ndarray
@@ -44,7 +46,8 @@ def to_labels(msg: Any, record_ns: int) -> Labels:
     else:
         ids = np.arange(len(msg.poses))
         points = [[p.position.x, p.position.y] for p in msg.poses]
-    return Labels(stamp_ns(msg.header, record_ns), frame_name(msg.header.frame_id), ids, np.array(points, dtype=float).reshape(-1, 2))
+    points_array = np.array(points, dtype=float).reshape(-1, 2)
+    return Labels(stamp_ns(msg.header, record_ns), record_ns, frame_name(msg.header.frame_id), ids, points_array)
 
 
 def _label_topic(log: LogReader, override: str | None) -> str:
@@ -79,7 +82,8 @@ def scored_scans(
 ) -> Iterator[tuple[ScoredScan, bool]]:
     """Each scan of the log as (people and tracks, whether a label message goes with it).
 
-    A label goes with the scan of the same stamp, else the nearest within half a scan period.
+    A label goes with the scan of the same stamp, else the nearest within half a scan period; an
+    unstamped label (labelling tools often leave stamps at zero) with the scan recorded nearest.
 
     Raises:
         LogError: no label topic, or labels and tracks in different frames.
@@ -87,13 +91,14 @@ def scored_scans(
     with LogReader(path) as log:
         scan_name = pick_topic(log.topics, SCAN_TYPES, "LaserScan", scan_topic, log.path, "--scan-topic").name
         label_name = _label_topic(log, gt_topic)
-        stamps, labels = [], []
+        stamps, records, labels = [], [], []
         for message in log.messages({scan_name, label_name}):
             if message.topic == scan_name:
                 stamps.append(stamp_ns(message.data.header, message.record_ns))
+                records.append(message.record_ns)
             else:
                 labels.append(to_labels(message.data, message.record_ns))
-    scan_stamps = np.array(stamps, dtype=np.int64)
+    scan_stamps, scan_records = np.array(stamps, dtype=np.int64), np.array(records, dtype=np.int64)
     if len(scan_stamps) == 0 or not labels:
         raise LogError(f"{path}: no scans on {scan_name} or no labels on {label_name}")
     frames = {row.frame for row in tracks.rows}
@@ -106,6 +111,9 @@ def scored_scans(
     period = float(np.median(np.diff(scan_stamps))) if len(scan_stamps) > 1 else math.inf
     by_scan: dict[int, Labels] = {}
     for label in labels:
+        if label.stamp_ns == label.record_ns:
+            by_scan[int(np.argmin(np.abs(scan_records - label.record_ns)))] = label
+            continue
         nearest = int(np.argmin(np.abs(scan_stamps - label.stamp_ns)))
         if abs(int(scan_stamps[nearest]) - label.stamp_ns) <= period / 2:
             by_scan[nearest] = label

@@ -102,3 +102,19 @@ def test_score_tracks_refuses_tracks_in_another_frame(labelled_bag: Path, tmp_pa
     assert main(["log", "score-tracks", str(labelled_bag), str(tmp_path / "odom.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the tracks are in frame odom but the labels" in err[0] and "in laser" in err[0]
+
+
+def test_unstamped_labels_go_with_the_scan_recorded_nearest(tmp_path: Path, capsys) -> None:
+    """Labels with zero stamps, recorded a year after the scans' header stamps (as the sample bag)."""
+    year = 365 * 86400 * 1_000_000_000
+    lidar = LidarSimulator(seed=0)
+    path = tmp_path / "unstamped.bag"
+    with BagWriter(path, "ros1") as bag:
+        for k in range(3):
+            stamp = 1_000_000_000 + k * 100_000_000
+            bag.scan(lidar.scan(stamp * 1e-9, Pose2D(), np.zeros((0, 2))), record_ns=stamp + year)
+            bag.points(PointSet(0, stamp + year + 1000, "laser", np.array([[2.0, 0.0]])), "/people")
+    rows = [TrackRow(1_000_000_000 + k * 100_000_000, k, 7, 2.1, 0.0, 0.0, 0.0, "laser") for k in range(3)]
+    TrackTable(rows).write_csv(tmp_path / "tracks.csv")
+    assert main(["log", "score-tracks", str(path), str(tmp_path / "tracks.csv")]) == 0
+    assert capsys.readouterr().out.startswith("all scans (3 scans, 3 labelled person-scans): MOTA 1.000, MOTP 0.100 m")
