@@ -11,7 +11,9 @@ probability of its detections reaches the detector's `confirm` level (what 75 % 
 labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
 early loses its detections once its cells turn static and dies; a track whose mean probability
 reaches the `protect` level (what half the labelled legs reach) keeps its cells out of the grid,
-so a person standing still stays a person.
+so a person standing still stays a person. A tentative track below `protect` that has not
+moved 0.3 m waits 2 s (`still_wait`) before it is confirmed, so furniture in view from the start
+turns static before it is ever reported.
 """
 
 from __future__ import annotations
@@ -49,6 +51,12 @@ class ScanResult:
     tracks: list[TrackState]
 
 
+def still_wait(world: StaticWorldConfig) -> float:
+    """How long a still, unsure track waits: half a second more than a cell needs to turn static,
+    so the grid has seen it static before the track could be confirmed."""
+    return world.min_duration + 0.5
+
+
 class PersonTracker:
     """Detector plus tracker over consecutive scans, in one output frame.
 
@@ -74,13 +82,16 @@ class PersonTracker:
     @classmethod
     def learned(cls, classifier: LegClassifier | None = None, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
         """The setup for real scans: a leg classifier (default: the shipped one), static-world
-        rejection, and tracks confirmed and protected at the classifier's levels."""
+        rejection, and tracks confirmed and protected at the classifier's levels; a still, unsure track waits
+        for the grid before it is confirmed."""
         classifier = classifier if classifier is not None else shipped_detector()
+        world = StaticWorldConfig(protect_confidence=classifier.protect)
         return cls(
             detector,
-            TrackerConfig(confirm_confidence=classifier.confirm),
+            TrackerConfig(confirm_confidence=classifier.confirm, still_wait=still_wait(world),
+                          sure_confidence=classifier.protect),
             classifier,
-            StaticWorldConfig(protect_confidence=classifier.protect),
+            world,
         )
 
     def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:

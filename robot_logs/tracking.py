@@ -3,7 +3,9 @@ assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, wit
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive
-hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`,
+hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`
+(a track still within `still_distance` of its birth place whose mean confidence is under
+`sure_confidence` also waits `still_wait` seconds, long enough for the static world to tell),
 dropped if it misses while still tentative (a detection on the static world counts as a miss
 for a tentative track), and deleted after `death_misses` consecutive misses once confirmed. So
 a person standing still is kept: confirmation asks for confidence, never for motion.
@@ -34,6 +36,9 @@ class TrackerConfig:
         birth_hits: consecutive hits that confirm a track.
         death_misses: consecutive misses that delete a confirmed track.
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
+        still_wait, still_distance, sure_confidence: a tentative track that has not moved
+            `still_distance` (m) from where it was born, with a mean confidence under
+            `sure_confidence`, is confirmed no earlier than `still_wait` seconds after its birth.
     """
 
     measurement_std: float = 0.2
@@ -43,6 +48,9 @@ class TrackerConfig:
     birth_hits: int = 3
     death_misses: int = 5
     confirm_confidence: float = 0.0
+    still_wait: float = 0.0
+    still_distance: float = 0.3
+    sure_confidence: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -68,6 +76,8 @@ class Track:
         self.kf = kf
         self.track_id: int | None = None
         self.hits = 1
+        self.birth = np.array(position[:2], dtype=float)
+        self.born: float | None = None
         self.misses = 0
         self.confidence_sum = 0.0
 
@@ -118,6 +128,16 @@ class Tracker:
         rows, cols = linear_sum_assignment(np.minimum(cost, 2.0 * self.config.gate))
         return [(int(r), int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
 
+    def _ready(self, track: Track, time: float) -> bool:
+        """Whether a tentative track with enough hits is confident enough, or has waited enough."""
+        config = self.config
+        mean = track.confidence_sum / track.hits
+        if mean < config.confirm_confidence:
+            return False
+        moved = np.hypot(*(track.kf.x[:2] - track.birth)) >= config.still_distance
+        assert track.born is not None
+        return moved or mean >= config.sure_confidence or time - track.born >= config.still_wait
+
     def step(
         self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None
     ) -> list[TrackState]:
@@ -155,8 +175,9 @@ class Tracker:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
         for track in self.tracks:
-            sure = track.confidence_sum >= self.config.confirm_confidence * track.hits
-            if not track.confirmed and track.hits >= self.config.birth_hits and sure:
+            if track.born is None:
+                track.born = time
+            if not track.confirmed and track.hits >= self.config.birth_hits and self._ready(track, time):
                 track.track_id = self._next_id
                 self._next_id += 1
         return [t.state() for t in self.tracks if t.confirmed]

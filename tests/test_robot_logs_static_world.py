@@ -80,3 +80,18 @@ def test_a_pillar_taken_for_a_body_by_width_rules_is_dropped_too() -> None:
         with_grid, without = grid.process(scan).tracks, alone.process(scan).tracks
     assert near(without, (3.0, 1.0)) and not near(with_grid, (3.0, 1.0))
     assert near(with_grid, (5.4, -1.0))
+
+
+def test_a_still_unsure_track_waits_for_the_grid_and_is_never_reported() -> None:
+    lidar = LidarSimulator(seed=4, posts=(np.array([[3.0, 1.0]]), np.array([0.06])))
+    waiting = TrackerConfig(confirm_confidence=0.5, still_wait=2.0, sure_confidence=0.7)
+    tracker = PersonTracker(tracker=waiting, classifier=constant(0.6), static_world=StaticWorldConfig())
+    sure = PersonTracker(tracker=waiting, classifier=constant(0.9), static_world=StaticWorldConfig())
+    reported, sure_from = [], []
+    for k in range(40):
+        t = 0.1 * k
+        scan = lidar.scan(t, Pose2D(), np.array([[1.5 + t, -1.0]]), np.array([[1.0, 0.0]]))
+        reported.append(near(tracker.process(scan).tracks, (3.0, 1.0)))
+        sure_from.append(near(sure.process(scan).tracks, (3.0, 1.0)))
+    assert not any(reported)  # static after 1.5 s, before its 2 s wait was over
+    assert sure_from.index(True) == 2  # a sure detection is confirmed at its third hit, still or not
