@@ -1,19 +1,24 @@
 """Person detection in one planar lidar scan, in the scan's own frame.
 
-The steps, as in the classic leg detectors (e.g. Leigh et al., ICRA 2015, without their
-learned classifier): drop NaN, inf and out-of-range beams; split the remaining points into
-segments wherever two neighbours are farther apart than a jump distance; keep segments as
-wide as a leg (or as a body, or two legs seen as one); pair nearby legs into people.
+The steps, as in the classic leg detectors (e.g. Leigh et al., ICRA 2015): drop NaN, inf and
+out-of-range beams; split the remaining points into segments wherever two neighbours are
+farther apart than a jump distance; decide which segments are legs; pair nearby legs into
+people. Legs are decided by a learned classifier on segment features
+(`robot_logs.leg_classifier`) when one is given, else by width alone (leg-wide segments are
+legs, body-wide ones whole people), which suits simulated scans with nothing but people.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from robot_logs.leg_classifier import LegClassifier
 from robot_logs.records import Scan
+from robot_logs.segment_features import segment_features
 
 
 @dataclass(frozen=True)
@@ -27,6 +32,7 @@ class DetectorConfig:
         body_width: (min, max) width of a segment taken as a whole person (a body disc, or
             two legs too close to split); min should equal leg_width's max.
         pair_distance: two legs closer than this belong to one person.
+        candidate_width: segments at least this wide are never shown to a classifier.
     """
 
     jump_distance: float = 0.13
@@ -34,15 +40,25 @@ class DetectorConfig:
     leg_width: tuple[float, float] = (0.05, 0.4)
     body_width: tuple[float, float] = (0.4, 0.8)
     pair_distance: float = 0.6
+    candidate_width: float = 0.8
 
 
 @dataclass(frozen=True)
 class Segments:
-    """Contiguous groups of scan points: (K, 2) centroids, (K,) widths and point counts."""
+    """Contiguous groups of scan points: (K, 2) centroids, (K,) widths and point counts, and
+    the (M, 2) points they split with (K,) the index of each segment's first point."""
 
     centroids: np.ndarray
     widths: np.ndarray
     counts: np.ndarray
+    points: np.ndarray
+    starts: np.ndarray
+
+    def middles(self) -> np.ndarray:
+        """(K, 2) the middle point of each segment: a point the lidar hit, unlike the centroid of
+        a wide arc, which lies inside the object."""
+        ends = np.append(self.starts[1:], len(self.points))
+        return self.points[(self.starts + ends - 1) // 2].reshape(-1, 2)
 
     def centres(self) -> np.ndarray:
         """(K, 2) centres of the round objects seen: a lidar sees the near half of a leg or
@@ -54,10 +70,12 @@ class Segments:
 @dataclass(frozen=True)
 class Detections:
     """What one scan shows: (L, 2) leg centroids (the points leg labels mark) and (P, 2)
-    people, each the midpoint of two paired leg centres, a lone leg centre or a body centre."""
+    people, each the midpoint of two paired leg centres, a lone leg centre or a body centre;
+    each person's confidence (P,) is the classifier's mean leg probability (1 by width rules)."""
 
     legs: np.ndarray
     people: np.ndarray
+    confidence: np.ndarray
 
 
 def scan_points(scan: Scan) -> np.ndarray:
@@ -81,7 +99,7 @@ def segment(scan: Scan, jump_distance: float) -> Segments:
     points = scan_points(scan)
     if len(points) == 0:
         empty = np.zeros((0, 2))
-        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int))
+        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int), empty, np.zeros(0, dtype=int))
     jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
     if _covers_circle(scan) and jumps.any() and np.hypot(*(points[0] - points[-1])) <= jump_distance:
         shift = int(np.flatnonzero(jumps)[0]) + 1
@@ -92,7 +110,7 @@ def segment(scan: Scan, jump_distance: float) -> Segments:
     counts = ends - starts
     centroids = np.add.reduceat(points, starts, axis=0) / counts[:, None]
     widths = np.hypot(*(points[ends - 1] - points[starts]).T)
-    return Segments(centroids, widths, counts)
+    return Segments(centroids, widths, counts, points, starts)
 
 
 def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, int]], list[int]]:
@@ -115,21 +133,53 @@ def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, in
     return pairs, [i for i in range(count) if not used[i]]
 
 
-def detect(scan: Scan, config: DetectorConfig = DetectorConfig()) -> Detections:
+def leg_probabilities(segments: Segments, config: DetectorConfig, classifier: LegClassifier) -> np.ndarray:
+    """(K,) each segment's probability of being a leg; 0 for those too small or too wide to be one."""
+    candidates = (segments.counts >= config.min_points) & (segments.widths < config.candidate_width)
+    probability = np.zeros(len(segments.counts))
+    if candidates.any():
+        features = segment_features(segments.points, segments.starts, candidates)
+        probability[candidates] = classifier.probability(features)
+    return probability
+
+
+def detect(
+    scan: Scan,
+    config: DetectorConfig = DetectorConfig(),
+    classifier: LegClassifier | None = None,
+    reject: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> Detections:
     """Legs and people in one scan (scan frame); a single unpaired leg counts as a person.
 
-    The people are as many as the leg pairs, lone legs and body-wide segments together.
+    With a classifier, legs are the segments it scores at or above its threshold; without,
+    legs and bodies are told by width. `reject` maps (K, 2) segment middle points to (K,) True
+    for segments to leave out before pairing (those on the static world). The people are as many as the
+    leg pairs, lone legs and (by width rules) body-wide segments together.
     """
     segments = segment(scan, config.jump_distance)
-    enough = segments.counts >= config.min_points
-    widths = segments.widths
-    is_leg = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
-    is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
     centres = segments.centres()
+    if classifier is not None:
+        probability = leg_probabilities(segments, config, classifier)
+        is_leg = probability >= classifier.threshold
+        is_body = np.zeros_like(is_leg)
+        leg_scores = probability[is_leg]
+    else:
+        enough = segments.counts >= config.min_points
+        widths = segments.widths
+        is_leg = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
+        is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
+        leg_scores = np.ones(int(is_leg.sum()))
+    if reject is not None and (is_leg | is_body).any():
+        rejected = reject(segments.middles())
+        leg_scores = leg_scores[~rejected[is_leg]]
+        is_leg, is_body = is_leg & ~rejected, is_body & ~rejected
     legs = centres[is_leg]
     pairs, singles = pair_legs(legs, config.pair_distance)
     people = [legs[[i, j]].mean(axis=0) for i, j in pairs]
     people.extend(legs[singles])
     people.extend(centres[is_body])
+    confidence = [leg_scores[[i, j]].mean() for i, j in pairs]
+    confidence.extend(leg_scores[singles])
+    confidence.extend(np.ones(int(is_body.sum())))
     people_array = np.array(people, dtype=float).reshape(-1, 2)
-    return Detections(legs=segments.centroids[is_leg], people=people_array)
+    return Detections(legs=segments.centroids[is_leg], people=people_array, confidence=np.array(confidence, dtype=float))

@@ -1,7 +1,7 @@
 """A simulated planar lidar: rays cast against pedestrians and walls, with seeded noise.
 
 Pedestrians are two leg circles that swing with the gait while walking (or one body disc);
-walls are line segments. The result is a `Scan` like one read from a log, so the same
+walls are line segments and static posts (furniture legs, pillars: `robot_logs.clutter`) circles. The result is a `Scan` like one read from a log, so the same
 detector and tracker run on simulated and real data. Conventions follow REP 117: a beam with
 no return reads +inf, a failed (dropped-out) beam NaN.
 """
@@ -127,6 +127,7 @@ class LidarSimulator:
         body: how pedestrians look at lidar height.
         seed: seeds the range noise and dropouts (record it with the run).
         walls: (W, 2, 2) wall segments in the world frame, endpoints in metres.
+        posts: static circles in the world frame, (K, 2) centres and (K,) radii (m).
     """
 
     def __init__(
@@ -135,11 +136,15 @@ class LidarSimulator:
         body: BodyModel = BodyModel(),
         seed: int = 0,
         walls: np.ndarray | None = None,
+        posts: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         self.spec = spec
         self.body = body
         self.seed = seed
         self.walls = np.zeros((0, 2, 2)) if walls is None else np.asarray(walls, dtype=float).reshape(-1, 2, 2)
+        centres, radii = posts if posts is not None else (np.zeros((0, 2)), np.zeros(0))
+        self.post_centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+        self.post_radii = np.asarray(radii, dtype=float).reshape(-1)
         self._rng = np.random.default_rng(seed)
         self._angles = spec.angles()
 
@@ -162,6 +167,8 @@ class LidarSimulator:
         if velocities is None:
             velocities = np.zeros_like(positions)
         centres, radii = body_circles(positions, velocities, time, self.body)
+        centres = np.concatenate((centres, self.post_centres))
+        radii = np.concatenate((radii, self.post_radii))
         origin = np.array([sensor_pose.x, sensor_pose.y])
         ranges = cast_rays(origin, self._angles + sensor_pose.yaw, centres, radii, self.walls)
         spec = self.spec

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Literal
 
 from robot_logs.convert import to_odometry, to_scan, to_transforms
-from robot_logs.detection import DetectorConfig
 from robot_logs.errors import LogError
 from robot_logs.frames import FrameTree, Pose2D
 from robot_logs.pipeline import PersonTracker, ScanResult
@@ -26,7 +25,6 @@ from robot_logs.topics import (
     pick_topic,
     tf_topics,
 )
-from robot_logs.tracking import TrackerConfig
 from robot_logs.tracks import TrackRow, TrackTable
 
 Frame = Literal["sensor", "odom"]
@@ -67,7 +65,8 @@ class LogTracking:
         log: an open log.
         frame: "sensor" (the scan's own frame) or "odom" (the odometry frame).
         topics: topic names that override the choice by type.
-        detector, tracker: detection and tracking settings.
+        tracker: detection and tracking (default: `PersonTracker.learned()`, the shipped leg
+            classifier with static-world rejection).
 
     Raises:
         LogError: a needed topic is missing (the message lists the topics there are), or the
@@ -79,8 +78,7 @@ class LogTracking:
         log: LogReader,
         frame: Frame = "sensor",
         topics: TopicNames = TopicNames(),
-        detector: DetectorConfig = DetectorConfig(),
-        tracker: TrackerConfig = TrackerConfig(),
+        tracker: PersonTracker | None = None,
     ) -> None:
         self.log = log
         self.frame = frame
@@ -90,7 +88,7 @@ class LogTracking:
         if frame == "odom":
             odometry = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
             self.tree, self.output_frame = read_frame_tree(log, odometry.name)
-        self._tracker = PersonTracker(detector, tracker)
+        self._tracker = tracker if tracker is not None else PersonTracker.learned()
         self.skipped = 0
 
     def _sensor_pose(self, scan: Scan) -> Pose2D | None:
@@ -130,11 +128,12 @@ def track_log(
     path: str | Path,
     frame: Frame = "sensor",
     topics: TopicNames = TopicNames(),
-    detector: DetectorConfig = DetectorConfig(),
-    tracker: TrackerConfig = TrackerConfig(),
+    tracker: PersonTracker | None = None,
     salvage: bool = False,
 ) -> TrackTable:
-    """All tracks of a log file, one row per confirmed track per scan."""
+    """All tracks of a log file, one row per confirmed track per scan (`tracker`: detection and
+    tracking, default `PersonTracker.learned()`)."""
     with LogReader(path, salvage=salvage) as log:
-        rows = [row for _, result in LogTracking(log, frame, topics, detector, tracker) for row in result_rows(result)]
+        tracking = LogTracking(log, frame, topics, tracker)
+        rows = [row for _, result in tracking for row in result_rows(result)]
     return TrackTable(rows)

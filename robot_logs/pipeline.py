@@ -1,16 +1,32 @@
-"""Scans in, tracked people out: detection, a change of frame, and tracking, per scan.
+"""Scans in, tracked people out: detection, a change of frame, static-world rejection and
+tracking, per scan.
 
 `PersonTracker` is what both the log tracker (`track_log`) and a closed-loop simulator with
 lidar perception use: hand it each scan with the sensor's pose in the output frame.
+`PersonTracker.learned()` is the setup for real logs: the shipped (or a given) leg classifier,
+the static-world grid and confirmation by the classifier's mean confidence.
+
+The rule for a person: a tentative track is confirmed after 3 consecutive hits once the mean leg
+probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
+labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
+early loses its detections once its cells turn static and dies; a track whose mean probability
+reaches the `protect` level (what half the labelled legs reach) keeps its cells out of the grid,
+so a person standing still stays a person. A tentative track below `protect` that has not
+moved 0.3 m waits 2 s (`still_wait`) before it is confirmed, so furniture in view from the start
+turns static before it is ever reported.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_logs.detection import Detections, DetectorConfig, detect
+import numpy as np
+
+from robot_logs.detection import Detections, DetectorConfig, detect, scan_points
 from robot_logs.frames import Pose2D
+from robot_logs.leg_classifier import LegClassifier, shipped_detector
 from robot_logs.records import Scan
+from robot_logs.static_world import StaticWorld, StaticWorldConfig
 from robot_logs.tracking import Tracker, TrackerConfig, TrackState
 
 
@@ -35,12 +51,48 @@ class ScanResult:
     tracks: list[TrackState]
 
 
-class PersonTracker:
-    """Detector plus tracker over consecutive scans, in one output frame."""
+def still_wait(world: StaticWorldConfig) -> float:
+    """How long a still, unsure track waits: half a second more than a cell needs to turn static,
+    so the grid has seen it static before the track could be confirmed."""
+    return world.min_duration + 0.5
 
-    def __init__(self, detector: DetectorConfig = DetectorConfig(), tracker: TrackerConfig = TrackerConfig()) -> None:
+
+class PersonTracker:
+    """Detector plus tracker over consecutive scans, in one output frame.
+
+    Args:
+        detector: segmentation and pairing settings.
+        tracker: Kalman filter and track-management settings.
+        classifier: the learned leg classifier; None tells legs by width alone.
+        static_world: grid settings for static-world rejection; None rejects nothing.
+    """
+
+    def __init__(
+        self,
+        detector: DetectorConfig = DetectorConfig(),
+        tracker: TrackerConfig = TrackerConfig(),
+        classifier: LegClassifier | None = None,
+        static_world: StaticWorldConfig | None = None,
+    ) -> None:
         self.detector = detector
+        self.classifier = classifier
         self.tracker = Tracker(tracker)
+        self.world = StaticWorld(static_world) if static_world is not None else None
+
+    @classmethod
+    def learned(cls, classifier: LegClassifier | None = None, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
+        """The setup for real scans: a leg classifier (default: the shipped one), static-world
+        rejection, and tracks confirmed and protected at the classifier's levels; a still, unsure track waits
+        for the grid before it is confirmed."""
+        classifier = classifier if classifier is not None else shipped_detector()
+        world = StaticWorldConfig(protect_confidence=classifier.protect)
+        return cls(
+            detector,
+            TrackerConfig(confirm_confidence=classifier.confirm, still_wait=still_wait(world),
+                          sure_confidence=classifier.protect),
+            classifier,
+            world,
+        )
 
     def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:
         """Detect people in `scan`, move them into the output frame, update the tracks.
@@ -52,7 +104,13 @@ class PersonTracker:
             frame: output frame name; defaults to the scan's frame.
             scan_index: position of the scan on its topic, carried into the result.
         """
-        found = detect(scan, self.detector)
-        moved = Detections(legs=sensor_pose.apply(found.legs), people=sensor_pose.apply(found.people))
-        tracks = self.tracker.step(scan.stamp, moved.people)
+        world = self.world
+        reject = None if world is None else (lambda legs: world.is_static(sensor_pose.apply(legs)))
+        found = detect(scan, self.detector, self.classifier, reject)
+        moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence)
+        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence)
+        if world is not None:
+            sure = world.config.protect_confidence
+            people = [t.kf.x[:2] for t in self.tracker.tracks if t.confirmed and t.confidence_sum >= sure * t.hits]
+            world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

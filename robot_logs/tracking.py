@@ -1,9 +1,14 @@
 """Multi-person tracking: one constant-velocity Kalman filter per track (filterpy), detections
 assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
 
-Life of a track: it is born tentative from an unassigned detection, confirmed (and given the
-next id, never reused) after `birth_hits` consecutive hits, dropped if it misses while still
-tentative, and deleted after `death_misses` consecutive misses once confirmed.
+Life of a track: it is born tentative from an unassigned detection that is not on the static
+world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive
+hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`
+(a track still within `still_distance` of its birth place whose mean confidence is under
+`sure_confidence` also waits `still_wait` seconds, long enough for the static world to tell),
+dropped if it misses while still tentative (a detection on the static world counts as a miss
+for a tentative track), and deleted after `death_misses` consecutive misses once confirmed. So
+a person standing still is kept: confirmation asks for confidence, never for motion.
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ class TrackerConfig:
         gate: largest squared Mahalanobis distance of an accepted detection.
         birth_hits: consecutive hits that confirm a track.
         death_misses: consecutive misses that delete a confirmed track.
+        confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
+        still_wait, still_distance, sure_confidence: a tentative track that has not moved
+            `still_distance` (m) from where it was born, with a mean confidence under
+            `sure_confidence`, is confirmed no earlier than `still_wait` seconds after its birth.
     """
 
     measurement_std: float = 0.2
@@ -38,6 +47,10 @@ class TrackerConfig:
     gate: float = CHI2_2DOF_99
     birth_hits: int = 3
     death_misses: int = 5
+    confirm_confidence: float = 0.0
+    still_wait: float = 0.0
+    still_distance: float = 0.3
+    sure_confidence: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -63,7 +76,10 @@ class Track:
         self.kf = kf
         self.track_id: int | None = None
         self.hits = 1
+        self.birth = np.array(position[:2], dtype=float)
+        self.born: float | None = None
         self.misses = 0
+        self.confidence_sum = 0.0
 
     @property
     def confirmed(self) -> bool:
@@ -112,20 +128,41 @@ class Tracker:
         rows, cols = linear_sum_assignment(np.minimum(cost, 2.0 * self.config.gate))
         return [(int(r), int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
 
-    def step(self, time: float, detections: np.ndarray) -> list[TrackState]:
+    def _ready(self, track: Track, time: float) -> bool:
+        """Whether a tentative track with enough hits is confident enough, or has waited enough."""
+        config = self.config
+        mean = track.confidence_sum / track.hits
+        if mean < config.confirm_confidence:
+            return False
+        moved = np.hypot(*(track.kf.x[:2] - track.birth)) >= config.still_distance
+        assert track.born is not None
+        return moved or mean >= config.sure_confidence or time - track.born >= config.still_wait
+
+    def step(
+        self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None
+    ) -> list[TrackState]:
         """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
+
+        Args:
+            time: the scan time (s).
+            detections: (D, 2) detected people.
+            confidence: (D,) the detector's confidence in each (default: 1).
+            static: (D,) True for detections on the static world (default: none).
 
         A confirmed track is reported while it coasts through misses, until it is deleted.
         """
         detections = np.asarray(detections, dtype=float).reshape(-1, 2)
+        confidence = np.ones(len(detections)) if confidence is None else np.asarray(confidence, dtype=float)
+        static = np.zeros(len(detections), dtype=bool) if static is None else np.asarray(static, dtype=bool)
         self._predict(time)
-        pairs = self.associate(detections)
+        pairs = [(t, d) for t, d in self.associate(detections) if self.tracks[t].confirmed or not static[d]]
         hit = {t for t, _ in pairs}
         for t, d in pairs:
             track = self.tracks[t]
             track.kf.update(detections[d])
             track.hits += 1
             track.misses = 0
+            track.confidence_sum += confidence[d]
         for index, track in enumerate(self.tracks):
             if index not in hit:
                 track.misses += 1
@@ -133,9 +170,14 @@ class Tracker:
             t for t in self.tracks if (t.misses == 0 or t.confirmed) and t.misses < self.config.death_misses
         ]
         used = {d for _, d in pairs}
-        self.tracks.extend(Track(detections[d], self.config) for d in range(len(detections)) if d not in used)
+        for d in range(len(detections)):
+            if d not in used and not static[d]:
+                self.tracks.append(Track(detections[d], self.config))
+                self.tracks[-1].confidence_sum = confidence[d]
         for track in self.tracks:
-            if not track.confirmed and track.hits >= self.config.birth_hits:
+            if track.born is None:
+                track.born = time
+            if not track.confirmed and track.hits >= self.config.birth_hits and self._ready(track, time):
                 track.track_id = self._next_id
                 self._next_id += 1
         return [t.state() for t in self.tracks if t.confirmed]

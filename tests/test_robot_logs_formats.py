@@ -25,9 +25,11 @@ from ruamel.yaml import YAML
 from robot_logs.foxglove_log import FoxgloveWriter, log_line
 from robot_logs.frames import Pose2D
 from robot_logs.log_tracking import read_scans, track_log
+from robot_logs.pipeline import PersonTracker
 from robot_logs.reader import LogReader
 from robot_logs.records import Odometry, Scan, Transform
 from robot_logs.summary import summarise
+from robot_logs.tracks import TrackTable
 from tests.support.bag_writer import BagWriter
 from trials.cli import main
 
@@ -56,6 +58,11 @@ CDR_HEADER = b"\x00\x01\x00\x00"
 COUNTS = {"/custom": 6, "/odom": 6, "/scan": SCANS, "/tf": 6, SERVICE: 6}
 
 
+
+def rules_tracks(path: Path, frame: str = "sensor") -> TrackTable:
+    """Tracks by width rules: these tests are about reading every format, not about detection."""
+    return track_log(path, frame, tracker=PersonTracker())  # type: ignore[arg-type]
+
 @pytest.fixture(scope="module")
 def scans(robot_logs_dir: Path) -> list[Scan]:
     with LogReader(robot_logs_dir / "stationary_ros1.bag") as log:
@@ -69,7 +76,7 @@ def reference(scans: list[Scan], tmp_path_factory: pytest.TempPathFactory) -> li
     with BagWriter(path) as bag:
         for scan in scans:
             bag.scan(scan)
-    rows = track_log(path).rows
+    rows = rules_tracks(path).rows
     assert len(rows) == 672 and len({row.track_id for row in rows}) == 12  # as the whole recording tracked, cut at scan 120
     return rows
 
@@ -111,8 +118,8 @@ def test_unknown_types_and_services_are_listed_and_skipped(
     assert lines["/custom:"] == "/custom: 6 of 6 messages (no definition of my_tests/msg/Custom in the log or in rosbags' type stores)".split()
     assert lines[SERVICE] == [SERVICE, "example_interfaces/srv/AddTwoInts_Event", "cdr", "6"]
     assert "services" in lines
-    assert track_log(bag).rows == reference
-    assert track_log(bag, frame="odom").rows[0].frame == "odom"
+    assert rules_tracks(bag).rows == reference
+    assert rules_tracks(bag, frame="odom").rows[0].frame == "odom"
 
 
 def test_asking_for_an_unknown_type_is_one_line(scans: list[Scan], tmp_path: Path) -> None:
@@ -127,7 +134,7 @@ def test_a_folder_and_its_storage_file_read_alike(bag_format: str, scans: list[S
     bag = write_bag(tmp_path / "bag", scans, bag_format)
     (storage,) = [p for p in bag.iterdir() if p.name != "metadata.yaml"]
     assert counts(bag) == counts(storage) == COUNTS
-    assert track_log(storage).rows == reference
+    assert rules_tracks(storage).rows == reference
 
 
 QUICK_VERSIONS = (1, 4, 8)  # one of each database schema in the quick loop; the rest are slow
@@ -145,7 +152,7 @@ FOXY_QOS = (
 def test_compressed_bags_read(bag_format: str, compression: CompressionMode, scans: list[Scan], reference: list[tuple], tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "bag", scans, bag_format, compression=compression)
     assert counts(bag) == COUNTS
-    assert track_log(bag).rows == reference
+    assert rules_tracks(bag).rows == reference
 
 
 def make_old(bag: Path, version: int) -> None:
@@ -194,7 +201,7 @@ def test_old_sqlite3_bags_read_by_folder_and_file(version: int, scans: list[Scan
     make_old(bag, version)
     (database,) = bag.glob("*.db3")
     assert counts(bag) == counts(database) == COUNTS
-    assert track_log(bag).rows == reference
+    assert rules_tracks(bag).rows == reference
 
 
 def write_foxy_bag(path: Path, version: int, distro: str | None) -> None:
@@ -269,7 +276,7 @@ def test_a_split_bag_reads_as_one(scans: list[Scan], reference: list[tuple], tmp
     lines = inspect_lines(split, capsys)
     assert lines["/burst"] == ["/burst", "tf2_msgs/msg/TFMessage", "cdr", "5", "-", "map->odom"]
     assert lines["/scan"][3:5] == [str(SCANS), "10.03"]
-    assert track_log(split).rows == reference
+    assert rules_tracks(split).rows == reference
 
 
 def rewrite_mcap(source: Path, target: Path, **options: object) -> None:
@@ -327,7 +334,7 @@ def test_every_mcap_layout_reads(
     assert lines["/status"] == ["/status", "demo.Status", "json", "4", "2.00", "-"]
     assert lines["/camera"] == ["/camera", "demo.Image", "protobuf", "4", "-", "-"]
     assert lines["/camera:"][1:4] == ["4", "of", "4"]
-    assert track_log(path).rows == reference
+    assert rules_tracks(path).rows == reference
 
 
 def test_a_truncated_mcap_without_index_is_refused_and_salvaged(

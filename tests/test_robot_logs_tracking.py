@@ -119,7 +119,7 @@ def moving_robot_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[st
 @pytest.mark.parametrize("bag_format", ["ros1", "ros2-sqlite3"])
 def test_tracks_in_the_odometry_frame_stay_put_while_the_robot_moves(moving_robot_bags, bag_format: str) -> None:
     bags, people = moving_robot_bags
-    table = track_log(bags[bag_format], frame="odom")
+    table = track_log(bags[bag_format], frame="odom", tracker=PersonTracker())  # simulated legs: width rules
     assert {row.frame for row in table.rows} == {"odom"}
     assert len(table.ids) == 2
     for track_id in table.ids:
@@ -130,7 +130,7 @@ def test_tracks_in_the_odometry_frame_stay_put_while_the_robot_moves(moving_robo
 
 def test_tracks_in_the_sensor_frame_move_with_the_robot(moving_robot_bags) -> None:
     bags, people = moving_robot_bags
-    table = track_log(bags["ros1"], frame="sensor")
+    table = track_log(bags["ros1"], frame="sensor", tracker=PersonTracker())
     assert {row.frame for row in table.rows} == {"laser"}
     last = max(row.stamp_ns for row in table.rows)
     t = last * 1e-9

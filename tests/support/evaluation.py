@@ -14,12 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from robot_logs.convert import to_points, to_scan
-from robot_logs.errors import LogError
-from robot_logs.reader import LogReader
-from robot_logs.records import PointSet, Scan
-from robot_logs.topics import POINTS_TYPES, SCAN_TYPES, TopicNames, pick_topic
+from robot_logs.labels import labelled_scans
 from robot_logs.tracking import TrackState
+
+__all__ = ["DetectionScore", "clear_mot", "labelled_scans", "match", "score_detections"]
 
 
 def match(detected: np.ndarray, truth: np.ndarray, max_distance: float) -> np.ndarray:
@@ -61,40 +59,6 @@ def score_detections(pairs: Iterable[tuple[np.ndarray, np.ndarray]], max_distanc
         missed += len(truth) - len(distances)
         errors.extend(distances.tolist())
     return DetectionScore(matched, spurious, missed, float(np.mean(errors)) if errors else float("nan"))
-
-
-def labelled_scans(log: LogReader, topics: TopicNames = TopicNames()) -> list[tuple[Scan, PointSet]]:
-    """Scans paired with their labels or ground truth (geometry_msgs/PoseArray, scan frame).
-
-    Topics are chosen by type unless `topics.scan` / `topics.people` name them. A label with
-    a header stamp goes with the scan of the same stamp; an unstamped one with the scan
-    recorded closest to it (labelling tools often leave stamps at zero).
-
-    Raises:
-        LogError: a topic is missing, or a scan has no label.
-    """
-    scan_topic = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic").name
-    label_topic = pick_topic(log.topics, POINTS_TYPES, "PoseArray", topics.people, log.path, "--people-topic").name
-    scans: list[tuple[Scan, int]] = []
-    labels: list[PointSet] = []
-    for message in log.messages({scan_topic, label_topic}):
-        if message.topic == scan_topic:
-            where = f"scan {len(scans)} on {scan_topic} of {log.path}"
-            scans.append((to_scan(message.data, message.record_ns, where), message.record_ns))
-        else:
-            labels.append(to_points(message.data, message.record_ns))
-    by_stamp = {label.stamp_ns: label for label in labels if label.stamp_ns != label.record_ns}
-    unstamped = [label for label in labels if label.stamp_ns == label.record_ns]
-    record_times = np.array([label.record_ns for label in unstamped])
-    pairs = []
-    for scan, record_ns in scans:
-        label = by_stamp.get(scan.stamp_ns)
-        if label is None and len(unstamped):
-            label = unstamped[int(np.argmin(np.abs(record_times - record_ns)))]
-        if label is None:
-            raise LogError(f"scan at {scan.stamp} s on {scan_topic} of {log.path} has no label on {label_topic}")
-        pairs.append((scan, label))
-    return pairs
 
 
 def clear_mot(

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from robot_logs.summary import LogSummary
 
 #: More `trials log` subcommand modules under trials.commands (e.g. "log_show").
-SUBCOMMANDS: tuple[str, ...] = ("log_show",)
+SUBCOMMANDS: tuple[str, ...] = ("log_show", "log_detector", "log_score")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -81,8 +81,8 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser = group.add_parser(
         "track",
         help="detect and track people in a log's LaserScans",
-        description="Detect people in every LaserScan (leg segments paired into people) and track them with "
-        "Kalman filters. Writes one CSV row per track per scan: stamp (header stamp, s), scan_index, "
+        description="Detect people in every LaserScan (segments a learned classifier calls legs, off the static "
+        "world, paired into people) and track them with Kalman filters. Writes one CSV row per track per scan: stamp (header stamp, s), scan_index, "
         "track_id, x, y, vx, vy, frame.",
     )
     _add_log_argument(parser)
@@ -91,6 +91,8 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--mcap", type=types.output_file, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
+    parser.add_argument("--detector", type=types.input_file, metavar="FILE",
+                        help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
     parser.set_defaults(handler=track)
 
 
@@ -196,7 +198,9 @@ def track(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from robot_logs.foxglove_log import FoxgloveWriter, log_line
+    from robot_logs.leg_classifier import LegClassifier
     from robot_logs.log_tracking import LogTracking, result_rows
+    from robot_logs.pipeline import PersonTracker
     from robot_logs.reader import LogReader
     from robot_logs.topics import TopicNames
     from robot_logs.track_mcap import write_tracked_scan
@@ -207,8 +211,9 @@ def track(args: argparse.Namespace) -> int:
     rows = []
     args.file = study_log(args.file, args.study)
     Progress("scan", "tracking", args.quiet).loading(f"Reading {args.file}")
+    classifier = LegClassifier.load(args.detector) if args.detector is not None else None
     with LogReader(args.file, salvage=args.salvage) as log, ExitStack() as outputs:
-        tracking = LogTracking(log, args.frame, topics)
+        tracking = LogTracking(log, args.frame, topics, PersonTracker.learned(classifier))
         writer = None
         if args.mcap is not None:
             meta = {"source": str(args.file), "frame": args.frame, "scan_topic": tracking.scan_topic.name}

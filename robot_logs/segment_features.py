@@ -1,0 +1,153 @@
+"""Geometric features of scan segments, for the learned leg detector.
+
+One row per segment, computed for all segments of a scan at once (no Python loop over
+segments): the kind of set Arras et al. (ICRA 2007) and leg_tracker use. A leg seen by a
+planar lidar is a short arc of a circle about 5-8 cm in radius; furniture legs are similar but
+steadier and rounder, wall pieces are straight, and noise is short and irregular.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Feature names, in column order.
+FEATURE_NAMES = (
+    "points",
+    "width",
+    "distance",
+    "spread",
+    "linearity",
+    "circularity",
+    "radius",
+    "boundary_length",
+    "boundary_regularity",
+    "mean_curvature",
+    "mean_angular_difference",
+    "sagitta",
+    "neighbour_distance",
+    "foreground",
+)
+
+#: Cap of the context features (m): no neighbour, or nothing behind, reads as this far.
+FAR = 3.0
+
+#: Largest fitted circle radius reported (m): a nearly straight segment fits a huge circle.
+MAX_RADIUS = 5.0
+
+
+def _sums(labels: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
+    return np.bincount(labels, weights=values, minlength=count)
+
+
+def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray | None = None) -> np.ndarray:
+    """(K, len(FEATURE_NAMES)) features of K segments (or of the `select`ed ones).
+
+    Args:
+        points: (M, 2) scan points in beam order, in the sensor frame (m).
+        starts: (K,) index of each segment's first point; segment k ends where k + 1 starts.
+        select: (K,) True for the segments wanted (default: all); the context features still
+            look at every segment.
+
+    The columns: point count; end-to-end width; centroid distance from the sensor; root mean
+    square distance of the points from their centroid; root mean square residual of the best
+    line (linearity) and of the best circle (circularity), and that circle's radius; summed and
+    spread of the point-to-point steps (boundary length and regularity); mean curvature of
+    consecutive point triples; mean turning angle between consecutive steps; and how far the
+    middle of the segment bulges from its chord (sagitta). Two context features: the distance
+    to the nearest other segment's centroid (a leg's partner is near) and how far in front of
+    its neighbouring beams the segment stands (foreground); both capped at FAR.
+    """
+    ends = np.append(starts[1:], len(points))
+    wanted = np.ones(len(starts), dtype=bool) if select is None else np.asarray(select, dtype=bool)
+    if not wanted.any():
+        return np.zeros((0, len(FEATURE_NAMES)))
+    lengths = ends[wanted] - starts[wanted]
+    first = np.cumsum(lengths) - lengths
+    taken = np.repeat(starts[wanted] - first, lengths) + np.arange(lengths.sum())
+    shape = _shape_features(points[taken], first)
+    centroids = np.add.reduceat(points, starts, axis=0) / (ends - starts)[:, None]
+    apart = np.hypot(*(centroids[wanted][:, None, :] - centroids[None, :, :]).transpose(2, 0, 1))
+    apart[np.arange(len(apart)), np.flatnonzero(wanted)] = np.inf
+    neighbour = np.minimum(apart.min(axis=1), FAR)
+    ranges = np.hypot(points[:, 0], points[:, 1])
+    total = len(points)
+    head, tail = starts[wanted], ends[wanted]
+    before = np.where(head > 0, ranges[np.maximum(head - 1, 0)] - ranges[head], FAR)
+    after = np.where(tail < total, ranges[np.minimum(tail, total - 1)] - ranges[tail - 1], FAR)
+    foreground = np.clip(np.minimum(before, after), -FAR, FAR)
+    return np.column_stack((shape, neighbour, foreground))
+
+
+def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The first 12 columns (all but the context) of consecutive segments."""
+    count = len(starts)
+    total = len(points)
+    ends = np.append(starts[1:], total)
+    n = (ends - starts).astype(float)
+    labels = np.repeat(np.arange(count), ends - starts)
+    x, y = points[:, 0], points[:, 1]
+    centroid = np.column_stack((_sums(labels, x, count), _sums(labels, y, count))) / n[:, None]
+    local = points - centroid[labels]
+    u, v = local[:, 0], local[:, 1]
+    sxx, syy, sxy = (_sums(labels, w, count) / n for w in (u * u, v * v, u * v))
+    spread = np.sqrt(sxx + syy)
+    # Smallest eigenvalue of the 2x2 covariance: the mean squared distance from the best line.
+    half_gap = np.sqrt(((sxx - syy) / 2.0) ** 2 + sxy**2)
+    linearity = np.sqrt(np.maximum((sxx + syy) / 2.0 - half_gap, 0.0))
+
+    # Algebraic circle fit (Kasa) in centroid coordinates: u^2 + v^2 + a u + b v + c = 0.
+    q = u * u + v * v
+    m = np.empty((count, 3, 3))
+    rhs = np.empty((count, 3))
+    columns = (u, v, np.ones(total))
+    for i, first in enumerate(columns):
+        rhs[:, i] = -_sums(labels, first * q, count)
+        for j in range(i, 3):
+            m[:, i, j] = m[:, j, i] = _sums(labels, first * columns[j], count)
+    solution = np.einsum("kij,kj->ki", np.linalg.pinv(m), rhs)
+    centre = -solution[:, :2] / 2.0
+    radius = np.sqrt(np.maximum((centre**2).sum(axis=1) - solution[:, 2], 0.0))
+    radius = np.minimum(radius, MAX_RADIUS)
+    off_circle = np.hypot(*(local - centre[labels]).T) - radius[labels]
+    circularity = np.sqrt(_sums(labels, off_circle**2, count) / n)
+    # Collinear points make the fit singular: they lie on a circle of unbounded radius.
+    straight = linearity <= 1e-3 * spread
+    radius[straight] = MAX_RADIUS
+    circularity[straight] = linearity[straight]
+
+    # Steps between consecutive points of the same segment.
+    step = np.diff(points, axis=0)
+    step_length = np.hypot(step[:, 0], step[:, 1])
+    inside = labels[1:] == labels[:-1]
+    step_labels = labels[1:][inside]
+    steps = np.maximum(n - 1.0, 1.0)
+    lengths = step_length[inside]
+    boundary = _sums(step_labels, lengths, count)
+    mean_step = boundary / steps
+    regularity = np.sqrt(np.maximum(_sums(step_labels, lengths**2, count) / steps - mean_step**2, 0.0))
+
+    # Triples of consecutive points of the same segment: curvature 4 * area / (a b c) and the turn.
+    first, second = step[:-1], step[1:]
+    triple = inside[:-1] & inside[1:]
+    triple_labels = labels[2:][triple]
+    a, b = step_length[:-1][triple], step_length[1:][triple]
+    cross = (first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0])[triple]
+    dot = (first[:, 0] * second[:, 0] + first[:, 1] * second[:, 1])[triple]
+    c = np.hypot(*(first[triple] + second[triple]).T)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        curvature = np.where(a * b * c > 0.0, 2.0 * np.abs(cross) / (a * b * c), 0.0)
+    turn = np.abs(np.arctan2(cross, dot))
+    triples = np.maximum(n - 2.0, 1.0)
+    mean_curvature = _sums(triple_labels, curvature, count) / triples
+    mean_turn = _sums(triple_labels, turn, count) / triples
+
+    first_point, last_point = points[starts], points[ends - 1]
+    width = np.hypot(*(last_point - first_point).T)
+    chord = last_point - first_point
+    middle = points[(starts + ends - 1) // 2] - first_point
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sagitta = np.where(width > 0.0, np.abs(chord[:, 0] * middle[:, 1] - chord[:, 1] * middle[:, 0]) / width, 0.0)
+    distance = np.hypot(centroid[:, 0], centroid[:, 1])
+    return np.column_stack(
+        (n, width, distance, spread, linearity, circularity, radius, boundary, regularity, mean_curvature, mean_turn, sagitta)
+    )

@@ -1,0 +1,115 @@
+"""Static-world rejection: an occupancy grid of the surroundings, accumulated scan by scan in
+the output frame (the odometry frame when tracking a moving robot's log).
+
+Every scan adds a hit to the cells its points fall in and a free count to the known cells its
+beams pass through; a cell hit in most of the scans that saw it, for long enough, is part of the
+static world (furniture legs, wall ends, pillars), and a leg there is not a person. Points near
+a track the detector is sure of (`PersonTracker` decides which) are not added, so a person
+standing still never turns into furniture; a walking leg's cells are soon seen free again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robot_logs.frames import Pose2D
+from robot_logs.records import Scan
+
+
+@dataclass(frozen=True)
+class StaticWorldConfig:
+    """Grid size and the rule for a static cell.
+
+    Attributes:
+        cell: cell side (m).
+        half_size: the grid covers this far from the frame's origin each way (m).
+        min_hits: scans that must have hit a cell before it can be static.
+        min_duration: seconds from a cell's first hit before it can be static (longer than a
+            walking leg stands on the ground).
+        occupied_share: share of the scans that saw a cell which must have hit it.
+        keep_out: points this close to a protected track are not added (m).
+        protect_confidence: tracks whose mean detection confidence reaches this are protected.
+    """
+
+    cell: float = 0.1
+    half_size: float = 40.0
+    min_hits: int = 3
+    min_duration: float = 1.5
+    occupied_share: float = 0.8
+    keep_out: float = 0.4
+    protect_confidence: float = 0.7
+
+
+class StaticWorld:
+    """Hit and free counts per cell; `update` once per scan, `is_static` for positions."""
+
+    def __init__(self, config: StaticWorldConfig = StaticWorldConfig()) -> None:
+        self.config = config
+        self.side = int(np.ceil(2.0 * config.half_size / config.cell))
+        self.hits = np.zeros(self.side * self.side, dtype=np.int32)
+        self.free = np.zeros(self.side * self.side, dtype=np.int32)
+        self.first_hit = np.full(self.side * self.side, np.inf)
+        self.time = -np.inf
+        self._known = np.zeros(0, dtype=np.int64)
+        self._is_known = np.zeros(self.side * self.side, dtype=bool)
+        self._marked = np.zeros(self.side * self.side, dtype=np.int64)
+        self._scans = 0
+
+    def cells(self, points: np.ndarray) -> np.ndarray:
+        """(N,) flat cell index of each point; -1 outside the grid."""
+        index = np.floor((np.asarray(points).reshape(-1, 2) + self.config.half_size) / self.config.cell).astype(np.int64)
+        inside = ((index >= 0) & (index < self.side)).all(axis=1)
+        return np.where(inside, index[:, 0] * self.side + index[:, 1], -1)
+
+    def centres(self, cells: np.ndarray) -> np.ndarray:
+        """(N, 2) centres of flat cell indices."""
+        return (np.column_stack(np.divmod(cells, self.side)) + 0.5) * self.config.cell - self.config.half_size
+
+    def update(self, scan: Scan, points: np.ndarray, sensor_pose: Pose2D, people: np.ndarray) -> None:
+        """Add one scan: `points` are its valid points in the output frame, `people` the
+        protected tracks' positions there (their surroundings are left out)."""
+        points = np.asarray(points).reshape(-1, 2)
+        if len(people) and len(points):
+            near = np.hypot(*(points[:, None, :] - np.asarray(people)[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+            points = points[near > self.config.keep_out]
+        cells = self.cells(points)
+        hit = np.unique(cells[cells >= 0])
+        self._scans += 1
+        self._free_pass(scan, sensor_pose, hit)
+        self.hits[hit] += 1
+        self.time = scan.stamp
+        self.first_hit[hit] = np.minimum(self.first_hit[hit], scan.stamp)
+        new = hit[~self._is_known[hit]]
+        self._is_known[new] = True
+        self._known = np.concatenate((self._known, new))
+
+    def _free_pass(self, scan: Scan, sensor_pose: Pose2D, hit: np.ndarray) -> None:
+        # Cells beside a hit one are not counted free: a beam grazing a wall passes the centre of
+        # a wall cell that this scan's points happened to skip.
+        offsets = (np.arange(-1, 2)[:, None] * self.side + np.arange(-1, 2)[None, :]).ravel()
+        beside = np.clip(hit[:, None] + offsets[None, :], 0, len(self.hits) - 1)
+        self._marked[beside] = self._scans
+        known = self._known[self._marked[self._known] != self._scans]
+        if len(known) == 0:
+            return
+        local = sensor_pose.inverse().apply(self.centres(known))
+        distance = np.hypot(local[:, 0], local[:, 1])
+        beam = np.round((np.arctan2(local[:, 1], local[:, 0]) - scan.angle_min) / scan.angle_increment).astype(np.int64)
+        seen = (beam >= 0) & (beam < len(scan.ranges))
+        ranges = np.where(scan.valid(), scan.ranges, np.where(np.isposinf(scan.ranges), np.inf, np.nan))
+        beyond = np.full(len(known), np.nan)
+        beyond[seen] = ranges[beam[seen]]
+        with np.errstate(invalid="ignore"):
+            passed = seen & (beyond > distance + 2.0 * self.config.cell)
+        self.free[known[passed]] += 1
+
+    def is_static(self, positions: np.ndarray) -> np.ndarray:
+        """(N,) True where a position's cell is part of the static world."""
+        cells = self.cells(positions)
+        inside = cells >= 0
+        cells = np.maximum(cells, 0)
+        hits, free = self.hits[cells], self.free[cells]
+        old = self.time - self.first_hit[cells] >= self.config.min_duration
+        return inside & old & (hits >= self.config.min_hits) & (hits >= self.config.occupied_share * (hits + free))

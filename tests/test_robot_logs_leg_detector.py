@@ -1,0 +1,133 @@
+"""The learned leg detector: segment features on hand-made shapes, the tree arrays against
+scikit-learn, the detector file (format version, training record), and `train-detector`'s bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robot_logs.errors import LogError
+from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_gradient_boosting, shipped_detector
+from robot_logs.segment_features import FEATURE_NAMES, MAX_RADIUS, segment_features
+from trials.cli import main
+
+COLUMN = {name: k for k, name in enumerate(FEATURE_NAMES)}
+
+
+def arc(centre: tuple[float, float], radius: float, points: int) -> np.ndarray:
+    """The near half of a circle as a sensor at the origin sees it (a leg at `centre`)."""
+    facing = math.atan2(-centre[1], -centre[0])
+    angles = np.linspace(facing - math.pi / 2 + 0.2, facing + math.pi / 2 - 0.2, points)
+    return np.column_stack((centre[0] + radius * np.cos(angles), centre[1] + radius * np.sin(angles)))
+
+
+def test_features_of_a_circle_arc_and_a_line() -> None:
+    circle = arc((2.0, 0.5), 0.07, 12)
+    line = np.column_stack((np.full(10, 3.0), np.linspace(-1.0, -0.5, 10)))
+    features = segment_features(np.vstack((circle, line)), np.array([0, 12]))
+    leg, wall = features[:, :].tolist()
+    assert leg[COLUMN["points"]] == 12 and wall[COLUMN["points"]] == 10
+    assert leg[COLUMN["radius"]] == pytest.approx(0.07, abs=1e-9)
+    assert leg[COLUMN["circularity"]] == pytest.approx(0.0, abs=1e-9)
+    assert leg[COLUMN["mean_curvature"]] == pytest.approx(1 / 0.07, rel=1e-6)  # three points on a circle: 1 / r
+    assert leg[COLUMN["linearity"]] > 0.01
+    assert wall[COLUMN["width"]] == pytest.approx(0.5)
+    assert wall[COLUMN["boundary_length"]] == pytest.approx(0.5)
+    assert wall[COLUMN["linearity"]] == pytest.approx(0.0, abs=1e-12)
+    assert wall[COLUMN["radius"]] == MAX_RADIUS  # a straight line fits no finite circle
+    assert wall[COLUMN["mean_curvature"]] == wall[COLUMN["sagitta"]] == 0.0
+    assert wall[COLUMN["boundary_regularity"]] == pytest.approx(0.0, abs=1e-9)  # evenly spaced
+    assert leg[COLUMN["neighbour_distance"]] == pytest.approx(np.hypot(*(circle.mean(0) - line.mean(0))))
+    assert leg[COLUMN["distance"]] == pytest.approx(np.hypot(*circle.mean(0)))
+
+
+def test_features_are_computed_per_segment_regardless_of_their_neighbours() -> None:
+    circle = arc((2.0, 0.5), 0.07, 12)
+    alone = segment_features(circle, np.array([0]))[0]
+    together = segment_features(np.vstack((circle, circle + [0.0, 2.0])), np.array([0, 12]))[0]
+    shape = [COLUMN[n] for n in FEATURE_NAMES if n not in ("neighbour_distance", "foreground")]
+    assert together[shape] == pytest.approx(alone[shape])
+
+
+@pytest.fixture(scope="module")
+def small_model():
+    from sklearn.ensemble import GradientBoostingClassifier
+
+    rng = np.random.default_rng(3)
+    features = rng.normal(size=(400, len(FEATURE_NAMES)))
+    labels = features[:, 0] + 0.5 * features[:, 3] ** 2 > 0.3
+    model = GradientBoostingClassifier(n_estimators=20, max_depth=3, random_state=0).fit(features, labels)
+    return model, rng.normal(size=(300, len(FEATURE_NAMES)))
+
+
+def test_tree_arrays_predict_what_scikit_learn_predicts(small_model, tmp_path: Path) -> None:
+    model, probe = small_model
+    classifier = from_gradient_boosting(model, (0.4, 0.5, 0.6), {"note": "test"})
+    expected = model.predict_proba(probe)[:, 1]
+    assert classifier.probability(probe) == pytest.approx(expected, abs=1e-9)
+    classifier.save(tmp_path / "d.npz")
+    loaded = LegClassifier.load(tmp_path / "d.npz")
+    assert loaded.probability(probe) == pytest.approx(expected, abs=1e-9)
+    assert (loaded.threshold, loaded.confirm, loaded.protect) == (0.4, 0.5, 0.6) and loaded.record == {"note": "test"}
+
+
+def test_a_detector_of_another_format_is_one_error_line(small_model, tmp_path: Path, capsys, robot_logs_dir: Path) -> None:
+    model, _ = small_model
+    path = tmp_path / "old.npz"
+    from_gradient_boosting(model, (0.5, 0.6, 0.7), {}).save(path)
+    with np.load(path) as stored:
+        arrays = dict(stored)
+    header = json.loads(str(arrays["header"]))
+    arrays["header"] = np.array(json.dumps({**header, "format": FORMAT_VERSION + 1}))
+    np.savez(path, **arrays)
+    with pytest.raises(LogError, match=f"detector format {FORMAT_VERSION + 1}, but this version reads format {FORMAT_VERSION}"):
+        LegClassifier.load(path)
+    out = tmp_path / "tracks.csv"
+    code = main(["log", "track", str(robot_logs_dir / "stationary_ros1.bag"), "--detector", str(path), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("error: ") and str(path) in err[0]
+    assert not out.exists()
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(LogError, match="not a leg detector file"):
+        LegClassifier.load(tmp_path / "junk.npz")
+
+
+def test_the_shipped_detector_carries_its_training_record() -> None:
+    detector = shipped_detector()
+    record = detector.record
+    assert record["format"] == FORMAT_VERSION and record["features"] == list(FEATURE_NAMES)
+    files = {log["file"]: log for log in record["logs"]}
+    assert set(files) == {"legs_labelled_ros1.bag", "negative_2.bag"} | {
+        f"positive_{k}_extracted.bag" for k in (2, 3, 4, 6, 7)}
+    assert sum(log["scans"] for log in record["logs"] if log["kind"] == "labelled") == 1204
+    assert files["negative_2.bag"]["kind"] == "nobody present" and files["negative_2.bag"]["scans"] == 1304
+    assert record["legs"] == 1825 and record["settings"]["seed"] == 0
+    assert set(record["cross_validation"]) == {"time blocks", "logs"}
+    assert record["cross_validation"]["time blocks"]["recall"] >= record["settings"]["recall"]
+    assert 0.0 < detector.threshold < detector.confirm < detector.protect < 1.0
+    assert (detector.threshold, detector.confirm, detector.protect) == (record["threshold"], record["confirm"], record["protect"])
+
+
+def test_train_detector_refuses_a_log_without_labels(robot_logs_dir: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "detector.npz"
+    code = main(["log", "train-detector", str(robot_logs_dir / "stationary_ros1.bag"), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert err[0].startswith("error: ") and "stationary_ros1.bag has no PoseArray topic" in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_train_detector_learns_legs_from_one_labelled_log(robot_logs_dir: Path, tmp_path: Path, capsys) -> None:
+    from robot_logs.leg_training import TrainingSettings, collect, held_out_probability, scores
+
+    data = collect([robot_logs_dir / "legs_labelled_ros1.bag"])
+    assert int(data.is_leg.sum()) == 317  # 317 of the 324 labelled legs lie on a segment centroid
+    settings = TrainingSettings(trees=30, folds=3)
+    probability = held_out_probability(data, "time", settings)
+    score = scores(data.is_leg, probability, 0.5)
+    assert score.precision > 0.5 and score.recall > 0.3  # far better than the 0.06 share of legs by chance
