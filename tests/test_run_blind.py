@@ -34,7 +34,7 @@ def blind_run(tmp_path_factory):
     run = trials("run", "--blind", "--workers", "2", "--study", str(study), "--wall-clock")
     one_per_arm = {row["Controller"]: row["run_code"] for row in _plan(study)}
     shows = [trials("log", "show", code, "--study", str(study)) for code in one_per_arm.values()]
-    rerun = trials("run", "--rerun", *reversed(one_per_arm.values()), "--workers", "2", "--json", "--study", str(study))
+    rerun = trials("run", "--rerun", *reversed(one_per_arm.values()), "--workers", "2", "--json", "--wall-clock", "--study", str(study))
     return study, [run, *shows, rerun, trials("status", "--study", str(study)), trials("status", "--json", "--study", str(study))]
 
 

@@ -175,7 +175,7 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
                         "snr": spec.snr, "anticipated": dict(spec.anticipated)},
     }
     if request.campaigns:
-        settings["closed_loop"] = {"campaigns": request.campaigns, "controllers": list(controllers), **options.settings.recorded(),
+        settings["closed_loop"] = {"campaigns": request.campaigns, "controllers": list(controllers), **asdict(options.settings),
                                    "participants": request.participants,
                                    "settings_digest": settings_digest(seed, plans, controllers, options, request.participants)}
     model_verdicts = _model_based(plans, spec, anticipated, seed, request.simulations)
