@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -16,6 +17,9 @@ from trials.errors import USER_ERRORS
 COMMANDS: tuple[str, ...] = ("design", "run", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report", "serve")
 
 EXIT_USAGE = 2
+#: Threads numpy's OpenBLAS starts with unless the user sets OPENBLAS_NUM_THREADS: the matrices the commands
+#: multiply are small (a design's X'X, a tracker's covariances), where more threads only cost start-up and spinning.
+BLAS_THREADS = "1"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -41,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `trials` command; returns the process exit code."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS)  # read once, when numpy is first imported below
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, or a usage error already printed as one line
