@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -17,6 +18,9 @@ from trials.errors import USER_ERRORS
 COMMANDS: tuple[str, ...] = ("design", "run", "status", "log", "lattice", "train", "evaluate", "playback", "score", "respond", "report", "serve", "power")
 
 EXIT_USAGE = 2
+#: Threads numpy's OpenBLAS starts with unless the user sets OPENBLAS_NUM_THREADS: the matrices the commands
+#: multiply are small (a design's X'X, a tracker's covariances), where more threads only cost start-up and spinning.
+BLAS_THREADS = "1"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -69,6 +73,7 @@ def _name_usage_parsers(parser: argparse.ArgumentParser) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `trials` command; returns the process exit code."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS)  # read once, when numpy is first imported below
     try:
         args, extras = build_parser().parse_known_args(argv)
         if extras:
