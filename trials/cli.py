@@ -88,8 +88,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"error: {message}\n")
         return EXIT_USAGE
     except BrokenPipeError:  # the reader went away (`| head`): the rest of the output is not wanted
-        import os
-
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except KeyboardInterrupt:
