@@ -148,8 +148,6 @@ def test_the_ab_plans_lattice_runs_reach_the_goal_over_20_seeds(tmp_path, capsys
         pool.ready()
         statuses = dict(pool.run(tasks))
     assert len(statuses) == 180
-    # None stands until the timeout (the freeze this guards against). Under the 53-bit run seeds of
-    # issue 26 one run collides: ab-15's UHTWP (6 pedestrians walking toward the robot; it meets
-    # one at 5.9 s), a lattice weakness those seeds expose, not a freeze.
+    # None stands until the timeout (the freeze this guards against), and none collides.
     others = {(Path(root).name, code): status for (root, code), status in statuses.items() if status != "goal"}
-    assert others == {("ab-15", "UHTWP"): "collision"}
+    assert others == {}
