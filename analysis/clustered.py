@@ -58,7 +58,7 @@ def fit_gee(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respons
     notes += sorted({f"statsmodels: {w.message}" for w in caught})
     beta = np.asarray(result.params)
     covariance = np.asarray(result.cov_params())
-    if not np.all(np.isfinite(beta)) or not np.all(np.isfinite(np.diag(covariance))):
+    if not np.all(np.isfinite(beta)) or not np.all(np.isfinite(np.diag(covariance))) or np.any(np.diag(covariance) < 0):
         notes.append("The GEE fit did not converge to finite estimates on these judgments; read the run-level shares instead.")
         return empty
     se = np.sqrt(np.diag(covariance))
