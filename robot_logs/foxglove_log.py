@@ -152,6 +152,11 @@ def scene_update(entities: Iterable[Message], delete_all_before_ns: int | None =
     return {"deletions": deletions, "entities": list(entities)}
 
 
+def partial_path(path: Path) -> Path:
+    """Where a log is written until it is finished: a hidden file beside its final name."""
+    return path.with_name(f".{path.name}.partial")
+
+
 class FoxgloveWriter:
     """Writes an MCAP file of JSON messages; the file gets its name only when closed.
 
@@ -168,7 +173,7 @@ class FoxgloveWriter:
                  schemas: Mapping[str, Schema] | None = None) -> None:
         self.path = Path(path)
         self._definitions = dict(schemas or {})
-        self.partial = self.path.with_name(f".{self.path.name}.partial")
+        self.partial = partial_path(self.path)
         self._stream: BinaryIO = self.partial.open("wb")
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="navtrials robot_logs")

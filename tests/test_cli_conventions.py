@@ -20,6 +20,7 @@ from trials import progress
 from trials.cli import main
 from trials.commands.run import run_line
 from trials.outcomes import columns, read_outcomes
+from trials.run_events import RunEvent, append_run_event
 from trials.run_settings import RunSettings, differences, read_run_settings, setting_names
 from trials.runner import SEED_BITS, run_seed
 from trials.study import StudyFolder
@@ -179,6 +180,18 @@ def test_status_tells_failed_aborted_stale_and_held(study, capsys):
     text = capsys.readouterr().out
     assert "a `trials run` is running on the study (pid 4242)" in text and "1 running" in text
     assert third not in text
+
+
+def test_status_counts_the_field_days_started_and_aborted_runs(study, capsys):
+    """What the console records (`run_events.csv`) shows in `trials status` before any log is played."""
+    folder = StudyFolder(study)
+    first, second = plan_codes(study)[:2]
+    for code, event, detail in ((first, "start", ""), (second, "start", ""), (second, "abort", "a visitor crossed the course")):
+        append_run_event(folder, RunEvent(code, event, detail, "2026-12-02T09:00:00+00:00"))
+    assert main(["status", "--study", str(study), "--json"]) == 0
+    status = json.loads(capsys.readouterr().out)
+    assert status["aborted"] == [second]
+    assert sum(a["running"] for a in status["arms"].values()) == 1 and sum(a["pending"] for a in status["arms"].values()) == 4
 
 
 def test_status_of_a_blinded_study_counts_arm_labels_without_opening_the_key(tmp_path, monkeypatch, capsys):

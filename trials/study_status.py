@@ -11,12 +11,14 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from analysis.records import HUMAN, SIMULATED
+from robot_logs.foxglove_log import partial_path
 from trials.outcomes import STATUSES, outcome_cells, read_outcomes
 from trials.responses import read_responses
+from trials.run_events import ABORTED, RUNNING, read_run_events, statuses
 from trials.run_settings import RunSettings, distinct, read_run_settings, setting_names
 from trials.runner import LockState, lock_state
 from trials.scores import read_scores
-from trials.study import OUTCOMES, REPORT_RECORD, RESPONSES, SCORES, SPEC, StudyFolder
+from trials.study import OUTCOMES, REPORT_RECORD, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
 from trials.study_data import CONTROLLER_FACTOR, read_unblinding
 
 #: The group of runs of a study that compares no controllers.
@@ -90,6 +92,8 @@ def study_status(folder: StudyFolder) -> StudyStatus:
     arms: dict[str, ArmCounts] = {}
     failed: dict[str, str] = {}
     aborted: list[str] = []
+    # the field day's record (`trials serve`): a run started, or aborted with a reason, before its log was played
+    day = statuses([row["run_code"] for row in plan], read_run_events(folder.path(RUN_EVENTS)), outcomes)
     for row in plan:
         code = row["run_code"]
         counts = arms.setdefault(row[factor] if factor else ALL_RUNS, ArmCounts())
@@ -99,12 +103,11 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         elif folder.run_failure(code).exists():
             counts.failed += 1
             failed[code] = folder.run_failure(code).read_text(encoding="utf-8").strip()
-        elif _partial(folder, code).exists():
-            if lock.held:
-                counts.running += 1
-            else:
-                counts.aborted += 1
-                aborted.append(code)
+        elif day[code] == ABORTED or (partial_path(folder.run_log(code)).exists() and not lock.held):
+            counts.aborted += 1
+            aborted.append(code)
+        elif day[code] == RUNNING or partial_path(folder.run_log(code)).exists():
+            counts.running += 1
         else:
             counts.pending += 1
     responses = read_responses(folder.path(RESPONSES))
@@ -119,12 +122,6 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         settings=read_run_settings(folder.path(SPEC)),
         recorded_settings=distinct(outcome_cells(o) for o in outcomes.values()),
     )
-
-
-def _partial(folder: StudyFolder, code: str) -> Any:
-    """The hidden partial log an interrupted run leaves (`robot_logs.foxglove_log.FoxgloveWriter`)."""
-    log = folder.run_log(code)
-    return log.with_name(f".{log.name}.partial")
 
 
 def _report_state(folder: StudyFolder) -> str:
