@@ -115,18 +115,20 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
     participants, each in their own browser, answer both runs' questionnaires (P01 and P02 say yes to
     the first run, P03 no; all no to the second). Returns the source of every page seen; with `shots`,
     saves screenshots of the main pages there."""
+    from selenium.common.exceptions import WebDriverException
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.support import expected_conditions
     from selenium.webdriver.support.ui import WebDriverWait
 
     pages: list[str] = []
 
     def go(driver, by: str, value: str) -> None:
-        """Click what opens or submits a page, and wait until the next page has replaced this one."""
-        old = driver.find_element(By.TAG_NAME, "html")
+        """Click what opens or submits a page, and wait until the next page has replaced this one: a mark set
+        on this page's window is gone once a new document has loaded. (Waiting for an old element to go
+        stale races Chromium's inspector, which may answer that its node left the document.)"""
+        driver.execute_script("window.leavingThisPage = true")
         driver.find_element(by, value).click()
-        WebDriverWait(driver, 120).until(expected_conditions.staleness_of(old))
-        WebDriverWait(driver, 30).until(lambda d: d.execute_script("return document.readyState") == "complete")
+        WebDriverWait(driver, 120, ignored_exceptions=(WebDriverException,)).until(
+            lambda d: d.execute_script("return window.leavingThisPage === undefined && document.readyState === 'complete'"))
 
     def seen(driver, name: str | None = None) -> None:
         pages.append(driver.title + "\n" + driver.current_url + "\n" + driver.page_source)
