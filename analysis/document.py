@@ -13,7 +13,7 @@ import io
 import re
 from dataclasses import dataclass, field
 
-from analysis.figure_files import Rendered
+from robot_logs.figure_files import Rendered
 
 
 @dataclass(frozen=True)

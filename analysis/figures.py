@@ -1,5 +1,5 @@
 """Figures shared by `trials design` and `trials report`, drawn off-screen with matplotlib's object API and
-saved through `analysis.figure_files`."""
+saved through `robot_logs.figure_files`."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from analysis.figure_files import Rendered, quiet_glyphs
+from robot_logs.figure_files import Rendered, quiet_glyphs
 
 #: Panels a row in the report's trajectory figure.
 TRAJECTORY_COLUMNS = 4

@@ -15,9 +15,9 @@ import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.container import ErrorbarContainer
 
-from analysis.figure_files import FORMATS, figure_bytes
 from analysis.figures import min_distance_figure, score_distribution_figure, trajectories_figure
 from analysis.intervals import wilson
+from robot_logs.figure_files import FORMATS, figure_bytes
 from robot_logs.run_log import LoggedRun
 from tests.support.scripts import load_script
 from trials.run_figure import MARK_EVERY_S, ROBOT_COLOUR, mark_indices, run_figure

@@ -9,6 +9,7 @@ import json
 import shutil
 from pathlib import Path
 
+import matplotlib.image as mpimg
 import pytest
 import torch
 
@@ -140,6 +141,25 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     assert sorted(p.name for p in (out / "episodes" / "zara1").iterdir()) == ["navigan-r-shield.json", "navigan-r.json"]
 
 
+def test_figures_are_png_at_the_dpi_asked_and_svg_that_a_redraw_keeps_byte_for_byte(eth_ucy_dir, tmp_path):
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r,human", "--dpi", "200") == 0
+    figures = out / "figures"
+    names = {"fig4_zara1", "forces_zara1", "min_distance"}
+    assert {p.name for p in figures.iterdir()} == {n + s for n in names for s in (".png", ".svg")}
+    fine = {n: mpimg.imread(figures / f"{n}.png").shape[:2] for n in names}
+    svgs = {n: (figures / f"{n}.svg").read_bytes() for n in names}
+    assert all(s.startswith(b"<?xml") and b"<svg" in s and b"<dc:date>" not in s for s in svgs.values())
+    stored = (out / "episodes" / "zara1" / "navigan-r.json").read_bytes()
+    # the default resolution redraws the figures from the stored results: the dpi is not a setting of the scores
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r,human") == 0
+    assert (out / "episodes" / "zara1" / "navigan-r.json").read_bytes() == stored
+    for n in names:
+        assert (figures / f"{n}.svg").read_bytes() == svgs[n], n
+        height, width = mpimg.imread(figures / f"{n}.png").shape[:2]
+        assert fine[n] == pytest.approx((2 * height, 2 * width), rel=0.01), n  # cropped to the drawing: within a few pixels
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -152,6 +172,7 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
          "--subgoal-speed: expected 'recorded' or a speed >= 0 in m/s, got '-1'"),
         (["--models", "human", "--subgoal-speed", "fast"], "--subgoal-speed: expected 'recorded'"),
         (["--models", "human", "--shield", "0"], "argument --shield: expected a finite number in (0, 10], got '0'"),
+        (["--models", "human", "--dpi", "20"], "argument --dpi: expected a whole number from 50 to 1200, got '20'"),
     ],
 )
 def test_bad_requests_fail_in_one_line(eth_ucy_dir, tmp_path, capsys, args, message):

@@ -40,7 +40,7 @@ seed = whole(0, SEED_MAX)
 
 def add_dpi(parser: argparse.ArgumentParser) -> None:
     """The --dpi option of a command that saves figures (PNG resolution; the SVG beside each has none)."""
-    from analysis.figure_files import DEFAULT_DPI, MAX_DPI, MIN_DPI
+    from robot_logs.figure_files import DEFAULT_DPI, MAX_DPI, MIN_DPI
 
     parser.add_argument("--dpi", type=whole(MIN_DPI, MAX_DPI), default=DEFAULT_DPI, metavar="N",
                         help=f"resolution of the PNG figures, dots per inch (default {DEFAULT_DPI}); each is also written as SVG")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.figure_files import Rendered
+from robot_logs.figure_files import Rendered
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
 from robot_logs.run_log import LoggedRun
 from trials.sim.robot import RobotLimits

@@ -24,11 +24,11 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from analysis.figure_files import FORMATS
 from designs import export
 from designs.blinding import SealedAllocation, verify
 from designs.errors import DesignError
 from designs.spec import LOG_COLUMN
+from robot_logs.figure_files import FORMATS
 from trials.csv_table import read_rows, table_text
 from trials.errors import StudyError
 

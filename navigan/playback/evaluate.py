@@ -5,7 +5,7 @@
     OUT/table1.md, OUT/table1.csv      Table I pooled over the splits and averaged over them, each
                                        beside the paper's with 95 % intervals, then per split
     OUT/episodes.csv                   every episode's scores, one row per split, model and episode
-    OUT/figures/                       fig4_<split>.png, forces_<split>.png, min_distance.png
+    OUT/figures/                       fig4_<split>, forces_<split>, min_distance: each as .png (at `dpi`) and .svg
 
 A (split, model) whose file exists is not walked again; an interrupted run picks up where it was.
 A file made with other settings, weights or data is an error, never silently reused or replaced.
@@ -47,6 +47,7 @@ from navigan.playback.table import (
     episodes_csv,
     summarize,
 )
+from robot_logs.figure_files import DEFAULT_DPI, Rendered
 
 MODELS: tuple[str, ...] = tuple(COLUMNS)
 HUMAN = "human"
@@ -158,14 +159,15 @@ def _digest(path: Path) -> str:
 
 @dataclass
 class Playback:
-    """An evaluation writing into `out`, with checkpoints from `checkpoints`, data under `data`, and
-    the paper's values from the transcription `paper`."""
+    """An evaluation writing into `out`, with checkpoints from `checkpoints`, data under `data`, the
+    paper's values from the transcription `paper`, and PNG figures at `dpi` (the scores do not depend on it)."""
 
     data: Path
     out: Path
     checkpoints: Path = ckpt.WEIGHTS_DIR
     settings: Settings = field(default_factory=Settings)
     paper: Path = PAPER_FILE
+    dpi: int = DEFAULT_DPI
 
     def result_file(self, split: str, model: str) -> Path:
         return self.out / "episodes" / split / f"{model}.json"
@@ -289,8 +291,8 @@ class Playback:
         folder = self.out / "figures"
         closest = {COLUMNS[m]: [np.inf if r["min_distance"] is None else r["min_distance"]
                                 for s in splits for r in results[s, m]["results"]] for m in models}
-        write_atomic(folder / "min_distance.png",
-                     figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)})"))
+        self.save_figure(folder / "min_distance",
+                         figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)})"))
         model = next((m for m in FIGURE_MODELS if any(base_model(c) == m for c in models)), None)
         if model is None:
             return
@@ -305,11 +307,16 @@ class Playback:
             intention = roll_out(Policy.load(path, dagger=True, seed=self.settings.seed), one, subgoal_speed=speed)
             n = int(walked.steps[0])
             label = f"{COLUMNS[model]} ({path.name}) on {split}, episode {one.ids[0]}"
-            write_atomic(folder / f"fig4_{split}.png",
-                         figures.plot_paths(one, 0, walked.path(0), intention.path(0), walked.plans[0, :n, 2, 0],
-                                            label))
-            write_atomic(folder / f"forces_{split}.png",
-                         figures.plot_forces(one, 0, walked.path(0), walked.plans[0, :n], label))
+            self.save_figure(folder / f"fig4_{split}",
+                             figures.plot_paths(one, 0, walked.path(0), intention.path(0), walked.plans[0, :n, 2, 0],
+                                                label))
+            self.save_figure(folder / f"forces_{split}",
+                             figures.plot_forces(one, 0, walked.path(0), walked.plans[0, :n], label))
+
+    def save_figure(self, stem: Path, figure: Rendered) -> None:
+        """stem.png at the evaluation's dpi and stem.svg, each written whole."""
+        for path, data in figure.files(stem, self.dpi).items():
+            write_atomic(path, data)
 
 
 def choose_episode(full: list[dict[str, Any]], dagger: list[dict[str, Any]]) -> int:

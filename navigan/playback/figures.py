@@ -1,4 +1,5 @@
-"""Figures of the playback evaluation, as PNG bytes (matplotlib's object API: no pyplot state).
+"""Figures of the playback evaluation, drawn once and saved as PNG and SVG by `robot_logs.figure_files`
+(matplotlib's object API: no pyplot state).
 
 - the paper's Fig. 4: one episode's full-model path and its intention-only (dagger) path over the
   other agents' footprints, with the observation, the recorded path and the goal;
@@ -8,7 +9,6 @@
 
 from __future__ import annotations
 
-import io
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -17,6 +17,7 @@ from matplotlib.patches import Circle
 
 from navigan.playback.episodes import GOAL_RADIUS, Episodes
 from navigan.playback.metrics import DISCOMFORT_DISTANCE, step_distances
+from robot_logs.figure_files import Rendered
 from robot_logs.physical import STEP_S
 
 #: Fig. 4 shows the footprints of the agents that come this close (m) to either walked path.
@@ -25,14 +26,8 @@ NEAR = 2.0
 MARGIN = 0.75
 
 
-def _png(figure: Figure) -> bytes:
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=130, bbox_inches="tight")  # cropped to what is drawn
-    return buffer.getvalue()
-
-
 def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray, forces: np.ndarray,
-               title: str) -> bytes:
+               title: str) -> Rendered:
     """Fig. 4: the walked paths of episode `e` and each step's social force as an arrow.
 
     Args:
@@ -75,10 +70,10 @@ def plot_paths(episodes: Episodes, e: int, full: np.ndarray, dagger: np.ndarray,
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
     figure.tight_layout()
-    return _png(figure)
+    return Rendered(figure)
 
 
-def plot_forces(episodes: Episodes, e: int, path: np.ndarray, plans: np.ndarray, title: str) -> bytes:
+def plot_forces(episodes: Episodes, e: int, path: np.ndarray, plans: np.ndarray, title: str) -> Rendered:
     """Per step of the full path: the intention's and the social force's pull, and the closest approach.
 
     Args:
@@ -105,10 +100,10 @@ def plot_forces(episodes: Episodes, e: int, path: np.ndarray, plans: np.ndarray,
     bottom.set_xlabel("time since the last observation (s)")
     bottom.legend(fontsize=7)
     figure.tight_layout()
-    return _png(figure)
+    return Rendered(figure)
 
 
-def plot_min_distances(closest: Mapping[str, Sequence[float]], title: str) -> bytes:
+def plot_min_distances(closest: Mapping[str, Sequence[float]], title: str) -> Rendered:
     """Box plots of each column's per-episode closest approach (episodes alone are left out)."""
     labels = list(closest)
     data = [[d for d in closest[k] if np.isfinite(d)] or [np.nan] for k in labels]
@@ -123,4 +118,4 @@ def plot_min_distances(closest: Mapping[str, Sequence[float]], title: str) -> by
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7)
     figure.tight_layout()
-    return _png(figure)
+    return Rendered(figure)

@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Each model walks as a recorded pedestrian of each split's test scene toward where that "
             "pedestrian was 14.4 s later, among the others as recorded; it is scored for social score S, "
             "comfort rate C, arrival rate A and path measures. Writes OUT/table1.md, table1.csv, "
-            "episodes.csv, episodes/<split>/<model>.json and figures/. An interrupted run resumes."
+            "episodes.csv, episodes/<split>/<model>.json and figures/ (PNG and SVG). An interrupted run resumes."
         ),
     )
     parser.add_argument("--split", default="all", help=f"{SPLIT_CHOICES} (default all: the five splits)")
@@ -65,6 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=types.seed, default=0, help="seed of the fluctuation noise (default 0)")
     parser.add_argument("--episodes", type=types.whole(1), metavar="N",
                         help="only the first N episodes of each split (a quick look)")
+    types.add_dpi(parser)
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), default=1,
                         help="CPU threads for torch (default 1: small batches; more threads thrash on a busy machine)")
     add_quiet(parser)
@@ -121,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         data=data_dir(args.data), out=out, checkpoints=checkpoints,
         settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
                           speed, args.shield, args.protocol),
-        paper=args.paper or PAPER_FILE,
+        paper=args.paper or PAPER_FILE, dpi=args.dpi,
     )
     def walked(n: int, total: int, split: str, column: str) -> None:
         print(numbered(n, total, f"{split} {column}: walked, stored in {out / 'episodes' / split}"), flush=True)

@@ -2,6 +2,8 @@
 SVG (for print and editing), off-screen, cropped to what is drawn, byte for byte the same for the same figure.
 
 matplotlib is imported only when a figure is saved, so a command can name `DEFAULT_DPI` in its --help cheaply.
+Like `physical`, this module imports nothing of the project: every package saves its figures here (the
+dependency rule in docs/architecture.md), NaviGAN's playback figures as well as the report's.
 """
 
 from __future__ import annotations
