@@ -3,7 +3,7 @@
 Reading: `reader.LogReader` (one interface over every format) on `sources` (the formats and
 layouts), `bag_metadata` (ROS2 bag folders) and `decoding` (definitions and encodings); `topics`
 (choice by type), `convert` (messages to `records`), `summary` (`trials log inspect`). Perception: `detection`, `tracking`, `pipeline`
-(`PersonTracker`), `log_tracking` (a whole log), `tracks` (CSV, `history_at`). Simulation:
+(`PersonTracker`), `static_world` and `occupancy_map` (ROS map_server maps), `log_tracking` (a whole log), `tracks` (CSV, `history_at`). Simulation:
 `lidar_sim`. Writing: `foxglove_log` (MCAP run logs for Foxglove), `track_mcap`. Times are header
 stamps throughout (see `reader`). Writing bags, synthetic walkers and scoring against ground truth
 are test helpers (tests/support).

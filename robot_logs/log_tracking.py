@@ -3,6 +3,11 @@
 For the odometry frame, the robot's odometry and the tf transforms are read first; each scan
 is then placed by the pose of its frame in the odometry frame at the scan's header stamp
 (odometry gives odom -> base, tf gives base -> laser; both interpolated in time).
+
+A ROS map (`occupancy_map`) is placed the same way: at each scan, the pose of the tracking frame
+(the odometry frame, or the scan's own) in the map's frame is looked up in the same tree, where a
+localiser's map -> odom transform on /tf (or /tf_static) links the two; a map drawn in the odometry
+frame itself needs none. Legs on its occupied cells are static (`static_world.StaticWorld.known_static`).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from typing import Literal
 from robot_logs.convert import to_odometry, to_scan, to_transforms
 from robot_logs.errors import LogError
 from robot_logs.frames import FrameTree, Pose2D
+from robot_logs.occupancy_map import OccupancyMap
 from robot_logs.pipeline import PersonTracker, ScanResult
 from robot_logs.reader import LogReader
 from robot_logs.records import Scan, seconds
@@ -67,10 +73,13 @@ class LogTracking:
         topics: topic names that override the choice by type.
         tracker: detection and tracking (default: `PersonTracker.learned()`, the shipped leg
             classifier with static-world rejection).
+        occupancy: a map whose occupied cells are static (needs odometry, in either frame); a scan
+            whose tracking frame has no pose in the map's frame then is tracked without it and
+            counted in `unmapped`.
 
     Raises:
         LogError: a needed topic is missing (the message lists the topics there are), or the
-            scan frame is not connected to the odometry frame by tf.
+            scan frame or the map's frame is not connected to the odometry frame by tf.
     """
 
     def __init__(
@@ -79,17 +88,29 @@ class LogTracking:
         frame: Frame = "sensor",
         topics: TopicNames = TopicNames(),
         tracker: PersonTracker | None = None,
+        occupancy: OccupancyMap | None = None,
     ) -> None:
         self.log = log
         self.frame = frame
         self.scan_topic = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic")
         self.tree: FrameTree | None = None
         self.output_frame: str | None = None
-        if frame == "odom":
+        tree = odometry_frame = None
+        if frame == "odom" or occupancy is not None:
             odometry = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
-            self.tree, self.output_frame = read_frame_tree(log, odometry.name)
+            tree, odometry_frame = read_frame_tree(log, odometry.name)
+        if frame == "odom":
+            self.tree, self.output_frame = tree, odometry_frame
         self._tracker = tracker if tracker is not None else PersonTracker.learned()
+        self.occupancy = occupancy
+        self._map_tree = tree
+        if occupancy is not None:
+            if self._tracker.world is None:
+                raise ValueError("a map needs a tracker with static-world rejection")
+            assert odometry_frame is not None
+            self._map_pose(odometry_frame, 0)  # the map's frame must be reachable from the odometry frame
         self.skipped = 0
+        self.unmapped = 0
 
     def _sensor_pose(self, scan: Scan) -> Pose2D | None:
         if self.tree is None:
@@ -100,6 +121,23 @@ class LogTracking:
         except LogError as exc:
             raise LogError(f"{self.log.path}: {exc}") from None
 
+    def _map_pose(self, frame: str, stamp_ns: int) -> Pose2D | None:
+        """The pose of `frame` in the map's frame at a time; None when tf does not say then."""
+        assert self.occupancy is not None and self._map_tree is not None
+        try:
+            return self._map_tree.lookup(self.occupancy.frame, frame, stamp_ns)
+        except LogError as exc:
+            raise LogError(f"{self.log.path}: {exc}: the map {self.occupancy.source} is in frame {self.occupancy.frame!r}; "
+                           "name the frame it is drawn in (--map-frame), or record the localiser's transform") from None
+
+    def _place_map(self, scan: Scan) -> None:
+        world = self._tracker.world
+        if self.occupancy is None or world is None:
+            return
+        pose = self._map_pose(self.output_frame or scan.frame_id, scan.stamp_ns)
+        self.unmapped += pose is None
+        world.known_static = None if pose is None else self.occupancy.placed(pose)
+
     def __iter__(self) -> Iterator[tuple[Scan, ScanResult]]:
         seen, last_stamp = 0, 0
         for index, scan in enumerate(read_scans(self.log, self.scan_topic.name)):
@@ -108,6 +146,7 @@ class LogTracking:
             if pose is None:
                 self.skipped += 1
                 continue
+            self._place_map(scan)
             yield scan, self._tracker.process(scan, pose, self.output_frame, index)
         if self.tree is not None and seen and self.skipped == seen:
             raise LogError(
@@ -130,10 +169,11 @@ def track_log(
     topics: TopicNames = TopicNames(),
     tracker: PersonTracker | None = None,
     salvage: bool = False,
+    occupancy: OccupancyMap | None = None,
 ) -> TrackTable:
     """All tracks of a log file, one row per confirmed track per scan (`tracker`: detection and
-    tracking, default `PersonTracker.learned()`)."""
+    tracking, default `PersonTracker.learned()`; `occupancy`: a map whose occupied cells are static)."""
     with LogReader(path, salvage=salvage) as log:
-        tracking = LogTracking(log, frame, topics, tracker)
+        tracking = LogTracking(log, frame, topics, tracker, occupancy)
         rows = [row for _, result in tracking for row in result_rows(result)]
     return TrackTable(rows)

@@ -6,16 +6,23 @@ beams pass through; a cell hit in most of the scans that saw it, for long enough
 static world (furniture legs, wall ends, pillars), and a leg there is not a person. Points near
 a track the detector is sure of (`PersonTracker` decides which) are not added, so a person
 standing still never turns into furniture; a walking leg's cells are soon seen free again.
+
+What is known to be static beforehand (a ROS map, `robot_logs.occupancy_map`) joins the grid as
+`StaticWorld.known_static`: a leg on an occupied map cell is static from the first scan.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from robot_logs.frames import Pose2D
 from robot_logs.records import Scan
+
+#: Output-frame positions (N, 2) -> (N,) True where they are known to be static beforehand, at the current scan.
+KnownStatic = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -56,6 +63,8 @@ class StaticWorld:
         self._is_known = np.zeros(self.side * self.side, dtype=bool)
         self._marked = np.zeros(self.side * self.side, dtype=np.int64)
         self._scans = 0
+        #: Set before each scan by whoever places a map in the output frame (`robot_logs.log_tracking`).
+        self.known_static: KnownStatic | None = None
 
     def cells(self, points: np.ndarray) -> np.ndarray:
         """(N,) flat cell index of each point; -1 outside the grid."""
@@ -106,10 +115,11 @@ class StaticWorld:
         self.free[known[passed]] += 1
 
     def is_static(self, positions: np.ndarray) -> np.ndarray:
-        """(N,) True where a position's cell is part of the static world."""
+        """(N,) True where a position's cell is part of the static world, or `known_static` says it is static."""
         cells = self.cells(positions)
         inside = cells >= 0
         cells = np.maximum(cells, 0)
         hits, free = self.hits[cells], self.free[cells]
         old = self.time - self.first_hit[cells] >= self.config.min_duration
-        return inside & old & (hits >= self.config.min_hits) & (hits >= self.config.occupied_share * (hits + free))
+        static = inside & old & (hits >= self.config.min_hits) & (hits >= self.config.occupied_share * (hits + free))
+        return static if self.known_static is None else static | self.known_static(positions)

@@ -93,7 +93,20 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
     parser.add_argument("--detector", type=types.input_file, metavar="FILE",
                         help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
+    add_map_options(parser)
     parser.set_defaults(handler=track)
+
+
+def add_map_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--map and --map-frame: a ROS map_server map whose occupied cells are not people."""
+    from robot_logs.occupancy_map import MAP_FRAME
+
+    parser.add_argument("--map", type=types.input_file, metavar="YAML",
+                        help="a ROS map_server map.yaml (and its image): legs on its occupied cells are not people; "
+                             "needs odometry, and tf linking the map's frame to it")
+    parser.add_argument("--map-frame", default=MAP_FRAME, metavar="FRAME",
+                        help=f"the frame the map is drawn in (default {MAP_FRAME}, map_server's; the odometry frame's name "
+                             "for a map drawn in it)")
 
 
 def _warn_damage(damage: str | None) -> None:
@@ -200,6 +213,7 @@ def track(args: argparse.Namespace) -> int:
     from robot_logs.foxglove_log import FoxgloveWriter, log_line
     from robot_logs.leg_classifier import LegClassifier
     from robot_logs.log_tracking import LogTracking, result_rows
+    from robot_logs.occupancy_map import read_map
     from robot_logs.pipeline import PersonTracker
     from robot_logs.reader import LogReader
     from robot_logs.topics import TopicNames
@@ -212,8 +226,9 @@ def track(args: argparse.Namespace) -> int:
     args.file = study_log(args.file, args.study)
     Progress("scan", "tracking", args.quiet).loading(f"Reading {args.file}")
     classifier = LegClassifier.load(args.detector) if args.detector is not None else None
+    occupancy = read_map(args.map, args.map_frame) if args.map is not None else None
     with LogReader(args.file, salvage=args.salvage) as log, ExitStack() as outputs:
-        tracking = LogTracking(log, args.frame, topics, PersonTracker.learned(classifier))
+        tracking = LogTracking(log, args.frame, topics, PersonTracker.learned(classifier), occupancy)
         writer = None
         if args.mcap is not None:
             meta = {"source": str(args.file), "frame": args.frame, "scan_topic": tracking.scan_topic.name}
@@ -239,6 +254,9 @@ def track(args: argparse.Namespace) -> int:
     _warn_damage(damage)
     if tracking.skipped:
         sys.stderr.write(f"warning: {tracking.skipped} scans fell outside the odometry's time span and were left out\n")
+    if tracking.unmapped:
+        sys.stderr.write(f"warning: at {tracking.unmapped} scans tf gave no pose in the map's frame {args.map_frame!r}; "
+                         "they were tracked without the map\n")
     where = f" -> {args.out}" if args.out else ""
     if not args.quiet:
         sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}\n")
