@@ -1,6 +1,7 @@
 """ROS map_server maps as the static world: reading map.yaml and its image as map_server does, a post on
-an occupied cell rejected from the first scan beside a walker who is tracked, the map placed through the
-log's map -> odom transform, and one-line errors for maps that cannot be used."""
+an occupied cell rejected from the first scan beside a walker who is tracked (in `trials log track` and
+in logged trials), the map placed through the log's map -> odom transform, and one-line errors for maps
+that cannot be used."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from robot_logs.tracking import TrackerConfig
 from robot_logs.tracks import TrackTable
 from tests.support.bag_writer import BagWriter
 from trials.cli import main
+from trials.log_trial import ReplayOptions, prepare
 
 #: The post in the odometry frame, and the localiser's map -> odom transform the bag records.
 POST = (3.0, 1.0)
@@ -158,6 +160,13 @@ def test_trials_log_track_takes_the_map(post_and_walker, tmp_path, capsys) -> No
     walker = walker_scans(TrackTable.read_csv(mapped))
     assert walker == walker_scans(TrackTable.read_csv(plain)) and len(walker) >= 30  # 40 of 60 scans
     assert capsys.readouterr().err == ""
+
+
+def test_a_logged_trial_plays_the_tracks_made_with_the_map(post_and_walker, tmp_path) -> None:
+    occupancy = read_map(post_map(tmp_path))
+    plain, mapped = prepare(post_and_walker, ReplayOptions()), prepare(post_and_walker, ReplayOptions(occupancy=occupancy))
+    assert len(near(TrackTable(plain.rows), POST)) >= 3 and near(TrackTable(mapped.rows), POST) == set()
+    assert mapped.metadata()["static_map"] == f"{tmp_path / 'map.yaml'} in frame map" and "static_map" not in plain.metadata()
 
 
 def bad_map(folder: Path, case: str) -> Path:

@@ -292,6 +292,16 @@ def short_bag(folder: Path) -> Path:
     return path
 
 
+def one_cell_map(folder: Path, resolution: str) -> Path:
+    """A ROS map_server map of one black cell, in its own folder."""
+    folder = folder / f"map{resolution}"
+    folder.mkdir()
+    (folder / "map.pgm").write_bytes(b"P5\n1 1\n255\n\x00")
+    path = folder / "map.yaml"
+    path.write_text(f"image: map.pgm\nresolution: {resolution}\norigin: [0.0, 0.0, 0.0]\n")
+    return path
+
+
 @pytest.mark.parametrize("case, expected", [
     ("missing", r"nowhere\.bag: no such file"),
     ("damaged", r"damaged\.bag is damaged \(truncated or corrupt"),
@@ -299,6 +309,8 @@ def short_bag(folder: Path) -> Path:
     ("short", r"short\.bag: too short for a logged trial: .* needs 2\.8 s of log \(8 steps of 0\.4 s\)"),
     ("short window", r"stationary_ros1\.bag: too short for a logged trial: its scans from 0\.0 s to 1\.0 s"),
     ("start past the end", r"--start 500 s lies beyond the log's last scan"),
+    ("bad map", r"map\.yaml: field resolution: expected a cell size in metres above 0, got -0\.05$"),
+    ("map without odometry", r"stationary_ros1\.bag has no Odometry topic"),
 ])
 def test_bad_logs_are_one_line_errors_and_start_no_run(fresh, robot_logs_dir, tmp_path, capsys, case, expected):
     sample = str(robot_logs_dir / "stationary_ros1.bag")
@@ -309,6 +321,8 @@ def test_bad_logs_are_one_line_errors_and_start_no_run(fresh, robot_logs_dir, tm
         "short": ["--from-log", str(short_bag(tmp_path))],
         "short window": ["--from-log", sample, "--duration", "1"],
         "start past the end": ["--from-log", sample, "--start", "500"],
+        "bad map": ["--from-log", sample, "--map", str(one_cell_map(tmp_path, "-0.05"))],
+        "map without odometry": ["--from-log", sample, "--map", str(one_cell_map(tmp_path, "0.05"))],
     }[case]
     plan_before = (fresh / "plan.csv").read_bytes()
     assert main(["run", "--study", str(fresh), *args]) == 2

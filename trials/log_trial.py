@@ -27,6 +27,7 @@ from designs.spec import LOG_COLUMN
 from robot_logs.convert import to_odometry
 from robot_logs.errors import LogError
 from robot_logs.log_tracking import LogTracking, result_rows
+from robot_logs.occupancy_map import OccupancyMap
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from robot_logs.reader import LogReader
 from robot_logs.records import seconds, stamp_text
@@ -50,7 +51,8 @@ GOAL_AHEAD_M = 10.0
 @dataclass(frozen=True)
 class ReplayOptions:
     """How logs are played: `log` (from --from-log) replaces every run's own log; goal in the
-    log's frame (None: 10 m ahead of the first pose); the window in seconds after the first scan."""
+    log's frame (None: 10 m ahead of the first pose); the window in seconds after the first scan;
+    `occupancy`: a ROS map whose occupied cells are not people (--map)."""
 
     log: Path | None = None
     goal: tuple[float, float] | None = None
@@ -58,6 +60,7 @@ class ReplayOptions:
     duration_s: float | None = None
     topics: TopicNames = TopicNames()
     salvage: bool = False
+    occupancy: OccupancyMap | None = None
 
 
 def log_of(row: dict[str, str], root: Path, options: ReplayOptions) -> Path | None:
@@ -126,6 +129,7 @@ class LoggedScene:
         robot: the recorded robot; goal: (2,) in `frame`.
         plan_times: seconds since t = 0 at which the controller plans.
         row_stamps: the header stamp of each row, for finding the rows of an observation window.
+        static_map: the ROS map the tracks were made with (--map) and its frame, if any.
     """
 
     path: Path
@@ -143,6 +147,7 @@ class LoggedScene:
     goal: np.ndarray
     plan_times: np.ndarray
     row_stamps: list[int]
+    static_map: str | None = None
 
     def metadata(self) -> dict[str, str]:
         """The run log's metadata entries that describe the replay (strings)."""
@@ -152,6 +157,7 @@ class LoggedScene:
             "log_start_stamp": stamp_text(self.scan_ns[0]),
             "log_offset_s": f"{self.offset_s:.3f}", "goal_x": f"{self.goal[0]:g}", "goal_y": f"{self.goal[1]:g}",
             **({"log_damage": self.damage} if self.damage else {}),
+            **({"static_map": self.static_map} if self.static_map else {}),
         }
 
 
@@ -171,7 +177,7 @@ def prepare(path: Path, options: ReplayOptions) -> LoggedScene:
     """
     with LogReader(path, salvage=options.salvage) as log:
         odometry = _odometry_topic(log, options.topics)
-        tracking = LogTracking(log, "odom" if odometry else "sensor", options.topics)
+        tracking = LogTracking(log, "odom" if odometry else "sensor", options.topics, occupancy=options.occupancy)
         first_ns: int | None = None
         frame = ""
         run_ns: list[int] = []
@@ -216,7 +222,15 @@ def prepare(path: Path, options: ReplayOptions) -> LoggedScene:
         goal = np.array([x + GOAL_AHEAD_M * math.cos(heading), y + GOAL_AHEAD_M * math.sin(heading)])
     rows.sort(key=lambda r: r.stamp_ns)
     return LoggedScene(path, log.format, damage, frame, tracking.scan_topic.name, odometry.name if odometry else None,
-                       offset, run_ns, time, people, rows, robot, goal, ticks, [r.stamp_ns for r in rows])
+                       offset, run_ns, time, people, rows, robot, goal, ticks, [r.stamp_ns for r in rows],
+                       _map_note(options.occupancy, tracking.unmapped))
+
+
+def _map_note(occupancy: OccupancyMap | None, unmapped: int) -> str | None:
+    """The run log's word on the map the tracks were made with, and the scans tf could not place on it."""
+    if occupancy is None:
+        return None
+    return f"{occupancy.source} in frame {occupancy.frame}" + (f"; {unmapped} scans had no pose in it" if unmapped else "")
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,19 @@ def add_dpi(parser: argparse.ArgumentParser) -> None:
                         help=f"resolution of the PNG figures, dots per inch (default {DEFAULT_DPI}); each is also written as SVG")
 
 
+def add_map(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--map and --map-frame of a command that tracks people in logs: a ROS map_server map whose occupied
+    cells are not people (`robot_logs.occupancy_map`)."""
+    from robot_logs.occupancy_map import MAP_FRAME
+
+    parser.add_argument("--map", type=input_file, metavar="YAML",
+                        help="a ROS map_server map.yaml (and its image): legs on its occupied cells are not people; "
+                             "needs odometry, and tf linking the map's frame to it")
+    parser.add_argument("--map-frame", default=MAP_FRAME, metavar="FRAME",
+                        help=f"the frame the map is drawn in (default {MAP_FRAME}, map_server's; the odometry frame's name "
+                             "for a map drawn in it)")
+
+
 def number(minimum: float, maximum: float, *, above: bool = False, below: bool = False) -> Callable[[str], float]:
     """A finite number in the range, its ends open where `above` / `below` say."""
     expected = f"a finite number in {'(' if above else '['}{minimum:g}, {maximum:g}{')' if below else ']'}"

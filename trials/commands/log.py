@@ -93,20 +93,8 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
     parser.add_argument("--detector", type=types.input_file, metavar="FILE",
                         help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
-    add_map_options(parser)
+    types.add_map(parser)
     parser.set_defaults(handler=track)
-
-
-def add_map_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """--map and --map-frame: a ROS map_server map whose occupied cells are not people."""
-    from robot_logs.occupancy_map import MAP_FRAME
-
-    parser.add_argument("--map", type=types.input_file, metavar="YAML",
-                        help="a ROS map_server map.yaml (and its image): legs on its occupied cells are not people; "
-                             "needs odometry, and tf linking the map's frame to it")
-    parser.add_argument("--map-frame", default=MAP_FRAME, metavar="FRAME",
-                        help=f"the frame the map is drawn in (default {MAP_FRAME}, map_server's; the odometry frame's name "
-                             "for a map drawn in it)")
 
 
 def _warn_damage(damage: str | None) -> None:

@@ -52,7 +52,7 @@ def show(args: argparse.Namespace) -> int:
     goal = (float(meta["goal_x"]), float(meta["goal_y"])) if logged else GOAL
     plain = {"study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m", "controller", "weights",
              "log", "log_format", "log_frame", "scan_topic", "odometry", "log_start_stamp", "log_offset_s", "goal_x", "goal_y",
-             "log_damage"}
+             "log_damage", "static_map"}
     settings = ", ".join(f"{k} {v}" for k, v in meta.items() if k not in plain)
     lines = [f"{path}: run {code} of study {meta.get('study', '?')}", f"settings: {settings}",
              f"seed {meta.get('seed', '?')}, perception {meta.get('perception', '?')}"
@@ -61,7 +61,8 @@ def show(args: argparse.Namespace) -> int:
         lines.append(f"controller: {meta['controller']}" + (f" ({meta['weights']})" if "weights" in meta else ""))
     if logged:
         lines.append(f"played from {meta['log']} ({meta['log_format']}) from {meta['log_offset_s']} s, frame {meta['log_frame']}, "
-                     f"goal ({meta['goal_x']}, {meta['goal_y']}); odometry: {meta['odometry']}")
+                     f"goal ({meta['goal_x']}, {meta['goal_y']}); odometry: {meta['odometry']}"
+                     + (f"; static map: {meta['static_map']}" if "static_map" in meta else ""))
     lines.append("events: " + "; ".join(f"{t:.1f} s {name} ({detail})" for t, name, detail in run.events))
     blinded = "controller" not in meta
     plans = f"{run.plans} plans" if not blinded else "its plans sealed"

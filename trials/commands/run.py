@@ -78,6 +78,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     logs.add_argument("--odom-topic", metavar="TOPIC",
                       help="Odometry topic (default: the log's only one; a log without one has a robot standing still)")
     logs.add_argument("--salvage", action="store_true", help="read what can be read of a damaged log instead of refusing it")
+    types.add_map(logs)
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print what was run as one JSON object instead of lines")
     parser.set_defaults(handler=run)
@@ -88,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
     import signal
     import sys
 
+    from robot_logs.occupancy_map import read_map
     from robot_logs.topics import TopicNames
     from trials.log_trial import ReplayOptions
     from trials.outcomes import columns
@@ -99,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
 
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
-                           TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage)
+                           TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage,
+                           read_map(args.map, args.map_frame) if args.map is not None else None)
     given = {"perception": args.perception, "noise_std_m": args.noise, "dropout": args.dropout,
              "timeout_s": args.timeout, "weights": args.weights}
     settings = override(read_run_settings(study.folder.path(SPEC)), given, "the command line")
