@@ -6,5 +6,6 @@ layouts), `bag_metadata` (ROS2 bag folders) and `decoding` (definitions and enco
 (`PersonTracker`), `static_world` and `occupancy_map` (ROS map_server maps), `log_tracking` (a whole log), `tracks` (CSV, `history_at`). Simulation:
 `lidar_sim`. Writing: `foxglove_log` (MCAP run logs for Foxglove), `track_mcap`. Times are header
 stamps throughout (see `reader`). Writing bags, synthetic walkers and scoring against ground truth
-are test helpers (tests/support).
+are test helpers (tests/support). The bottom layer any package may import: `physical` (shared facts)
+and `figure_files` (saving figures as PNG and SVG).
 """

@@ -100,11 +100,9 @@ def tracker() -> PersonTracker:
                          static_world=StaticWorldConfig())
 
 
-@pytest.fixture(scope="module")
-def post_and_walker(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def write_bag(path: Path, localised_from: int = 0) -> Path:
     """6 s at 10 Hz: a robot creeping forward, a 6 cm post at odom (3, 1), a person walking along y = -1
-    at 1 m/s, and a localiser's map -> odom transform on /tf with every scan."""
-    path = tmp_path_factory.mktemp("mapped") / "post.bag"
+    at 1 m/s, and a localiser's map -> odom transform on /tf with every scan from scan `localised_from` on."""
     lidar = LidarSimulator(seed=4, posts=(np.array([POST]), np.array([0.06])))
     with BagWriter(path) as bag:
         bag.transforms([Transform(1_000_000_000, "base_link", "laser", Pose2D(), True)], "/tf_static")
@@ -113,9 +111,15 @@ def post_and_walker(tmp_path_factory: pytest.TempPathFactory) -> Path:
             stamp = int(round(t * 1e9))
             base = Pose2D(0.05 * k * 0.1, 0.0, 0.0)
             bag.odometry(Odometry(stamp, "odom", "base_link", base, 0.05, 0.0))
-            bag.transforms([Transform(stamp, "map", "odom", MAP_TO_ODOM, False)])
+            if k >= localised_from:
+                bag.transforms([Transform(stamp, "map", "odom", MAP_TO_ODOM, False)])
             bag.scan(lidar.scan(t, base, np.array([[1.5 + 0.1 * k, -1.0]]), np.array([[1.0, 0.0]])))
     return path
+
+
+@pytest.fixture(scope="module")
+def post_and_walker(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_bag(tmp_path_factory.mktemp("mapped") / "post.bag")
 
 
 def near(table: TrackTable, point: tuple[float, float]) -> set[int]:
@@ -160,6 +164,17 @@ def test_trials_log_track_takes_the_map(post_and_walker, tmp_path, capsys) -> No
     walker = walker_scans(TrackTable.read_csv(mapped))
     assert walker == walker_scans(TrackTable.read_csv(plain)) and len(walker) >= 30  # 40 of 60 scans
     assert capsys.readouterr().err == ""
+
+
+def test_scans_before_the_localiser_starts_are_tracked_without_the_map_and_counted(tmp_path, capsys) -> None:
+    """tf's map -> odom from scan 30 on: scans up to 0.5 s before it (tf's gap) have a pose in the map."""
+    late = write_bag(tmp_path / "late.bag", localised_from=30)
+    out = tmp_path / "tracks.csv"
+    assert main(["log", "track", str(late), "--frame", "odom", "--map", str(post_map(tmp_path)), "--out", str(out), "--quiet"]) == 0
+    assert capsys.readouterr().err == ("warning: at 25 scans tf gave no pose in the map's frame 'map'; "
+                                       "they were tracked without the map\n")
+    seen = near(TrackTable.read_csv(out), POST)
+    assert seen and max(seen) < 25 + 10  # the post was confirmed before the map came, and dropped with it
 
 
 def test_a_logged_trial_plays_the_tracks_made_with_the_map(post_and_walker, tmp_path) -> None:
