@@ -86,8 +86,9 @@ def test_every_episode_and_figure_is_written(walked):
     assert {"min_distance_m", "time_to_goal_s", "irregularity_rad_per_m", "ade_m"} <= set(episodes[0])
     assert {e[k] for e in episodes for k in ("arrived", "comfortable", "collided")} <= {"0", "1"}
     assert not {v for e in episodes for v in e.values()} & {"n/a", "None", "True", "False", "inf"}
-    for name in ("fig4_zara1.png", "forces_zara1.png", "min_distance.png"):
-        assert (out / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for name in ("fig4_zara1", "forces_zara1", "min_distance"):
+        assert (out / "figures" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert b"<svg" in (out / "figures" / f"{name}.svg").read_bytes()
     record = stored_result(out, "navigan-r")
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt"
     settings = record["identity"]["settings"]
