@@ -18,6 +18,7 @@ turns static before it is ever reported.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,6 +94,18 @@ class PersonTracker:
             classifier,
             world,
         )
+
+    @classmethod
+    def rules_with_grid(cls, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
+        """The setup for simulated scans among furniture: legs by width, static-world rejection
+        with cells static after 1 s, still tracks waiting 1.5 s, a person's second leg starting
+        no track within 0.6 m of a confirmed one, and tracks kept 1 s through occlusions but
+        reported only up to 2 scans into them. Width rules give no confidence, so no track is
+        protected: a person standing from the start is taken for furniture."""
+        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf)
+        tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=10,
+                                report_misses=2, birth_clearance=0.6)
+        return cls(detector, tracker, None, world)
 
     def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:
         """Detect people in `scan`, move them into the output frame, update the tracks.
