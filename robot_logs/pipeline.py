@@ -97,14 +97,17 @@ class PersonTracker:
 
     @classmethod
     def rules_with_grid(cls, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
-        """The setup for simulated scans among furniture: legs by width, static-world rejection
-        with cells static after 1 s, still tracks waiting 1.5 s, a person's second leg starting
-        no track within 0.6 m of a confirmed one, and tracks kept 1 s through occlusions but
-        reported only up to 2 scans into them. Width rules give no confidence, so no track is
-        protected: a person standing from the start is taken for furniture."""
-        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf)
-        tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=10,
-                                report_misses=2, birth_clearance=0.6)
+        """The setup for simulated scans among furniture: legs by width; static-world rejection
+        with cells static after 1 s, or after 0.2 s when hit and never yet seen free (a wall
+        cell; a walker's cells are soon seen free); still tracks waiting 1.5 s; a tentative track
+        surviving one missed scan; no track born within 0.6 m of a confirmed one (that person's
+        other leg); and tracks kept 1.5 s through occlusions but reported only one scan into them.
+        Width rules give no confidence, so no track is protected: a person standing from the
+        start is taken for furniture."""
+        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf, never_free_hits=2,
+                                  never_free_duration=0.2)
+        tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=15,
+                                report_misses=1, tentative_misses=2, birth_clearance=0.6)
         return cls(detector, tracker, None, world)
 
     def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:

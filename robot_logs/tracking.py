@@ -6,8 +6,8 @@ world, confirmed (and given the next id, never reused) once it has `birth_hits` 
 hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`
 (a track still within `still_distance` of its birth place whose mean confidence is under
 `sure_confidence` also waits `still_wait` seconds, long enough for the static world to tell),
-dropped if it misses while still tentative (a detection on the static world counts as a miss
-for a tentative track), reported while it has missed at most `report_misses` scans in a row,
+dropped after `tentative_misses` misses in a row while still tentative (a detection on the
+static world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row,
 and deleted after `death_misses` consecutive misses once confirmed. A detection beside a
 confirmed track (`birth_clearance`) starts no track: it is that person's other leg. So
 a person standing still is kept: confirmation asks for confidence, never for motion.
@@ -35,11 +35,12 @@ class TrackerConfig:
         acceleration_std: white-noise acceleration of walking people (m/s^2).
         initial_speed_std: velocity uncertainty of a newborn track (m/s).
         gate: largest squared Mahalanobis distance of an accepted detection.
-        birth_hits: consecutive hits that confirm a track.
+        birth_hits: hits that confirm a tentative track (it dies at `tentative_misses` misses in a row).
         death_misses: consecutive misses that delete a confirmed track.
         report_misses: a confirmed track is reported only while it has missed at most this many
             scans in a row; it lives on unreported until `death_misses`, so a person coming out
             from behind someone keeps their track and id.
+        tentative_misses: consecutive misses that drop a tentative track (1: its first miss).
         birth_clearance: an unassigned detection closer than this (m) to a confirmed track starts
             no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
@@ -59,6 +60,7 @@ class TrackerConfig:
     still_distance: float = 0.3
     sure_confidence: float = 1.0
     report_misses: int = 1_000_000
+    tentative_misses: int = 1
     birth_clearance: float = 0.0
 
 
@@ -185,7 +187,8 @@ class Tracker:
             if index not in hit:
                 track.misses += 1
         self.tracks = [
-            t for t in self.tracks if (t.misses == 0 or t.confirmed) and t.misses < self.config.death_misses
+            t for t in self.tracks
+            if t.misses < (self.config.death_misses if t.confirmed else self.config.tentative_misses)
         ]
         used = {d for _, d in pairs}
         crowded = self._beside_confirmed(detections)
