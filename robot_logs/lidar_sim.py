@@ -2,8 +2,9 @@
 
 Pedestrians are two leg circles that swing with the gait while walking (or one body disc);
 walls are line segments and static posts (furniture legs, pillars: `robot_logs.clutter`) circles. The result is a `Scan` like one read from a log, so the same
-detector and tracker run on simulated and real data. Conventions follow REP 117: a beam with
-no return reads +inf, a failed (dropped-out) beam NaN.
+detector and tracker run on simulated and real data; `LidarSimulator.observe` also says how many
+beams fell on each pedestrian, so a benchmark can count only the people the lidar sees.
+Conventions follow REP 117: a beam with no return reads +inf, a failed (dropped-out) beam NaN.
 """
 
 from __future__ import annotations
@@ -174,8 +175,8 @@ class LidarSimulator:
         positions: np.ndarray,
         velocities: np.ndarray | None = None,
     ) -> tuple[Scan, np.ndarray]:
-        """The scan of `scan` and (N,) how many of its valid beams fell on each pedestrian: the
-        ground truth of who the lidar can see (a person hidden behind others or furniture gets 0)."""
+        """The scan `scan` returns, and (N,) how many of its valid beams fell on each pedestrian:
+        the ground truth of who the lidar can see (a person hidden behind others or furniture gets 0)."""
         positions = np.asarray(positions, dtype=float).reshape(-1, 2)
         if velocities is None:
             velocities = np.zeros_like(positions)
