@@ -102,9 +102,9 @@ class PersonTracker:
         with cells static after 1 s, or after 0.3 s when hit in 3 scans and never seen free (a wall
         cell; a walker's cells are soon seen free); still tracks waiting 1.5 s; a tentative track
         surviving one missed scan; no track born within 0.6 m of a confirmed one (that person's
-        other leg); and tracks kept 1.5 s through occlusions but reported only one scan into them.
-        Width rules give no confidence, so no track is protected: a person standing from the
-        start is taken for furniture."""
+        other leg); and tracks kept 15 scans (1.5 s at 10 Hz) through misses but reported only one
+        scan into them. Width rules give no confidence, so no track is protected: a person who
+        stands still is taken for furniture."""
         world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf, never_free_hits=3,
                                   never_free_duration=0.3)
         tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=15,
