@@ -22,12 +22,19 @@ MATCH_RADIUS = 0.75
 
 @dataclass(frozen=True)
 class ScoredScan:
-    """One scan's labelled people and tracks: ids (N,), (M,) and positions (N, 2), (M, 2), one frame."""
+    """One scan's labelled people and tracks: ids (N,), (M,) and positions (N, 2), (M, 2), one frame.
+
+    `hidden` (H, 2) are people known to be there but out of the sensor's sight (simulated ground
+    truth): neither counted nor missed, and a track on one of them is no false positive, as in
+    a labelled log, where a person nobody could see carries no label and a track kept through
+    their occlusion is not held against the tracker.
+    """
 
     person_ids: np.ndarray
     people: np.ndarray
     track_ids: np.ndarray
     tracks: np.ndarray
+    hidden: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass
@@ -78,6 +85,8 @@ class ClearMot:
             for r, c in zip(rows, cols):
                 if cost[r, c] <= radius:
                     matched[free_rows[r]] = free_cols[c]
+        unmatched = [j for j in range(len(tracks)) if j not in matched.values()]
+        excused = _within(scan.hidden.reshape(-1, 2), tracks[unmatched], radius)
         for i, j in matched.items():
             person, track = person_ids[i], track_ids[j]
             if person in self._last and self._last[person] != track:
@@ -89,7 +98,21 @@ class ClearMot:
         self.objects += len(people)
         self.matches += len(matched)
         self.misses += len(people) - len(matched)
-        self.false_positives += len(tracks) - len(matched)
+        self.false_positives += len(unmatched) - excused
+
+    def add(self, other: ClearMot) -> None:
+        """Add another run's counts to these (sums over several sequences)."""
+        for name in ("scans", "objects", "matches", "misses", "false_positives", "id_switches", "distance"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+def _within(hidden: np.ndarray, tracks: np.ndarray, radius: float) -> int:
+    """How many tracks the Hungarian method can pair one to one with hidden people within `radius`."""
+    if len(hidden) == 0 or len(tracks) == 0:
+        return 0
+    distance = np.hypot(*(hidden[:, None, :] - tracks[None, :, :]).transpose(2, 0, 1))
+    rows, cols = linear_sum_assignment(np.where(distance <= radius, distance, 1e6))
+    return int((distance[rows, cols] <= radius).sum())
 
 
 def clear_mot(scans: Iterable[ScoredScan], radius: float = MATCH_RADIUS) -> ClearMot:

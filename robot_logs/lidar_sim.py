@@ -2,8 +2,9 @@
 
 Pedestrians are two leg circles that swing with the gait while walking (or one body disc);
 walls are line segments and static posts (furniture legs, pillars: `robot_logs.clutter`) circles. The result is a `Scan` like one read from a log, so the same
-detector and tracker run on simulated and real data. Conventions follow REP 117: a beam with
-no return reads +inf, a failed (dropped-out) beam NaN.
+detector and tracker run on simulated and real data; `LidarSimulator.observe` also says how many
+beams fell on each pedestrian, so a benchmark can count only the people the lidar sees.
+Conventions follow REP 117: a beam with no return reads +inf, a failed (dropped-out) beam NaN.
 """
 
 from __future__ import annotations
@@ -96,18 +97,19 @@ def body_circles(
 
 def cast_rays(
     origin: np.ndarray, bearings: np.ndarray, centres: np.ndarray, radii: np.ndarray, walls: np.ndarray
-) -> np.ndarray:
-    """(B,) distance along each world bearing to the nearest circle or wall; inf if none."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Along each world bearing: (B,) distance to the nearest circle or wall (inf if none) and
+    (B,) what it hit: a circle's index, len(centres) + a wall's index, or -1 for nothing."""
     directions = np.column_stack((np.cos(bearings), np.sin(bearings)))
-    hits = np.full(len(bearings), np.inf)
+    near = np.full((len(bearings), 1), np.inf)
     if len(centres):
         offsets = centres - origin
         along = directions @ offsets.T
         clearance = along**2 - (np.einsum("kd,kd->k", offsets, offsets) - radii**2)
         with np.errstate(invalid="ignore"):
-            near = along - np.sqrt(clearance)
-        near[(clearance < 0.0) | (near <= 0.0)] = np.inf
-        hits = np.minimum(hits, near.min(axis=1))
+            circles = along - np.sqrt(clearance)
+        circles[(clearance < 0.0) | (circles <= 0.0)] = np.inf
+        near = np.concatenate((near, circles), axis=1)
     if len(walls):
         start, edge = walls[:, 0, :] - origin, walls[:, 1, :] - walls[:, 0, :]
         denominator = directions[:, 0:1] * edge[:, 1] - directions[:, 1:2] * edge[:, 0]
@@ -115,8 +117,9 @@ def cast_rays(
             t = (start[:, 0] * edge[:, 1] - start[:, 1] * edge[:, 0]) / denominator
             u = (start[:, 0] * directions[:, 1:2] - start[:, 1] * directions[:, 0:1]) / denominator
         t[~((t > 0.0) & (u >= 0.0) & (u <= 1.0))] = np.inf
-        hits = np.minimum(hits, t.min(axis=1))
-    return hits
+        near = np.concatenate((near, t), axis=1)
+    nearest = near.argmin(axis=1)
+    return near[np.arange(len(bearings)), nearest], nearest - 1
 
 
 class LidarSimulator:
@@ -163,6 +166,17 @@ class LidarSimulator:
             positions: (N, 2) pedestrian positions in the world frame.
             velocities: (N, 2) their velocities (m/s), which orient the legs; None: standing.
         """
+        return self.observe(time, sensor_pose, positions, velocities)[0]
+
+    def observe(
+        self,
+        time: float,
+        sensor_pose: Pose2D,
+        positions: np.ndarray,
+        velocities: np.ndarray | None = None,
+    ) -> tuple[Scan, np.ndarray]:
+        """The scan `scan` returns, and (N,) how many of its valid beams fell on each pedestrian:
+        the ground truth of who the lidar can see (a person hidden behind others or furniture gets 0)."""
         positions = np.asarray(positions, dtype=float).reshape(-1, 2)
         if velocities is None:
             velocities = np.zeros_like(positions)
@@ -170,13 +184,16 @@ class LidarSimulator:
         centres = np.concatenate((centres, self.post_centres))
         radii = np.concatenate((radii, self.post_radii))
         origin = np.array([sensor_pose.x, sensor_pose.y])
-        ranges = cast_rays(origin, self._angles + sensor_pose.yaw, centres, radii, self.walls)
+        ranges, hit = cast_rays(origin, self._angles + sensor_pose.yaw, centres, radii, self.walls)
         spec = self.spec
         ranges = ranges + self._rng.normal(0.0, spec.range_noise_std, len(ranges))
         ranges[(ranges < spec.range_min) | (ranges > spec.range_max)] = np.inf
         if spec.dropout > 0.0:
             ranges[self._rng.random(len(ranges)) < spec.dropout] = np.nan
-        return Scan(
+        circles_per_person = 1 if self.body.shape == "disc" else 2
+        on_person = np.isfinite(ranges) & (hit >= 0) & (hit < circles_per_person * len(positions))
+        beams = np.bincount(hit[on_person] % max(len(positions), 1), minlength=len(positions))
+        scan = Scan(
             stamp_ns=int(round(time * 1e9)),
             frame_id=spec.frame_id,
             angle_min=spec.angle_min,
@@ -185,3 +202,4 @@ class LidarSimulator:
             range_max=spec.range_max,
             ranges=ranges,
         )
+        return scan, beams

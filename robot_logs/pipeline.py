@@ -4,7 +4,8 @@ tracking, per scan.
 `PersonTracker` is what both the log tracker (`track_log`) and a closed-loop simulator with
 lidar perception use: hand it each scan with the sensor's pose in the output frame.
 `PersonTracker.learned()` is the setup for real logs: the shipped (or a given) leg classifier,
-the static-world grid and confirmation by the classifier's mean confidence.
+the static-world grid and confirmation by the classifier's mean confidence;
+`PersonTracker.rules_with_grid()` the one for simulated scans among furniture.
 
 The rule for a person: a tentative track is confirmed after 3 consecutive hits once the mean leg
 probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
@@ -18,6 +19,7 @@ turns static before it is ever reported.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,6 +95,21 @@ class PersonTracker:
             classifier,
             world,
         )
+
+    @classmethod
+    def rules_with_grid(cls, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
+        """The setup for simulated scans among furniture: legs by width; static-world rejection
+        with cells static after 1 s, or after 0.3 s when hit in 3 scans and never seen free (a wall
+        cell; a walker's cells are soon seen free); still tracks waiting 1.5 s; a tentative track
+        surviving one missed scan; no track born within 0.6 m of a confirmed one (that person's
+        other leg); and tracks kept 15 scans (1.5 s at 10 Hz) through misses but reported only one
+        scan into them. Width rules give no confidence, so no track is protected: a person who
+        stands still is taken for furniture."""
+        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf, never_free_hits=3,
+                                  never_free_duration=0.3)
+        tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=15,
+                                report_misses=1, tentative_misses=2, birth_clearance=0.6)
+        return cls(detector, tracker, None, world)
 
     def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:
         """Detect people in `scan`, move them into the output frame, update the tracks.

@@ -3,9 +3,10 @@ the output frame (the odometry frame when tracking a moving robot's log).
 
 Every scan adds a hit to the cells its points fall in and a free count to the known cells its
 beams pass through; a cell hit in most of the scans that saw it, for long enough, is part of the
-static world (furniture legs, wall ends, pillars), and a leg there is not a person. Points near
-a track the detector is sure of (`PersonTracker` decides which) are not added, so a person
-standing still never turns into furniture; a walking leg's cells are soon seen free again.
+static world (furniture legs, wall ends, pillars), and a leg there is not a person; optionally a
+cell hit a few times and never seen free is static sooner. Points near a track the detector is
+sure of (`PersonTracker` decides which) are not added, so a person standing still never turns
+into furniture; a walking leg's cells are soon seen free again.
 
 What is known to be static beforehand (a ROS map, `robot_logs.occupancy_map`) joins the grid as
 `StaticWorld.known_static`: a leg on an occupied map cell is static from the first scan.
@@ -38,6 +39,10 @@ class StaticWorldConfig:
         occupied_share: share of the scans that saw a cell which must have hit it.
         keep_out: points this close to a protected track are not added (m).
         protect_confidence: tracks whose mean detection confidence reaches this are protected.
+        never_free_hits, never_free_duration: a cell hit in this many scans over at least this
+            many seconds and never seen free is static at once, without the wait and share above:
+            a wall or post, whose cells no beam ever passes (a walker's cells are seen free as soon
+            as the leg moves on). Off by default: a person standing still is never seen free either.
     """
 
     cell: float = 0.1
@@ -47,6 +52,8 @@ class StaticWorldConfig:
     occupied_share: float = 0.8
     keep_out: float = 0.4
     protect_confidence: float = 0.7
+    never_free_hits: int = 1_000_000
+    never_free_duration: float = 0.5
 
 
 class StaticWorld:
@@ -120,6 +127,9 @@ class StaticWorld:
         inside = cells >= 0
         cells = np.maximum(cells, 0)
         hits, free = self.hits[cells], self.free[cells]
-        old = self.time - self.first_hit[cells] >= self.config.min_duration
-        static = inside & old & (hits >= self.config.min_hits) & (hits >= self.config.occupied_share * (hits + free))
+        age = self.time - self.first_hit[cells]
+        config = self.config
+        settled = (age >= config.min_duration) & (hits >= config.min_hits) & (hits >= config.occupied_share * (hits + free))
+        solid = (free == 0) & (hits >= config.never_free_hits) & (age >= config.never_free_duration)
+        static = inside & (settled | solid)
         return static if self.known_static is None else static | self.known_static(positions)

@@ -6,8 +6,10 @@ world, confirmed (and given the next id, never reused) once it has `birth_hits` 
 hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`
 (a track still within `still_distance` of its birth place whose mean confidence is under
 `sure_confidence` also waits `still_wait` seconds, long enough for the static world to tell),
-dropped if it misses while still tentative (a detection on the static world counts as a miss
-for a tentative track), and deleted after `death_misses` consecutive misses once confirmed. So
+dropped after `tentative_misses` misses in a row while still tentative (a detection on the
+static world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row,
+and deleted after `death_misses` consecutive misses once confirmed. A detection beside a
+confirmed track (`birth_clearance`) starts no track: it is that person's other leg. So
 a person standing still is kept: confirmation asks for confidence, never for motion.
 """
 
@@ -33,8 +35,14 @@ class TrackerConfig:
         acceleration_std: white-noise acceleration of walking people (m/s^2).
         initial_speed_std: velocity uncertainty of a newborn track (m/s).
         gate: largest squared Mahalanobis distance of an accepted detection.
-        birth_hits: consecutive hits that confirm a track.
+        birth_hits: hits that confirm a tentative track (it dies at `tentative_misses` misses in a row).
         death_misses: consecutive misses that delete a confirmed track.
+        report_misses: a confirmed track is reported only while it has missed at most this many
+            scans in a row; it lives on unreported until `death_misses`, so a person coming out
+            from behind someone keeps their track and id.
+        tentative_misses: consecutive misses that drop a tentative track (1: its first miss).
+        birth_clearance: an unassigned detection closer than this (m) to a confirmed track starts
+            no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
         still_wait, still_distance, sure_confidence: a tentative track that has not moved
             `still_distance` (m) from where it was born, with a mean confidence under
@@ -51,6 +59,9 @@ class TrackerConfig:
     still_wait: float = 0.0
     still_distance: float = 0.3
     sure_confidence: float = 1.0
+    report_misses: int = 1_000_000
+    tentative_misses: int = 1
+    birth_clearance: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -138,6 +149,15 @@ class Tracker:
         assert track.born is not None
         return moved or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
+    def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
+        """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
+        other leg or a piece of someone already tracked, which may not start a track of its own."""
+        confirmed = np.array([t.kf.x[:2] for t in self.tracks if t.confirmed]).reshape(-1, 2)
+        if self.config.birth_clearance <= 0.0 or len(confirmed) == 0 or len(detections) == 0:
+            return np.zeros(len(detections), dtype=bool)
+        distance = np.hypot(*(detections[:, None, :] - confirmed[None, :, :]).transpose(2, 0, 1))
+        return distance.min(axis=1) < self.config.birth_clearance
+
     def step(
         self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None
     ) -> list[TrackState]:
@@ -149,7 +169,7 @@ class Tracker:
             confidence: (D,) the detector's confidence in each (default: 1).
             static: (D,) True for detections on the static world (default: none).
 
-        A confirmed track is reported while it coasts through misses, until it is deleted.
+        A confirmed track is reported while it coasts through up to `report_misses` misses.
         """
         detections = np.asarray(detections, dtype=float).reshape(-1, 2)
         confidence = np.ones(len(detections)) if confidence is None else np.asarray(confidence, dtype=float)
@@ -167,11 +187,13 @@ class Tracker:
             if index not in hit:
                 track.misses += 1
         self.tracks = [
-            t for t in self.tracks if (t.misses == 0 or t.confirmed) and t.misses < self.config.death_misses
+            t for t in self.tracks
+            if t.misses < (self.config.death_misses if t.confirmed else self.config.tentative_misses)
         ]
         used = {d for _, d in pairs}
+        crowded = self._beside_confirmed(detections)
         for d in range(len(detections)):
-            if d not in used and not static[d]:
+            if d not in used and not static[d] and not crowded[d]:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
         for track in self.tracks:
@@ -180,4 +202,4 @@ class Tracker:
             if not track.confirmed and track.hits >= self.config.birth_hits and self._ready(track, time):
                 track.track_id = self._next_id
                 self._next_id += 1
-        return [t.state() for t in self.tracks if t.confirmed]
+        return [t.state() for t in self.tracks if t.confirmed and t.misses <= self.config.report_misses]

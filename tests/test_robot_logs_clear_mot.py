@@ -118,3 +118,15 @@ def test_unstamped_labels_go_with_the_scan_recorded_nearest(tmp_path: Path, caps
     TrackTable(rows).write_csv(tmp_path / "tracks.csv")
     assert main(["log", "score-tracks", str(path), str(tmp_path / "tracks.csv")]) == 0
     assert capsys.readouterr().out.startswith("all scans (3 scans, 3 labelled person-scans): MOTA 1.000, MOTP 0.100 m")
+
+
+def test_a_track_on_a_hidden_person_is_no_false_positive() -> None:
+    visible = np.array([[1.0, 0.0]])
+    tracks = np.array([[1.1, 0.0], [4.0, 1.2], [6.0, 0.0]])
+    hidden = np.array([[4.0, 1.0]])  # behind someone: no label, but there
+    excused = clear_mot([ScoredScan(np.array([1]), visible, np.array([10, 11, 12]), tracks, hidden)], radius=0.5)
+    assert (excused.objects, excused.matches, excused.misses, excused.false_positives) == (1, 1, 0, 1)
+    counted = clear_mot([ScoredScan(np.array([1]), visible, np.array([10, 11, 12]), tracks)], radius=0.5)
+    assert counted.false_positives == 2
+    far = clear_mot([ScoredScan(np.array([1]), visible, np.array([10, 11, 12]), tracks, hidden + [0.0, 0.8])], radius=0.5)
+    assert far.false_positives == 2  # a hidden person excuses only a track within the match radius

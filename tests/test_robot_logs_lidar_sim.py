@@ -65,3 +65,15 @@ def test_legs_swing_along_the_walking_direction() -> None:
     quarter = 1.0 / (4.0 * body.cadence_hz)  # swing at its widest
     walking, _ = body_circles(np.array([[0.0, 0.0]]), np.array([[0.0, 1.3]]), quarter, body)
     assert np.allclose(walking, [[-0.1, 0.25], [0.1, -0.25]])  # walking along +y
+
+
+def test_the_simulator_counts_the_beams_on_each_person() -> None:
+    lidar = LidarSimulator(EXACT, DISC, posts=(np.array([[2.0, -2.0]]), np.array([0.3])))
+    people = np.array([[3.0, 0.0], [6.0, 0.0], [4.0, -4.0], [4.0, 3.0]])  # the second behind the first,
+    scan, beams = lidar.observe(0.0, Pose2D(), people)  # the third behind the post
+    assert beams[1] == 0 and beams[2] == 0
+    # a 0.25 m disc at 3 m spans 2 * asin(0.25 / 3) = 9.6 degrees: 38 or 39 beams of 0.25 degrees
+    assert 38 <= beams[0] <= 39 and beams[3] > 0
+    assert np.array_equal(scan.ranges, LidarSimulator(EXACT, DISC, posts=(np.array([[2.0, -2.0]]), np.array([0.3]))).scan(0.0, Pose2D(), people).ranges)
+    _, legs = LidarSimulator(EXACT).observe(0.0, Pose2D(), people[:1])
+    assert legs[0] > 0  # both leg circles count for their person

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from robot_logs.clutter import furnished_room
+from robot_logs.detection import scan_points
 from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import LegClassifier
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.pipeline import PersonTracker
-from robot_logs.static_world import StaticWorldConfig
+from robot_logs.static_world import StaticWorld, StaticWorldConfig
 from robot_logs.tracking import TrackerConfig
 
 
@@ -95,3 +96,43 @@ def test_a_still_unsure_track_waits_for_the_grid_and_is_never_reported() -> None
         sure_from.append(near(sure.process(scan).tracks, (3.0, 1.0)))
     assert not any(reported)  # static after 1.5 s, before its 2 s wait was over
     assert sure_from.index(True) == 2  # a sure detection is confirmed at its third hit, still or not
+
+
+def test_the_clutter_setup_never_reports_a_post_or_a_wall_beside_a_walker() -> None:
+    """`PersonTracker.rules_with_grid`: a walker crossing in front of a wall cuts leg-wide pieces
+    out of it, and passes a 6 cm post; neither is ever reported, and the walker is tracked from
+    their fifth scan. Width rules alone report both."""
+    wall = np.array([[[5.0, -2.0], [5.0, 2.0]]])
+    for setup, clutter_reported in ((PersonTracker, True), (PersonTracker.rules_with_grid, False)):
+        lidar = LidarSimulator(seed=4, walls=wall, posts=(np.array([[3.6, 0.5]]), np.array([0.03])))
+        tracker = setup()
+        others, walker = [], []
+        for k in range(30):
+            t = 0.1 * k
+            position = (3.0, -0.8 + 1.0 * t)
+            tracks = tracker.process(lidar.scan(t, Pose2D(), np.array([position]), np.array([[0.0, 1.0]]))).tracks
+            walker.append(near(tracks, position))
+            others.append(sum(math.hypot(s.x - position[0], s.y - position[1]) >= 0.3 for s in tracks))
+        assert any(others) == clutter_reported
+        assert all(walker[4:])
+
+
+def test_a_cell_never_seen_free_is_static_sooner_only_when_asked() -> None:
+    lidar = LidarSimulator(seed=4, posts=(np.array([[3.0, 1.0]]), np.array([0.06])))
+    quick = StaticWorld(StaticWorldConfig(never_free_hits=2, never_free_duration=0.2))
+    usual = StaticWorld(StaticWorldConfig())
+    post = np.array([[2.95, 1.0]])  # the post's near side
+    walked = []
+    for k in range(16):
+        t = 0.1 * k
+        scan = lidar.scan(t, Pose2D(), np.array([[1.5 + 1.0 * t, -1.0]]), np.array([[1.0, 0.0]]))
+        if k < 3:
+            walked.append(scan_points(scan)[scan_points(scan)[:, 1] < 0])  # the walker's legs
+        for world in (quick, usual):
+            world.update(scan, scan_points(scan), Pose2D(), np.zeros((0, 2)))
+        if k == 1:
+            assert not quick.is_static(post)[0]  # hit twice, but only 0.1 s apart
+        if k == 3:
+            assert quick.is_static(post)[0] and not usual.is_static(post)[0]  # 0.3 s of hits, never free
+    assert usual.is_static(post)[0]  # after 1.5 s the usual rule agrees
+    assert not quick.is_static(np.concatenate(walked)).any()  # the walker's old cells were seen free

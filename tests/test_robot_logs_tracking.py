@@ -140,3 +140,40 @@ def test_tracks_in_the_sensor_frame_move_with_the_robot(moving_robot_bags) -> No
     for point in expected:
         assert np.hypot(*(seen - point).T).min() < 0.15
     assert math.isclose(t, 6.9, abs_tol=1e-6)
+
+
+def test_a_track_lives_on_unreported_through_an_occlusion_and_keeps_its_id() -> None:
+    tracker = Tracker(TrackerConfig(death_misses=15, report_misses=1))
+    for k in range(3):
+        reported = tracker.step(0.1 * k, np.array([[2.0 + 0.1 * k, 1.0]]))
+    assert [s.track_id for s in reported] == [1]
+    hidden = [len(tracker.step(0.1 * k, np.zeros((0, 2)))) for k in range(3, 8)]
+    assert hidden == [1, 0, 0, 0, 0]  # reported one scan into the occlusion, then kept quietly
+    back = tracker.step(0.8, np.array([[2.8, 1.0]]))  # walked on at 1 m/s behind the occluder
+    assert [(s.track_id, round(s.x, 1)) for s in back] == [(1, 2.8)]
+
+
+def test_a_detection_beside_a_confirmed_track_starts_no_track() -> None:
+    clear = TrackerConfig(birth_hits=1, birth_clearance=0.6)
+    tracker = Tracker(clear)
+    tracker.step(0.0, np.array([[2.0, 1.0]]))
+    beside = tracker.step(0.1, np.array([[2.0, 1.0], [2.0, 1.45]]))  # the same person's other leg
+    assert [s.track_id for s in beside] == [1] and len(tracker.tracks) == 1
+    apart = tracker.step(0.2, np.array([[2.0, 1.0], [2.0, 1.8]]))  # someone 0.8 m away
+    assert sorted(s.track_id for s in apart) == [1, 2]
+    without = Tracker(TrackerConfig(birth_hits=1))
+    without.step(0.0, np.array([[2.0, 1.0]]))
+    assert len(without.step(0.1, np.array([[2.0, 1.0], [2.0, 1.45]]))) == 2
+
+
+def test_a_tentative_track_may_survive_a_missed_scan() -> None:
+    person, nobody = np.array([[2.0, 1.0]]), np.zeros((0, 2))
+    for misses, confirmed in ((1, []), (2, [1])):
+        tracker = Tracker(TrackerConfig(tentative_misses=misses))
+        for k, seen in enumerate((person, person, nobody, person)):
+            states = tracker.step(0.1 * k, seen)
+        assert [s.track_id for s in states] == confirmed
+    tracker = Tracker(TrackerConfig(tentative_misses=2))
+    for k, seen in enumerate((person, nobody, nobody, person)):
+        tracker.step(0.1 * k, seen)
+    assert [t.hits for t in tracker.tracks] == [1]  # two misses in a row: dropped, born again
