@@ -29,14 +29,18 @@ def test_plackett_burman_12_runs_reach_d_efficiency_100():
 
 def test_i_optimal_quadratic_puts_half_the_runs_at_the_centre():
     """One factor, quadratic, 4 runs: the I-optimum (weights 1/4, 1/2, 1/4 on -1, 0, 1; Atkinson, Donev
-    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]; D-optimal differs."""
+    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]. The D criterion is
+    indifferent to which point is replicated (det 8 each way), so D-optimal designs include worse ones for I."""
     model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
     design = optimal_design(model, 4, seed=1, starts=20, criterion="I")
     assert sorted(np.round(design.settings[:, 0], 6)) == [-1.0, 0.0, 0.0, 1.0]
     assert design.value == pytest.approx(8 / 15, rel=1e-9)
     assert diagnose(model, design.settings).average_prediction_variance == pytest.approx(8 / 15, rel=1e-9)
     d_design = optimal_design(model, 4, seed=1, starts=20, criterion="D")
-    assert diagnose(model, d_design.settings).average_prediction_variance > 8 / 15 + 0.01
+    assert np.exp(d_design.value) == pytest.approx(8.0, rel=1e-9)
+    end_replicated = np.array([[-1.0], [-1.0], [0.0], [1.0]])
+    assert np.linalg.det(model.matrix(end_replicated).T @ model.matrix(end_replicated)) == pytest.approx(8.0)
+    assert diagnose(model, end_replicated).average_prediction_variance > 8 / 15 + 0.01
 
 
 def test_a_optimal_two_level_factorial_has_trace_p_over_n():
