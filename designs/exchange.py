@@ -38,7 +38,7 @@ _SWAP_BUDGET = 4_000
 _MAX_PASSES = 500
 #: Iterated local search when the starts disagree: the work of a start's kicks (runs x factors x p^2 a kick),
 #: the most kicks a start makes, and the runs each kick moves to random candidate points.
-KICK_WORK = 10_000_000
+KICK_WORK = 8_000_000
 MAX_KICKS = 100
 KICK_RUNS = 3
 #: Chebyshev-Lobatto probes of a continuous coordinate: 7 fix a polynomial of degree 6 exactly.
