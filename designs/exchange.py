@@ -126,12 +126,13 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
 
     Each start runs the coordinate exchange from its random runs (curved continuous coordinates drawn
     anywhere in their range). When the starts end at different values, each start searches again from
-    its runs on the grid: the exchange on the grid, kicks of iterated local search (`_Search.kicks`),
-    then the exchange with continuous moves; it keeps the better of its two ends.
+    its end snapped to the grid: the exchange on the grid, kicks of iterated local search
+    (`_Search.kicks`), then the exchange with continuous moves; it keeps the better of its two ends.
 
     `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
     `runs` - m new runs are searched around them. `per_run` maps a factor the runs fix (block,
-    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start.
+    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start of
+    each round.
     """
     check_runs(model, runs)
     kept = np.zeros((0, len(model.factors))) if kept is None else np.asarray(kept, dtype=float)
@@ -139,8 +140,7 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
         raise DesignError(f"starts must be at least 1, got {starts}")
     search = _Search.of(model, criterion, restrictions, per_run or {}, len(kept))
     rngs = [np.random.default_rng(child) for child in np.random.SeedSequence(seed).spawn(starts)]
-    openings = [search.opening(rng, kept, runs, per_run or {}) for rng in rngs]
-    designs = [search.spread(rng, opening) for rng, opening in zip(rngs, openings, strict=True)]
+    designs = [search.spread(rng, search.opening(rng, kept, runs, per_run or {})) for rng in rngs]
     ends = np.empty(starts)
     for s, settings in enumerate(designs):
         search.exchange(settings, search.continuous)
@@ -148,9 +148,10 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
         if progress is not None:
             progress(s + 1, starts)
     kicks = search.kicks(runs) if starts > 1 and not np.all(_same(ends, _best(ends, criterion), criterion)) else 0
-    for s, (settings, rng) in enumerate(zip(openings, rngs, strict=True)) if kicks else ():
+    for s in range(starts) if kicks else ():
+        settings = search.snap(designs[s])
         search.exchange(settings, np.zeros_like(search.continuous))
-        search.iterate(settings, rng, runs, kicks)
+        search.iterate(settings, rngs[s], runs, kicks)
         if search.continuous.any():
             search.exchange(settings, search.continuous)
         value = search.value(settings)
@@ -226,6 +227,20 @@ class _Search:
             keep = self.restrictions.allowed(moved, self.model.factors) if self.restrictions else np.ones(len(free), dtype=bool)
             free[keep] = moved[keep]
         return settings
+
+    def snap(self, settings: np.ndarray) -> np.ndarray:
+        """A copy whose free runs have each coordinate moved to the nearest of its factor's grid settings (frozen
+        factors, and a run whose nearest grid point is not allowed, stay as they are)."""
+        values, count = self.codes[0][6], self.codes[0][7]
+        snapped = settings.copy()
+        free = snapped[self.first_free:]
+        for f in np.flatnonzero(~self.frozen):
+            grid = values[f, : count[f]]
+            free[:, f] = grid[np.argmin(np.abs(free[:, f, None] - grid[None, :]), axis=1)]
+        if self.restrictions:
+            refused = ~self.restrictions.allowed(free, self.model.factors)
+            free[refused] = settings[self.first_free:][refused]
+        return snapped
 
     def exchange(self, settings: np.ndarray, continuous: np.ndarray) -> None:
         """Coordinate exchange in place; `continuous` says which factors move anywhere in their range."""
