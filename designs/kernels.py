@@ -1,8 +1,11 @@
 """Compiled kernels of the design search (numba, cached beside the sources): model rows, the
-disallowed-combination programs and one start of the coordinate exchange.
+disallowed-combination programs, one start of the coordinate exchange (`optimise_start`) and its
+iterated local search on the grid (`iterate_start`).
 
 The exchange keeps V = (X'X)^-1 and judges replacing a run's row x by a trial row y from
-y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx): O(p^2) a trial.
+y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx). A trial that moves
+one coordinate changes only the model columns of that factor, so a = Vy costs p per changed
+column from the row it leaves (`_trial_near`); a whole candidate point costs O(p^2).
 
 - D: det rises by the factor (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta)
 - I and A: trace(W V) falls by the Woodbury identity with the 2 x 2 core of the exchange, W the
