@@ -28,14 +28,20 @@ from designs.model import Model
 
 CRITERION_NAMES = {"D": "largest det(X'X)", "I": "smallest average prediction variance", "A": "smallest trace((X'X)^-1)"}
 CRITERIA = tuple(CRITERION_NAMES)
-#: Two criterion values this close (relative; absolute for log det) are the same optimum.
-VALUE_TOL = 1e-7
+#: Two criterion values this close (relative; for D absolute on log det, so relative on det) are the same optimum:
+#: symmetric designs agree to about 1e-12, distinct local optima differ by 1e-3 or more.
+VALUE_TOL = 1e-6
 #: Largest candidate set enumerated (the product of the factors' candidate settings).
 MAX_CANDIDATES = 200_000
 #: Whole candidate points are tried as row swaps while candidates x p stays below this; beyond it the
 #: coordinate moves alone search (each swap costs p^2 per candidate).
 _SWAP_BUDGET = 4_000
 _MAX_PASSES = 500
+#: Iterated local search when the starts disagree: the work of a start's kicks (runs x factors x p^2 a kick),
+#: the most kicks a start makes, and the runs each kick moves to random candidate points.
+KICK_WORK = 8_000_000
+MAX_KICKS = 100
+KICK_RUNS = 3
 #: Chebyshev-Lobatto probes of a continuous coordinate: 7 fix a polynomial of degree 6 exactly.
 _PROBES = np.cos(np.pi * np.arange(7) / 6)[::-1].copy()
 _PROBE_INVERSE = np.linalg.inv(np.vander(_PROBES, 7, increasing=True))
@@ -52,6 +58,7 @@ class ExactDesign:
             variance (I) or trace((X'X)^-1) (A).
         start_values: the criterion each start ended at, in start order (inf or -inf: singular).
         seed: the master seed; start s uses SeedSequence(seed).spawn(starts)[s].
+        kicks: the iterated local search's kicks per start (0: the starts agreed without it).
     """
 
     settings: np.ndarray
@@ -59,6 +66,7 @@ class ExactDesign:
     value: float
     start_values: np.ndarray
     seed: int
+    kicks: int = 0
 
     @property
     def starts(self) -> int:
@@ -66,10 +74,8 @@ class ExactDesign:
 
     @property
     def hits(self) -> int:
-        """How many starts reached the best value found."""
-        if self.criterion == "D":
-            return int(np.sum(self.start_values >= self.value - VALUE_TOL))
-        return int(np.sum(self.start_values <= self.value * (1.0 + VALUE_TOL)))
+        """How many starts reached the best value found (within VALUE_TOL)."""
+        return int(np.sum(_same(self.start_values, self.value, self.criterion)))
 
 
 def candidate_set(model: Model, restrictions: Restrictions | None = None) -> np.ndarray:
@@ -118,71 +124,168 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
                    progress: Callable[[int, int], None] | None = None) -> ExactDesign:
     """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
 
+    Each start runs the coordinate exchange from its random runs (curved continuous coordinates drawn
+    anywhere in their range). When the starts end at different values, each start searches again from
+    its end snapped to the grid: the exchange on the grid, kicks of iterated local search
+    (`_Search.kicks`), then the exchange with continuous moves; it keeps the better of its two ends.
+
     `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
     `runs` - m new runs are searched around them. `per_run` maps a factor the runs fix (block,
-    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start.
+    covariate) to its setting in each of the `runs` runs. `progress(done, starts)` is called after each start of
+    each round.
     """
-    from designs import kernels  # numba loads only when a design is searched
-
     check_runs(model, runs)
     kept = np.zeros((0, len(model.factors))) if kept is None else np.asarray(kept, dtype=float)
     if starts < 1:
         raise DesignError(f"starts must be at least 1, got {starts}")
-    weight = criterion_weight(model, criterion)
-    candidates = candidate_set(model, restrictions)
-    curved = model.curved_continuous
-    per_run = per_run or {}
-    frozen = np.array([i in per_run for i in range(len(model.factors))])
-    # A continuous factor entering only linearly has its D-optimum at -1 or +1 (the delta is convex in it),
-    # so the grid suffices there; under I or A, or with restrictions, it too moves anywhere in its range.
-    free = criterion != "D" or bool(restrictions)
-    continuous = np.array([i in curved or (free and isinstance(f, ContinuousFactor)) for i, f in enumerate(model.factors)])
-    grids = [model.grid(i) for i in range(len(model.factors))]
-    values = np.zeros((len(grids), max(len(g) for g in grids)))
-    for i, grid in enumerate(grids):
-        values[i, : len(grid)] = grid
-    value_count = np.array([len(g) for g in grids], dtype=np.int64)
-    levels = np.array([len(f.levels) if isinstance(f, CategoricalFactor) else 0 for f in model.factors], dtype=np.int64)
-    centre, half, kinds = factor_arrays(model.factors)
-    col_factor, col_code = model.column_codes()
-    ops, args, bounds = ((restrictions.ops, restrictions.args, restrictions.bounds) if restrictions
-                         else (np.zeros(0, np.int64), np.zeros(0), np.zeros(1, np.int64)))
-    swaps = candidates if len(candidates) * model.p <= _SWAP_BUDGET else np.zeros((0, len(model.factors)))
-    best_settings, best = None, None
+    search = _Search.of(model, criterion, restrictions, per_run or {}, len(kept))
+    rngs = [np.random.default_rng(child) for child in np.random.SeedSequence(seed).spawn(starts)]
+    designs = [search.spread(rng, search.opening(rng, kept, runs, per_run or {})) for rng in rngs]
     ends = np.empty(starts)
-    for s, child in enumerate(np.random.SeedSequence(seed).spawn(starts)):
-        fresh = _random_start(np.random.default_rng(child), candidates, runs - len(kept), curved, restrictions, model)
-        settings = np.vstack([kept, fresh])
-        for i, column in per_run.items():
-            settings[len(kept):, i] = column[len(kept):]
-        kernels.optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
-                               continuous, frozen, weight, criterion != "D", ops, args, bounds, swaps, _PROBES, _PROBE_INVERSE,
-                               _MAX_PASSES, len(kept))
-        ends[s] = criterion_value(model.matrix(settings), criterion, weight)
-        if restrictions and not restrictions.allowed(settings, model.factors).all():
-            ends[s] = -np.inf if criterion == "D" else np.inf  # a run's block or covariate left it nowhere allowed
-        if best is None or _better(ends[s], best, criterion):
-            best_settings, best = settings, ends[s]
+    for s, settings in enumerate(designs):
+        search.exchange(settings, search.continuous)
+        ends[s] = search.value(settings)
         if progress is not None:
             progress(s + 1, starts)
-    assert best is not None and best_settings is not None
+    kicks = search.kicks(runs) if starts > 1 and not np.all(_same(ends, _best(ends, criterion), criterion)) else 0
+    for s in range(starts) if kicks else ():
+        settings = search.snap(designs[s])
+        search.exchange(settings, np.zeros_like(search.continuous))
+        search.iterate(settings, rngs[s], runs, kicks)
+        if search.continuous.any():
+            search.exchange(settings, search.continuous)
+        value = search.value(settings)
+        if _better(value, ends[s], criterion):
+            designs[s], ends[s] = settings, value
+        if progress is not None:
+            progress(s + 1, starts)
+    best = _best(ends, criterion)
     if not np.isfinite(best):
         why = " or no allowed setting fits some run's block or covariate" if restrictions else ""
         raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular{why})")
-    return ExactDesign(best_settings, criterion, float(best), ends, seed)
+    best_settings = designs[int(np.flatnonzero(ends == best)[0])]
+    return ExactDesign(best_settings, criterion, float(best), ends, seed, kicks)
+
+
+@dataclass
+class _Search:
+    """The compiled kernels' view of one search: the model's codes, the grid, the restrictions' programs."""
+
+    model: Model
+    criterion: str
+    restrictions: Restrictions | None
+    first_free: int
+    continuous: np.ndarray
+    frozen: np.ndarray
+    candidates: np.ndarray
+    swaps: np.ndarray
+    codes: tuple
+
+    @classmethod
+    def of(cls, model: Model, criterion: str, restrictions: Restrictions | None, per_run: dict[int, np.ndarray],
+           first_free: int) -> _Search:
+        weight = criterion_weight(model, criterion)
+        candidates = candidate_set(model, restrictions)
+        curved = model.curved_continuous
+        frozen = np.array([i in per_run for i in range(len(model.factors))])
+        # A continuous factor entering only linearly has its D-optimum at -1 or +1 (the delta is convex in it),
+        # so the grid suffices there; under I or A, or with restrictions, it too moves anywhere in its range.
+        free = criterion != "D" or bool(restrictions)
+        continuous = np.array([i in curved or (free and isinstance(f, ContinuousFactor)) for i, f in enumerate(model.factors)])
+        grids = [model.grid(i) for i in range(len(model.factors))]
+        values = np.zeros((len(grids), max(len(g) for g in grids)))
+        for i, grid in enumerate(grids):
+            values[i, : len(grid)] = grid
+        value_count = np.array([len(g) for g in grids], dtype=np.int64)
+        levels = np.array([len(f.levels) if isinstance(f, CategoricalFactor) else 0 for f in model.factors], dtype=np.int64)
+        centre, half, kinds = factor_arrays(model.factors)
+        col_factor, col_code = model.column_codes()
+        ops, args, bounds = ((restrictions.ops, restrictions.args, restrictions.bounds) if restrictions
+                             else (np.zeros(0, np.int64), np.zeros(0), np.zeros(1, np.int64)))
+        swaps = candidates if len(candidates) * model.p <= _SWAP_BUDGET else np.zeros((0, len(model.factors)))
+        codes = (kinds, levels, col_factor, col_code, centre, half, values, value_count)
+        return cls(model, criterion, restrictions, first_free, continuous, frozen, candidates, swaps,
+                   (codes, weight, criterion != "D", ops, args, bounds))
+
+    def opening(self, rng: np.random.Generator, kept: np.ndarray, runs: int, per_run: dict[int, np.ndarray]) -> np.ndarray:
+        """A start's runs: the kept ones, then random allowed candidates with the runs' fixed settings."""
+        fresh = self.candidates[rng.integers(len(self.candidates), size=runs - len(kept))]
+        settings = np.vstack([kept, fresh])
+        for i, column in per_run.items():
+            settings[len(kept):, i] = column[len(kept):]
+        return settings
+
+    def spread(self, rng: np.random.Generator, opening: np.ndarray) -> np.ndarray:
+        """A copy of `opening` whose free runs have their curved continuous coordinates drawn uniformly where allowed:
+        such a factor's optimum may lie off the grid, where the exchange from grid points would not go."""
+        settings = opening.copy()
+        curved = [i for i in self.model.curved_continuous if not self.frozen[i]]
+        if curved:
+            free = settings[self.first_free:]
+            moved = free.copy()
+            moved[:, curved] = rng.uniform(-1.0, 1.0, size=(len(free), len(curved)))
+            keep = self.restrictions.allowed(moved, self.model.factors) if self.restrictions else np.ones(len(free), dtype=bool)
+            free[keep] = moved[keep]
+        return settings
+
+    def snap(self, settings: np.ndarray) -> np.ndarray:
+        """A copy whose free runs have each coordinate moved to the nearest of its factor's grid settings (frozen
+        factors, and a run whose nearest grid point is not allowed, stay as they are)."""
+        values, count = self.codes[0][6], self.codes[0][7]
+        snapped = settings.copy()
+        free = snapped[self.first_free:]
+        for f in np.flatnonzero(~self.frozen):
+            grid = values[f, : count[f]]
+            free[:, f] = grid[np.argmin(np.abs(free[:, f, None] - grid[None, :]), axis=1)]
+        if self.restrictions:
+            refused = ~self.restrictions.allowed(free, self.model.factors)
+            free[refused] = settings[self.first_free:][refused]
+        return snapped
+
+    def exchange(self, settings: np.ndarray, continuous: np.ndarray) -> None:
+        """Coordinate exchange in place; `continuous` says which factors move anywhere in their range."""
+        from designs import kernels  # numba loads only when a design is searched
+
+        codes, weight, trace, ops, args, bounds = self.codes
+        kernels.optimise_start(settings, *codes, continuous, self.frozen, weight, trace, ops, args, bounds, self.swaps,
+                               _PROBES, _PROBE_INVERSE, _MAX_PASSES, self.first_free)
+
+    def kicks(self, runs: int) -> int:
+        """Kicks per start: as many as `KICK_WORK` allows (each re-runs the exchange, about runs x factors x p^2
+        a pass), at most `MAX_KICKS`."""
+        return min(MAX_KICKS, KICK_WORK // (runs * len(self.model.factors) * self.model.p ** 2))
+
+    def iterate(self, settings: np.ndarray, rng: np.random.Generator, runs: int, kicks: int) -> None:
+        """`kicks` kicks of iterated local search on the grid, in place; each moves `KICK_RUNS` free runs."""
+        from designs import kernels
+
+        free = runs - self.first_free
+        moved = min(KICK_RUNS, free)
+        rows = self.first_free + np.argsort(rng.random((kicks, free)), axis=1)[:, :moved]
+        points = rng.integers(len(self.candidates), size=(kicks, moved))
+        codes, weight, trace, ops, args, bounds = self.codes
+        kernels.iterate_start(settings, *codes, self.frozen, weight, trace, ops, args, bounds, _PROBES, _PROBE_INVERSE,
+                              _MAX_PASSES, self.first_free, self.candidates, rows, points)
+
+    def value(self, settings: np.ndarray) -> float:
+        """The criterion of a searched design (inf or -inf: singular, or a run left nowhere allowed)."""
+        weight = self.codes[1]
+        if self.restrictions and not self.restrictions.allowed(settings, self.model.factors).all():
+            return -np.inf if self.criterion == "D" else np.inf  # a run's block or covariate left it nowhere allowed
+        return criterion_value(self.model.matrix(settings), self.criterion, weight)
+
+
+def _best(values: np.ndarray, criterion: str) -> float:
+    return float(np.max(values) if criterion == "D" else np.min(values))
+
+
+def _same(values: np.ndarray, best: float, criterion: str) -> np.ndarray:
+    """Which values reach `best` within VALUE_TOL (relative; for D's log det, absolute)."""
+    if criterion == "D":
+        return values >= best - VALUE_TOL
+    return values <= best * (1.0 + VALUE_TOL)
 
 
 def _better(value: float, best: float, criterion: str) -> bool:
+    """Whether `value` beats `best`: larger log det for D, smaller trace for I and A."""
     return value > best if criterion == "D" else value < best
-
-
-def _random_start(rng: np.random.Generator, candidates: np.ndarray, runs: int, curved: list[int],
-                  restrictions: Restrictions | None, model: Model) -> np.ndarray:
-    """Runs drawn from the allowed candidates; curved continuous coordinates then drawn uniformly where allowed."""
-    settings = candidates[rng.integers(len(candidates), size=runs)]
-    if curved:
-        moved = settings.copy()
-        moved[:, curved] = rng.uniform(-1.0, 1.0, size=(runs, len(curved)))
-        keep = restrictions.allowed(moved, model.factors) if restrictions else np.ones(runs, dtype=bool)
-        settings[keep] = moved[keep]
-    return settings

@@ -13,7 +13,7 @@ import numpy as np
 from designs.blinding import WHOLE_KEY
 from designs.diagnostics import POWER_CONVENTION, Diagnostics
 from designs.errors import DesignError
-from designs.exchange import CRITERION_NAMES, candidate_set
+from designs.exchange import CRITERION_NAMES, VALUE_TOL, candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
 from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
@@ -99,11 +99,14 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             },
         },
         "search": {
-            "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates",
+            "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates; "
+                         "when the starts disagree, iterated local search on the grid (kicks of 3 runs) before a last exchange",
             "criterion": plan.design.criterion,
             "criterion_value": plan.design.value,
             "starts": plan.design.starts,
+            "kicks_per_start": plan.design.kicks,
             "hits": plan.design.hits,
+            "hits_tolerance": VALUE_TOL,
             "design_seed": plan.design.seed,
             "log_det_xtx": math.log(d.det_xtx),
         },
@@ -134,7 +137,8 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     lines = [
         f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
         f"Seed {plan.seed}; criterion {plan.design.criterion} ({CRITERION_NAMES[plan.design.criterion]}); "
-        f"{plan.design.starts} exchange starts, {plan.design.hits} reached the best design",
+        f"{plan.design.starts} exchange starts{f' with {plan.design.kicks} kicks each' if plan.design.kicks else ''}, "
+        f"{plan.design.hits} reached the best design",
     ]
     bound = f"  D-efficiency bound           {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it"
     lines += diagnostics_lines(d, bound)

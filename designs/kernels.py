@@ -1,8 +1,11 @@
 """Compiled kernels of the design search (numba, cached beside the sources): model rows, the
-disallowed-combination programs and one start of the coordinate exchange.
+disallowed-combination programs, one start of the coordinate exchange (`optimise_start`) and its
+iterated local search on the grid (`iterate_start`).
 
 The exchange keeps V = (X'X)^-1 and judges replacing a run's row x by a trial row y from
-y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx): O(p^2) a trial.
+y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx). A trial that moves
+one coordinate changes only the model columns of that factor, so a = Vy costs p per changed
+column from the row it leaves (`_trial_near`); a whole candidate point costs O(p^2).
 
 - D: det rises by the factor (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta)
 - I and A: trace(W V) falls by the Woodbury identity with the 2 x 2 core of the exchange, W the
@@ -143,6 +146,42 @@ def _trial(y, inv, b, wb, weight, trace, a, wa, out):
 
 
 @kernel
+def _trial_near(y, base, a_base, cols, count, inv, b, wb, weight, trace, a, wa, out):
+    """`_trial` for a row y that differs from `base` (with a_base = V base) only in the columns `cols[:count]`:
+    a = Vy costs p per changed column instead of p^2."""
+    p = len(y)
+    for r in range(p):
+        a[r] = a_base[r]
+    for t in range(count):
+        c = cols[t]
+        change = y[c] - base[c]
+        if change != 0.0:
+            for r in range(p):
+                a[r] += inv[c, r] * change  # V is symmetric: row c is column c, read in memory order
+    out[0] = _dot(y, a)
+    out[1] = _dot(b, y)
+    if trace:
+        _mat_vec(weight, a, wa)
+        out[2] = _dot(a, wa)
+        out[3] = _dot(a, wb)
+
+
+@kernel
+def factor_columns(col_factor, k):
+    """(k, p) the model columns each factor enters, and (k,) how many: a move of factor f changes only those."""
+    p, parts = col_factor.shape
+    cols = np.zeros((k, p), dtype=np.int64)
+    count = np.zeros(k, dtype=np.int64)
+    for c in range(p):
+        for q in range(parts):
+            f = col_factor[c, q]
+            if f >= 0 and (count[f] == 0 or cols[f, count[f] - 1] != c):
+                cols[f, count[f]] = c
+                count[f] += 1
+    return cols, count
+
+
+@kernel
 def _gain(dy, dxy, awa, awb, dx, bwb, trace):
     """What replacing the row x by y gains (larger is better; 0 for y = x).
 
@@ -207,6 +246,9 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
     b = np.empty(p)
     wb = np.empty(p)
     x_old = np.empty(p)
+    base = np.empty(p)
+    a_base = np.empty(p)
+    cols, col_count = factor_columns(col_factor, k)
     out = np.zeros(4)
     stack = np.empty(max(len(ops), 1))
     trial = np.empty(k)
@@ -240,16 +282,24 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
             best = 0.0
             for j in range(k):
                 best_point[j] = settings[i, j]
+            for r in range(p):
+                base[r] = x[i, r]
+                a_base[r] = b[r]
+            moved = False  # best_point has left the run's row: base and a_base must follow it
             for f in range(k):
                 if frozen[f]:
                     continue
+                if moved:
+                    model_row(best_point, kinds, levels, col_factor, col_code, base)
+                    _mat_vec(inv, base, a_base)
+                    moved = False
                 for j in range(k):
                     trial[j] = best_point[j]
                 if continuous[f]:
                     for r in range(n_probes):
                         trial[f] = probes[r]
                         model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial(y, inv, b, wb, weight, trace, a, wa, out)
+                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
                         for m in range(4):
                             sampled[m, r] = out[m]
                     for m in range(4):
@@ -260,6 +310,7 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                             fitted[m, r] = total
                     chosen = best_point[f]
                     top = best
+                    limit = np.exp(top + tolerance)  # D: the determinant ratio a point must pass, so few take a log
                     centre_t = 0.0
                     step = fine[1] - fine[0]
                     for zoom in range(_ZOOMS + 1):
@@ -268,20 +319,28 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                             t = fine[r] if zoom == 0 else centre_t + step * (r - (_ZOOM_POINTS - 1) / 2) / ((_ZOOM_POINTS - 1) / 2)
                             if t < -1.0 or t > 1.0:
                                 continue
-                            g = _gain(_poly(fitted[0], t), _poly(fitted[1], t), _poly(fitted[2], t), _poly(fitted[3], t),
-                                      dx, bwb, trace)
+                            dy = _poly(fitted[0], t)
+                            dxy = _poly(fitted[1], t)
+                            if trace:
+                                g = _gain(dy, dxy, _poly(fitted[2], t), _poly(fitted[3], t), dx, bwb, trace)
+                            elif (1.0 - dx) * (1.0 + dy) + dxy * dxy > limit:
+                                g = _gain(dy, dxy, 0.0, 0.0, dx, bwb, trace)
+                            else:
+                                continue
                             if g > top + tolerance:
                                 if constrained:
                                     trial[f] = t
                                     if disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
                                         continue
                                 top = g
+                                limit = np.exp(top + tolerance)
                                 chosen = t
                         centre_t = chosen
                         step = step / ((_ZOOM_POINTS - 1) / 2)
                     if top > best + tolerance:
                         best = top
                         best_point[f] = chosen
+                        moved = True
                 else:
                     for r in range(value_count[f]):
                         value = values[f, r]
@@ -291,11 +350,12 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                         if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
                             continue
                         model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial(y, inv, b, wb, weight, trace, a, wa, out)
+                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
                         g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
                         if g > best + tolerance:
                             best = g
                             best_point[f] = value
+                            moved = True
             for c in range(len(cand_settings)):
                 for j in range(k):
                     trial[j] = best_point[j] if frozen[j] else cand_settings[c, j]
@@ -319,3 +379,60 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
         if not improved:
             break
     return passes
+
+
+@kernel
+def criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace):
+    """The design's criterion as a gain (larger is better): log det(X'X) for D, -trace(W (X'X)^-1) for I and A;
+    -inf when X'X is singular."""
+    n = settings.shape[0]
+    p = col_factor.shape[0]
+    x = np.empty((n, p))
+    for i in range(n):
+        model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
+    info = x.T @ x
+    sign, log_det = np.linalg.slogdet(info)
+    if sign <= 0 or log_det < -30.0:
+        return -np.inf
+    if trace:
+        return -np.sum(weight * np.linalg.inv(info))
+    return log_det
+
+
+@kernel
+def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
+                  frozen, weight, trace, ops, args, bounds, probes, probe_inverse, max_passes, first_free,
+                  candidates, kick_rows, kick_points):
+    """Iterated local search on the grid, in place on `settings`; returns the kicks kept.
+
+    Kick j replaces the runs `kick_rows[j]` by the candidate points `kick_points[j]` (a run keeps its
+    frozen coordinates, and a kicked run that lands on a disallowed point stays as it was), runs the
+    coordinate exchange on the grid again and keeps the result when the criterion is no worse. A few
+    runs moved at once leave the local optimum that single-coordinate moves cannot.
+    """
+    n, k = settings.shape
+    grid_only = np.zeros(k, dtype=np.bool_)
+    no_swaps = np.zeros((0, k))
+    stack = np.empty(max(len(ops), 1))
+    constrained = len(bounds) > 1
+    current = criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace)
+    trial = np.empty_like(settings)
+    kept = 0
+    for j in range(kick_rows.shape[0]):
+        trial[:, :] = settings
+        for r in range(kick_rows.shape[1]):
+            row = kick_rows[j, r]
+            point = trial[row].copy()
+            for f in range(k):
+                if not frozen[f]:
+                    point[f] = candidates[kick_points[j, r], f]
+            if not (constrained and disallowed(point, centre, half, kinds, ops, args, bounds, stack)):
+                trial[row] = point
+        optimise_start(trial, kinds, levels, col_factor, col_code, centre, half, values, value_count, grid_only, frozen,
+                       weight, trace, ops, args, bounds, no_swaps, probes, probe_inverse, max_passes, first_free)
+        value = criterion_of(trial, kinds, levels, col_factor, col_code, weight, trace)
+        if value >= current:
+            settings[:, :] = trial
+            current = value
+            kept += 1
+    return kept

@@ -25,12 +25,13 @@ def public_files(folder: Path) -> list[Path]:
 
 
 def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
-    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "12"]) == 0
+    assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "12", "--figures"]) == 0
     captured = capsys.readouterr()
     console = (captured.out + captured.err).lower()
     assert all(word not in console for word in CONTROLLER_WORDS)
     files = public_files(tmp_path)
-    assert sorted(p.name for p in files) == ["correlation_map.png", "design.json", "design_evaluation.png", "plan.csv", "study.toml"]
+    assert sorted(p.name for p in files) == ["correlation_map.png", "correlation_map.svg", "design.json", "design_evaluation.png",
+                                             "design_evaluation.svg", "plan.csv", "study.toml"]
     for path in files:
         content = path.read_bytes().lower()
         assert all(word.encode() not in content for word in CONTROLLER_WORDS), path.name

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from designs import exchange
 from designs.constraints import compile_restrictions
 from designs.diagnostics import diagnose
 from designs.errors import DesignError
@@ -29,14 +30,18 @@ def test_plackett_burman_12_runs_reach_d_efficiency_100():
 
 def test_i_optimal_quadratic_puts_half_the_runs_at_the_centre():
     """One factor, quadratic, 4 runs: the I-optimum (weights 1/4, 1/2, 1/4 on -1, 0, 1; Atkinson, Donev
-    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]; D-optimal differs."""
+    and Tobias, Optimum Experimental Designs) has average variance 8/15 over [-1, 1]. The D criterion is
+    indifferent to which point is replicated (det 8 each way), so D-optimal designs include worse ones for I."""
     model = parse_model("main + quadratic", (ContinuousFactor("A", -1, 1),))
     design = optimal_design(model, 4, seed=1, starts=20, criterion="I")
     assert sorted(np.round(design.settings[:, 0], 6)) == [-1.0, 0.0, 0.0, 1.0]
     assert design.value == pytest.approx(8 / 15, rel=1e-9)
     assert diagnose(model, design.settings).average_prediction_variance == pytest.approx(8 / 15, rel=1e-9)
     d_design = optimal_design(model, 4, seed=1, starts=20, criterion="D")
-    assert diagnose(model, d_design.settings).average_prediction_variance > 8 / 15 + 0.01
+    assert np.exp(d_design.value) == pytest.approx(8.0, rel=1e-9)
+    end_replicated = np.array([[-1.0], [-1.0], [0.0], [1.0]])
+    assert np.linalg.det(model.matrix(end_replicated).T @ model.matrix(end_replicated)) == pytest.approx(8.0)
+    assert diagnose(model, end_replicated).average_prediction_variance > 8 / 15 + 0.01
 
 
 def test_a_optimal_two_level_factorial_has_trace_p_over_n():
@@ -202,3 +207,16 @@ def test_each_start_ends_where_no_joint_continuous_move_raises_det(seed):
     polished = minimize(negative_log_det, design.settings.ravel(), method="L-BFGS-B", bounds=[(-1.0, 1.0)] * design.settings.size)
     assert negative_log_det(design.settings.ravel()) == pytest.approx(-design.value, abs=1e-9)
     assert -polished.fun - design.value < 1e-6
+
+
+def test_kicks_bring_the_starts_of_a_near_saturated_quadratic_together(monkeypatch):
+    """4 continuous factors, full quadratic (p = 15) in 20 runs: the coordinate exchange alone leaves its starts
+    at distinct local optima; iterated local search brings most to the best, and no start ends worse for it."""
+    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(4)))
+    design = optimal_design(model, 20, seed=2019, starts=20)
+    monkeypatch.setattr(exchange, "KICK_WORK", 0)
+    plain = optimal_design(model, 20, seed=2019, starts=20)
+    assert design.kicks == exchange.MAX_KICKS and plain.kicks == 0
+    assert plain.hits <= 2 and design.hits >= 18  # measured: 1 and 20 of 20
+    assert np.all(design.start_values >= plain.start_values - 1e-12)  # a start keeps the better of its two ends
+    assert design.value >= plain.value - exchange.VALUE_TOL

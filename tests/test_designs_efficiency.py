@@ -34,6 +34,7 @@ def test_qualitative_plan_reaches_the_proven_optimum_from_any_seed(seed):
     model = _model(qualitative())
     design = optimal_design(model, 27, seed=seed)
     assert model.p == 5
+    assert design.hits == design.starts == 100 and design.kicks == 0  # every start: no iterated search needed
     assert _det(model, design.settings) == pytest.approx(4_677_120, rel=1e-9)
     assert diagnose(model, design.settings).d_efficiency == pytest.approx(79.9157, abs=1e-4)
     peds, _, distance = design.settings.T
@@ -46,6 +47,7 @@ def test_ab_plan_reaches_the_proven_optimum_from_any_seed(seed):
     model = _model(ab(CONTROLLERS))
     design = optimal_design(model, 18, seed=seed)
     assert model.p == 11
+    assert design.hits == design.starts == 100 and design.kicks == 0
     assert _det(model, design.settings) == pytest.approx(106_420_469_760, rel=1e-9)
     assert diagnose(model, design.settings).d_efficiency == pytest.approx(55.8707, abs=1e-4)
 

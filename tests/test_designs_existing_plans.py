@@ -114,8 +114,9 @@ def test_bad_criterion_or_restriction_is_one_line_exit_2(tmp_path, capsys, line,
 
 def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
     study = tmp_path / "s"
-    assert main(["design", "--ab", "--seed", "1", "--study", str(study)]) == 0
+    assert main(["design", "--ab", "--seed", "1", "--study", str(study), "--figures"]) == 0
     before = json.loads((study / "design.json").read_text())
+    old_map = (study / "correlation_map.svg").read_bytes()
     old_plan = (study / "plan.csv").read_text().splitlines()
     (study / "outcomes.csv").write_text("kept results\n")
     key = (study / "sealed" / "allocation.json").read_bytes()
@@ -134,6 +135,9 @@ def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
     assert after["diagnostics"]["det_xtx"] > before["diagnostics"]["det_xtx"]
     copies = list((study / "superseded").iterdir())
     assert len(copies) == 1 and json.loads((copies[0] / "design.json").read_text()) == before
+    # Figures of the old plan are kept aside only: drawn without --figures, none would show the new plan.
+    assert (copies[0] / "correlation_map.svg").read_bytes() == old_map
+    assert not list(study.glob("correlation_map.*")) and not list(study.glob("design_evaluation.*"))
 
 
 def test_augment_needs_a_plan(tmp_path, capsys):

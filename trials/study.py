@@ -37,6 +37,11 @@ PLAN = "plan.csv"
 DESIGN = "design.json"
 CORRELATION_MAP = "correlation_map.png"
 DESIGN_EVALUATION = "design_evaluation.png"
+#: The design figures' SVG twins, drawn with the PNGs by `trials design --figures`.
+CORRELATION_MAP_SVG = "correlation_map.svg"
+DESIGN_EVALUATION_SVG = "design_evaluation.svg"
+#: The design figures, PNG and SVG.
+DESIGN_FIGURES = (CORRELATION_MAP, CORRELATION_MAP_SVG, DESIGN_EVALUATION, DESIGN_EVALUATION_SVG)
 #: The researcher's own thresholds for the report's rubric, if the study has any.
 RUBRIC = "rubric.toml"
 SEALED = "sealed"
@@ -82,7 +87,7 @@ POWER_MARKDOWN = f"{POWER}/power.md"
 POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:

@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Build the study's plan: the paper's 27-run qualitative plan by default, the 18-run "
             "blinded A/B plan with --ab, or any study from a study.toml. Writes study.toml, "
-            "plan.csv, design.json, correlation_map.png, design_evaluation.png (and sealed/ when blinded)."
+            "plan.csv, design.json (and sealed/ when blinded); with --figures also the design evaluation figures."
         ),
     )
     source = parser.add_mutually_exclusive_group()
@@ -50,6 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
+    parser.add_argument("--figures", action="store_true",
+                        help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG")
+    types.add_dpi(parser)
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
     parser.set_defaults(handler=run)
@@ -97,7 +100,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from trials.design_files import write_design
     from trials.errors import StudyError
     from trials.run_settings import run_table
-    from trials.study import CORRELATION_MAP, DESIGN, DESIGN_EVALUATION, PLAN, SPEC
+    from trials.study import DESIGN, DESIGN_FIGURES, PLAN, SPEC
 
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
@@ -119,8 +122,11 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
     plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None)
     run = run_table(folder.path(SPEC))  # the [run] table stays with the study
-    copied = folder.copy_aside((SPEC, PLAN, DESIGN, CORRELATION_MAP, DESIGN_EVALUATION))
-    written = write_design(folder, plan, None, run)
+    copied = folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))
+    written = write_design(folder, plan, None, run, args.dpi if args.figures else None)
+    if not args.figures:
+        for name in DESIGN_FIGURES:  # they show the old plan; their copies are in superseded/
+            folder.path(name).unlink(missing_ok=True)
     print("\n".join(summary_lines(plan)))
     print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
           f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copied}")
@@ -180,13 +186,12 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None)  # every bad input fails here
     if follow:
         print(file=sys.stderr)
-    # Imported only now: matplotlib loads only when there is a plan to write.
     from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
-    written = write_design(folder, plan, original, run)
+    written = write_design(folder, plan, original, run, args.dpi if args.figures else None)
 
     if args.json:
         import json
