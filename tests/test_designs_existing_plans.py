@@ -66,6 +66,67 @@ def test_compare_sets_the_optimum_beside_the_full_factorial(tmp_path, capsys):
     assert line.split()[1:] == ["79.9157", "68.2558"]  # the proven optimum; the 3x3x3 closed form
 
 
+def _factorial(path: Path) -> Path:
+    """The 3 x 3 x 3 full factorial of the paper's factors, as a plan file."""
+    rows = itertools.product([2, 4, 6], ["Parallel", "ParallelCrossing", "Crossing"], [1, 2, 3])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("Pedestrians,Direction,CrossingDistance\n" + "".join(f"{a},{b},{c}\n" for a, b, c in rows))
+    return path
+
+
+def _png_width(path: Path) -> int:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", path.name
+    return int.from_bytes(data[16:20], "big")  # IHDR's width
+
+
+FIGURES = ("correlation_map.png", "correlation_map.svg", "design_evaluation.png", "design_evaluation.svg")
+
+
+def test_evaluate_draws_the_plans_figures_beside_the_studys_own(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--study", str(study), "--seed", "1", "--figures", "--dpi", "50"]) == 0
+    own = {p.name: p.read_bytes() for p in study.iterdir()}
+    factorial = _factorial(tmp_path / "factorial.csv")
+    assert main(["design", "--study", str(study), "--compare", str(study / "plan.csv"), str(factorial),
+                 "--figures", "--dpi", "100"]) == 0
+    assert "Wrote plan.correlation_map.png" in capsys.readouterr().out
+    assert sorted(p.name for p in study.iterdir()) == sorted([*own, *(f"plan.{n}" for n in FIGURES),
+                                                             *(f"factorial.{n}" for n in FIGURES)])
+    assert {name: (study / name).read_bytes() for name in own} == own, "the study's own files stay as they were"
+    for stem in ("correlation_map", "design_evaluation"):
+        # The evaluated plan is the study's own plan, drawn at twice the resolution; its SVG is the same drawing.
+        assert _png_width(study / f"plan.{stem}.png") == pytest.approx(2 * _png_width(study / f"{stem}.png"), rel=0.05)
+        svg = (study / f"factorial.{stem}.svg").read_text(encoding="utf-8")
+        assert svg.startswith("<?xml") and "<svg" in svg and "factorial.csv" in svg
+        assert svg != (study / f"plan.{stem}.svg").read_text(encoding="utf-8")
+
+
+def test_evaluated_figures_are_replaced_only_with_force(tmp_path, capsys):
+    factorial = _factorial(tmp_path / "factorial.csv")
+    study = tmp_path / "s"
+    args = ["design", "--study", str(study), "--evaluate", str(factorial), "--figures", "--dpi", "50"]
+    assert main(args) == 0
+    assert sorted(p.name for p in study.iterdir()) == sorted(f"factorial.{n}" for n in FIGURES)
+    (study / "factorial.design_evaluation.svg").write_text("mine")
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "factorial.correlation_map.png already exists; pass --force" in err
+    assert (study / "factorial.design_evaluation.svg").read_text() == "mine"
+    assert main([*args, "--force"]) == 0
+    assert (study / "factorial.design_evaluation.svg").read_text(encoding="utf-8").startswith("<?xml")
+
+
+def test_compared_plans_of_one_name_cannot_both_be_drawn(tmp_path, capsys):
+    a, b = _factorial(tmp_path / "a" / "plan.csv"), _factorial(tmp_path / "b" / "plan.csv")
+    study = tmp_path / "s"
+    assert main(["design", "--study", str(study), "--compare", str(a), str(b), "--figures"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "both plans' files are named plan.csv" in err
+    assert not study.exists()
+
+
 @pytest.mark.parametrize(("cells", "message"), [
     ("5,Parallel,2", "factorial.csv line 2, column Pedestrians: 5 is no level of Pedestrians (levels: 2, 4, 6)"),
     ("2,Sideways,2", "factorial.csv line 2, column Direction: 'Sideways' is no level of Direction"),

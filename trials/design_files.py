@@ -3,9 +3,10 @@ content from `trials.study`, `designs.spec` and, when asked for, the design figu
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import tomli_w
 
@@ -13,25 +14,30 @@ from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
 from trials.atomic import write_files
+from trials.errors import StudyError
 from trials.run_settings import TABLE
 from trials.study import (
     ALLOCATION,
-    CORRELATION_MAP,
-    CORRELATION_MAP_SVG,
     DESIGN,
-    DESIGN_EVALUATION,
-    DESIGN_EVALUATION_SVG,
+    DESIGN_FIGURES,
     PLAN,
     SEALED,
     SEALED_SPEC,
     SPEC,
     StudyFolder,
+    evaluated_figures,
     json_content,
     plan_content,
     plan_digest,
     private_folder,
     utc_now,
 )
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from designs.diagnostics import Diagnostics
+    from designs.model import Model
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None,
@@ -66,16 +72,50 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
 
 
 def design_figures(folder: StudyFolder, plan: StudyPlan, dpi: int) -> dict[Path, bytes]:
-    """JMP's design evaluation views of the plan, each as PNG (at `dpi`) and SVG: the correlation map, and the
-    fraction of design space plot with the prediction variance profile."""
+    """The plan's design evaluation figures under the study's own names (DESIGN_FIGURES)."""
+    content = figure_content(plan.spec.name, plan.model, plan.design.settings, plan.diagnostics, dpi)
+    return {folder.path(name): data for name, data in zip(DESIGN_FIGURES, content, strict=True)}
+
+
+def write_evaluation_figures(folder: StudyFolder, evaluated: Sequence[EvaluatedPlan], dpi: int, force: bool) -> list[Path]:
+    """Write the design figures of plans brought to `--evaluate` or `--compare` into the study folder, named after each
+    plan's file (`evaluated_figures`), all at once. Refused, before anything is drawn, when two plans' files share a
+    name or, without `force`, when a figure of that name is already there."""
+    stems = [plan.path.stem for plan in evaluated]
+    if len(set(stems)) < len(stems):
+        raise StudyError(f"--figures: both plans' files are named {stems[0]}{evaluated[0].path.suffix}, so their figures "
+                         "would share names; rename one")
+    targets = [[folder.path(name) for name in evaluated_figures(stem)] for stem in stems]
+    present = [path for paths in targets for path in paths if path.exists()]
+    if present and not force:
+        raise StudyError(f"{present[0]} already exists; pass --force to replace the evaluated plans' figures")
+    files: dict[Path, bytes] = {}
+    for plan, paths in zip(evaluated, targets, strict=True):
+        content = figure_content(plan.path.name, plan.model, plan.settings, plan.diagnostics, dpi)
+        files.update(zip(paths, content, strict=True))
+    write_files(files)
+    return list(files)
+
+
+def figure_content(name: str, model: Model, settings: np.ndarray, diagnostics: Diagnostics, dpi: int) -> tuple[bytes, ...]:
+    """JMP's design evaluation views of a design, in DESIGN_FIGURES' order, each as PNG (at `dpi`) and SVG: the
+    correlation map, and the fraction of design space plot with the prediction variance profile."""
     # matplotlib (a third of a second) loads only when the figures are asked for.
     from analysis.figures import correlation_map_figure, design_evaluation_figure
     from designs.diagnostics import fraction_of_design_space, variance_profiles
 
-    d = plan.diagnostics
-    correlations = correlation_map_figure(d.correlation_columns, d.correlations, f"{plan.spec.name}: correlations of model columns")
-    profiles = [(v.factor, v.x, v.variance, v.labels) for v in variance_profiles(plan.model, plan.design.settings)]
-    evaluation = design_evaluation_figure(fraction_of_design_space(plan.model, plan.design.settings), profiles,
-                                          f"{plan.spec.name}: prediction variance")
-    return {folder.path(CORRELATION_MAP): correlations.png(dpi), folder.path(CORRELATION_MAP_SVG): correlations.svg(),
-            folder.path(DESIGN_EVALUATION): evaluation.png(dpi), folder.path(DESIGN_EVALUATION_SVG): evaluation.svg()}
+    correlations = correlation_map_figure(diagnostics.correlation_columns, diagnostics.correlations,
+                                          f"{name}: correlations of model columns")
+    profiles = [(v.factor, v.x, v.variance, v.labels) for v in variance_profiles(model, settings)]
+    evaluation = design_evaluation_figure(fraction_of_design_space(model, settings), profiles, f"{name}: prediction variance")
+    return correlations.png(dpi), correlations.svg(), evaluation.png(dpi), evaluation.svg()
+
+
+@dataclass(frozen=True)
+class EvaluatedPlan:
+    """A plan the researcher brought, as `trials design --evaluate` diagnosed it."""
+
+    path: Path
+    model: Model
+    settings: np.ndarray
+    diagnostics: Diagnostics

@@ -42,6 +42,12 @@ CORRELATION_MAP_SVG = "correlation_map.svg"
 DESIGN_EVALUATION_SVG = "design_evaluation.svg"
 #: The design figures, PNG and SVG.
 DESIGN_FIGURES = (CORRELATION_MAP, CORRELATION_MAP_SVG, DESIGN_EVALUATION, DESIGN_EVALUATION_SVG)
+
+
+def evaluated_figures(stem: str) -> tuple[str, ...]:
+    """The design figures of a plan brought to `trials design --evaluate` or `--compare --figures`, in DESIGN_FIGURES'
+    order, named after the plan file's stem (`<stem>.correlation_map.png`): never the study's own figures' names."""
+    return tuple(f"{stem}.{name}" for name in DESIGN_FIGURES)
 #: The researcher's own thresholds for the report's rubric, if the study has any.
 RUBRIC = "rubric.toml"
 SEALED = "sealed"

@@ -34,9 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     check = parser.add_mutually_exclusive_group()
     check.add_argument("--evaluate", type=types.input_file, metavar="PLAN.csv",
                        help="print the full diagnostics of a plan you have (its factor columns, under the spec's coding "
-                            "and model); writes nothing")
+                            "and model); writes nothing unless --figures")
     check.add_argument("--compare", type=types.input_file, nargs=2, metavar=("A.csv", "B.csv"),
-                       help="print two plans' diagnostics side by side; writes nothing")
+                       help="print two plans' diagnostics side by side; writes nothing unless --figures")
     check.add_argument("--augment", type=types.whole(1, MAX_RUNS), metavar="N",
                        help="add N runs to the study's plan, keeping its runs and results (the old design files are "
                             "copied to superseded/)")
@@ -51,7 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
     parser.add_argument("--figures", action="store_true",
-                        help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG")
+                        help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG "
+                             "(with --evaluate or --compare: each plan's, named PLAN.correlation_map.png and so on, in --study)")
     types.add_dpi(parser)
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
@@ -63,28 +64,35 @@ def _progress(done: int, starts: int) -> None:
     print(f"\rdesign search: start {done} of {starts}", end="", file=sys.stderr, flush=True)
 
 
-def _evaluate(spec: StudySpec, paths: list[Path]) -> int:
-    """Diagnose plans the researcher brings under the spec's factors, coding and model; print, write nothing."""
+def _evaluate(spec: StudySpec, paths: list[Path], folder: StudyFolder, args: argparse.Namespace) -> int:
+    """Diagnose plans the researcher brings under the spec's factors, coding and model and print them; with
+    --figures, draw each plan's design figures into the study folder under its file's name."""
     from designs.diagnostics import diagnose
     from designs.errors import DesignError
     from designs.evaluate import settings_from_rows
     from designs.export import comparison_lines, diagnostics_lines
     from trials.csv_table import read_rows
+    from trials.design_files import EvaluatedPlan, write_evaluation_figures
 
     model = spec.build_model()
-    results = []
+    evaluated = []
     for path in paths:
         header, rows = read_rows(path, same_width=True)
         settings = settings_from_rows(model.factors, header, rows, path.name)
         if len(settings) < model.p:
             raise DesignError(f"{path.name}: {len(settings)} runs cannot estimate the model's p = {model.p} parameters")
-        results.append(diagnose(model, settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated))
+        diagnostics = diagnose(model, settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
+        evaluated.append(EvaluatedPlan(path, model, settings, diagnostics))
+    written = write_evaluation_figures(folder, evaluated, args.dpi, args.force) if args.figures else []
+    results = [plan.diagnostics for plan in evaluated]
     if len(results) == 1:
         print(f"{paths[0].name}: {results[0].n} runs, model {spec.model!r} with p = {results[0].p} parameters")
         print("\n".join(diagnostics_lines(results[0])))
     else:
         print(f"Model {spec.model!r}")
         print("\n".join(comparison_lines([p.name for p in paths], results)))
+    if written:
+        print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
     return 0
 
 
@@ -167,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
 
     if args.evaluate or args.compare:
-        return _evaluate(spec, args.compare or [args.evaluate])
+        return _evaluate(spec, args.compare or [args.evaluate], folder, args)
 
     replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
     if (folder.has_plan() or replaces_own_spec) and not args.force:
