@@ -202,8 +202,8 @@ def collect(
 
 def _model(settings: TrainingSettings):
     """The classifier to fit. Legs are about 3 % of the segments; weighting the two classes
-    equally makes the trees spend their splits on telling legs from what looks like them (by
-    log, precision 0.76 unweighted, 0.80 weighted, at recall 0.9)."""
+    equally makes the trees spend their splits on telling legs from what looks like them
+    (docs/robot_logs.md has the figures with and without)."""
     from sklearn.ensemble import HistGradientBoostingClassifier
 
     return HistGradientBoostingClassifier(

@@ -30,12 +30,11 @@ SHAPE_NAMES = (
 CONTEXT_NAMES = (
     "neighbour_distance",
     "foreground",
-    "background",
     "neighbour_width",
     "clearance",
     "clutter_near",
     "clutter_around",
-    "unseen_angle",
+    "candidates_around",
 )
 
 #: Feature names, in column order.
@@ -44,8 +43,6 @@ FEATURE_NAMES = SHAPE_NAMES + CONTEXT_NAMES
 #: Radii (m) within which `clutter_near` and `clutter_around` count other segments' points.
 CLUTTER_RADII = (0.5, 1.0)
 
-#: Cap of `unseen_angle` (rad).
-WIDE_GAP = 1.0
 
 #: Cap of the context features (m): no neighbour, or nothing behind, reads as this far.
 FAR = 3.0
@@ -74,11 +71,12 @@ def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray 
     consecutive point triples; mean turning angle between consecutive steps; and how far the
     middle of the segment bulges from its chord (sagitta). Then its context: the distance to
     the nearest other segment's centroid (a leg's partner is near) and that segment's width;
-    how far in front of its neighbouring beams the segment stands, on the nearer (foreground)
-    and the farther side (background), 0 beyond the first or last point; the distance from its centroid to the nearest point of
+    how far in front of its neighbouring beams the segment stands, on the nearer side
+    (foreground; 0 beyond the first or last point); the distance from its centroid to the nearest point of
     any other segment (clearance: people walk in the open, furniture legs stand by tables and
-    walls) and how many such points lie within CLUTTER_RADII of it; and the angle without a
-    return on both sides (unseen_angle: open space behind a leg). Distances are capped at FAR.
+    walls) and how many such points lie within CLUTTER_RADII of it; how many other wanted segments
+    lie within the larger radius (a person's other leg, or the three other legs of a chair).
+    Distances are capped at FAR.
     """
     ends = np.append(starts[1:], len(points))
     wanted = np.ones(len(starts), dtype=bool) if select is None else np.asarray(select, dtype=bool)
@@ -109,25 +107,19 @@ def _context_features(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, 
     to_points[owner[None, :] == chosen[:, None]] = np.inf
     clearance = np.minimum(to_points.min(axis=1, initial=np.inf), FAR)
     clutter = [(to_points < radius).sum(axis=1) for radius in CLUTTER_RADII]
+    candidates_around = (apart[:, chosen] < CLUTTER_RADII[1]).sum(axis=1)
 
     ranges = np.hypot(points[:, 0], points[:, 1])
-    bearings = np.arctan2(points[:, 1], points[:, 0])
     total = len(points)
     head, tail = starts[chosen], ends[chosen]
     previous, following = np.maximum(head - 1, 0), np.minimum(tail, total - 1)
-    # Beyond the first and last point nothing was seen: no step and no gap there, rather than
-    # the open space that would make a segment cut by the field of view look like a lone leg.
+    # Beyond the first and last point nothing was seen: no step there, rather than the open
+    # space that would make a segment cut by the field of view look like a lone leg.
     before = np.where(head > 0, ranges[previous] - ranges[head], 0.0)
     after = np.where(tail < total, ranges[following] - ranges[tail - 1], 0.0)
     foreground = np.clip(np.minimum(before, after), -FAR, FAR)
-    background = np.clip(np.maximum(before, after), -FAR, FAR)
 
-    def gap(a: np.ndarray, b: np.ndarray, inside: np.ndarray) -> np.ndarray:
-        turn = np.abs(np.angle(np.exp(1j * (bearings[a] - bearings[b]))))
-        return np.where(inside, np.minimum(turn, WIDE_GAP), 0.0)
-
-    unseen = gap(head, previous, head > 0) + gap(following, tail - 1, tail < total)
-    return np.column_stack((neighbour, foreground, background, neighbour_width, clearance, *clutter, unseen))
+    return np.column_stack((neighbour, foreground, neighbour_width, clearance, *clutter, candidates_around))
 
 
 def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:

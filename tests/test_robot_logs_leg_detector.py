@@ -54,7 +54,8 @@ def test_shape_features_are_computed_per_segment_regardless_of_their_neighbours(
     shape = [COLUMN[n] for n in SHAPE_NAMES]
     assert together[shape] == pytest.approx(alone[shape])
     assert alone[[COLUMN[n] for n in ("neighbour_distance", "clearance")]].tolist() == [3.0, 3.0]  # nothing else: FAR
-    assert alone[[COLUMN[n] for n in ("neighbour_width", "clutter_near", "clutter_around")]].tolist() == [0, 0, 0]
+    assert alone[[COLUMN[n] for n in ("neighbour_width", "clutter_near", "clutter_around", "candidates_around")]].tolist() == [0] * 4
+    assert alone[COLUMN["foreground"]] == 0.0  # nothing seen on either side: no step, not open space
 
 
 def test_context_features_of_a_leg_between_two_walls() -> None:
@@ -73,17 +74,14 @@ def test_context_features_of_a_leg_between_two_walls() -> None:
     assert context["neighbour_width"][1] == pytest.approx(0.5)  # the left wall piece is the nearer
     assert context["clearance"][1] == pytest.approx(to_others.min()) and 0.6 < to_others.min() < 0.7
     assert context["clutter_near"][1] == 0 and context["clutter_around"][1] == (to_others < 1.0).sum() > 0
+    assert context["candidates_around"].tolist() == [0, 1, 1]  # the leg and the left wall piece are 0.78 m apart
     ranges = np.hypot(*points.T)
     before, after = ranges[9] - ranges[10], ranges[22] - ranges[21]  # both walls lie behind the leg
     assert context["foreground"][1] == pytest.approx(min(before, after)) and context["foreground"][1] > 0.4
-    assert context["background"][1] == pytest.approx(max(before, after)) and context["background"][1] > 0.9
-    bearing = np.arctan2(points[:, 1], points[:, 0])
-    assert context["unseen_angle"][1] == pytest.approx(bearing[10] - bearing[9] + bearing[22] - bearing[21])
     # The right wall's first point is the first of the scan: nothing is known beyond it (0), and
     # on its other side the leg stands in front of it (a negative step).
     assert context["foreground"][0] == pytest.approx(ranges[10] - ranges[9]) and context["foreground"][0] < -1.0
-    assert context["background"][0] == 0.0
-    assert context["unseen_angle"][0] == pytest.approx(bearing[10] - bearing[9])
+
 
 
 def test_labels_match_one_segment_each_and_ignore_their_surroundings() -> None:
