@@ -1,9 +1,10 @@
 """The learned leg classifier as plain arrays: its file format, loading and prediction.
 
-A gradient-boosted ensemble of shallow decision trees, trained with scikit-learn
-(`robot_logs.leg_training`) and stored as the trees' arrays in an .npz file with a format
-version and the training record, never as a pickle, so a detector file is safe to open and
-easy to version. Prediction walks all trees at once with numpy, one level per step.
+A gradient-boosted ensemble of decision trees, trained with scikit-learn's
+HistGradientBoostingClassifier (`robot_logs.leg_training`) and stored as the trees' arrays in an
+.npz file with a format version and the training record, never as a pickle, so a detector file
+is safe to open and easy to version. Prediction walks all trees at once with numpy, one level
+per step.
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ import numpy as np
 
 from robot_logs.errors import LogError
 
-#: The detector file format this code reads and writes; bump it when the arrays change.
-FORMAT_VERSION = 1
+#: The detector file format this code reads and writes; bump it when the arrays or the features
+#: change (2: the context features of `robot_logs.segment_features` and histogram boosting).
+FORMAT_VERSION = 2
 
 #: The detector shipped with the package, trained on tests/data/robot_logs (its record says how).
 SHIPPED_DETECTOR = "leg_detector.npz"
 
-_ARRAYS = ("feature", "split", "left", "right", "value", "roots")
+_ARRAYS = ("feature", "split", "left", "right", "missing_left", "value", "roots")
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,6 +39,7 @@ class LegClassifier:
     Attributes:
         feature, split: the feature index and the split value of each node (go left if <=).
         left, right: child node indices.
+        missing_left: True where a node sends a NaN feature left.
         value: each leaf's contribution to the log-odds (learning rate included).
         roots: (T,) the root node of each tree.
         depth: the deepest tree's depth (levels to walk).
@@ -51,6 +54,7 @@ class LegClassifier:
     split: np.ndarray
     left: np.ndarray
     right: np.ndarray
+    missing_left: np.ndarray
     value: np.ndarray
     roots: np.ndarray
     depth: int
@@ -62,12 +66,12 @@ class LegClassifier:
 
     def probability(self, features: np.ndarray) -> np.ndarray:
         """(K,) leg probability of each row of (K, F) segment features."""
-        # scikit-learn compares float32 features with its thresholds; do the same.
-        features = np.asarray(features, dtype=np.float32)
+        features = np.asarray(features, dtype=np.float64)
         rows = np.arange(len(features))[None, :]
         nodes = np.repeat(self.roots[:, None], len(features), axis=1)
         for _ in range(self.depth):
-            go_left = features[rows, self.feature[nodes]] <= self.split[nodes]
+            seen = features[rows, self.feature[nodes]]
+            go_left = np.where(np.isnan(seen), self.missing_left[nodes], seen <= self.split[nodes])
             nodes = np.where(go_left, self.left[nodes], self.right[nodes])
         log_odds = self.bias + self.value[nodes].sum(axis=0)
         return 1.0 / (1.0 + np.exp(-log_odds))
@@ -118,42 +122,41 @@ class LegClassifier:
         )
 
 
-def from_gradient_boosting(model: Any, levels: tuple[float, float, float], record: dict[str, Any]) -> LegClassifier:
-    """The arrays of a fitted binary `sklearn.ensemble.GradientBoostingClassifier`, with
-    `levels` its (threshold, confirm, protect) probabilities.
+def from_hist_gradient_boosting(model: Any, levels: tuple[float, float, float], record: dict[str, Any]) -> LegClassifier:
+    """The arrays of a fitted binary `sklearn.ensemble.HistGradientBoostingClassifier` (numeric
+    features only), with `levels` its (threshold, confirm, protect) probabilities.
 
-    Its log-odds are the prior's plus the learning rate times each tree's leaf value; the
-    prior is read back as the model's decision at a point minus the trees' sum there.
+    Its log-odds are the baseline's plus each tree's leaf value (the learning rate is already in
+    the leaves). scikit-learn keeps the trees in `_predictors`; the tests compare the arrays'
+    predictions with the model's, so a change there fails loudly.
     """
-    trees = [estimator.tree_ for estimator in model.estimators_[:, 0]]
-    offsets = np.cumsum([0] + [tree.node_count for tree in trees])
-    feature, split, left, right, value = [], [], [], [], []
-    for offset, tree in zip(offsets, trees):
-        leaf = tree.children_left < 0
-        own = np.arange(tree.node_count) + offset
-        feature.append(np.where(leaf, 0, tree.feature))
-        split.append(np.where(leaf, 0.0, tree.threshold))
-        left.append(np.where(leaf, own, tree.children_left + offset))
-        right.append(np.where(leaf, own, tree.children_right + offset))
-        value.append(np.where(leaf, model.learning_rate * tree.value[:, 0, 0], 0.0))
-    classifier = LegClassifier(
+    trees = [predictors[0].nodes for predictors in model._predictors]
+    offsets = np.cumsum([0] + [len(nodes) for nodes in trees])
+    feature, split, left, right, missing_left, value = [], [], [], [], [], []
+    for offset, nodes in zip(offsets, trees):
+        leaf = nodes["is_leaf"].astype(bool)
+        own = np.arange(len(nodes)) + offset
+        feature.append(np.where(leaf, 0, nodes["feature_idx"]))
+        split.append(np.where(leaf, 0.0, nodes["num_threshold"]))
+        left.append(np.where(leaf, own, nodes["left"].astype(np.int64) + offset))
+        right.append(np.where(leaf, own, nodes["right"].astype(np.int64) + offset))
+        missing_left.append(nodes["missing_go_to_left"].astype(bool))
+        value.append(np.where(leaf, nodes["value"], 0.0))
+    return LegClassifier(
         feature=np.concatenate(feature).astype(np.int32),
         split=np.concatenate(split).astype(np.float64),
         left=np.concatenate(left).astype(np.int32),
         right=np.concatenate(right).astype(np.int32),
-        value=np.concatenate(value),
+        missing_left=np.concatenate(missing_left),
+        value=np.concatenate(value).astype(np.float64),
         roots=offsets[:-1].astype(np.int32),
-        depth=max(tree.max_depth for tree in trees),
-        bias=0.0,
+        depth=int(max(int(nodes["depth"].max()) for nodes in trees)),
+        bias=float(np.ravel(model._baseline_prediction)[0]),
         threshold=levels[0],
         confirm=levels[1],
         protect=levels[2],
         record=record,
     )
-    probe = np.zeros((1, model.n_features_in_))
-    trees_only = np.log(classifier.probability(probe) / (1.0 - classifier.probability(probe)))
-    bias = float(model.decision_function(probe)[0] - trees_only[0])
-    return LegClassifier(**{**classifier.__dict__, "bias": bias})
 
 
 @cache

