@@ -11,18 +11,11 @@ import pytest
 from robot_logs.clutter import furnished_room
 from robot_logs.detection import scan_points
 from robot_logs.frames import Pose2D
-from robot_logs.leg_classifier import LegClassifier
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.pipeline import PersonTracker
 from robot_logs.static_world import StaticWorld, StaticWorldConfig
 from robot_logs.tracking import TrackerConfig
-
-
-def constant(probability: float) -> LegClassifier:
-    """A classifier of one leaf that gives every segment the same leg probability."""
-    zero = np.zeros(1, dtype=np.int32)
-    return LegClassifier(zero, np.zeros(1), zero, zero, np.zeros(1, dtype=bool), np.zeros(1), zero, depth=0,
-                         bias=math.log(probability / (1 - probability)), threshold=0.5, confirm=0.5, protect=0.7)
+from tests.support.leg_classifiers import constant
 
 
 def run(probability: float, static_world: StaticWorldConfig | None, standing: bool = False, scans: int = 60):
