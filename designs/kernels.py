@@ -134,15 +134,21 @@ def _dot(a, b):
 
 
 @kernel
-def _trial(y, inv, b, wb, weight, trace, a, wa, out):
-    """Into `out`: y'Vy, x'Vy, a'Wa and a'Wb for trial row y (a = Vy, b = Vx, x the run's present row)."""
-    _mat_vec(inv, y, a)
+def _scores(y, a, b, wb, weight, trace, wa, out):
+    """Into `out`: y'Vy, x'Vy, a'Wa and a'Wb for trial row y, given a = Vy and b = Vx (x the run's present row)."""
     out[0] = _dot(y, a)
     out[1] = _dot(b, y)
     if trace:
         _mat_vec(weight, a, wa)
         out[2] = _dot(a, wa)
         out[3] = _dot(a, wb)
+
+
+@kernel
+def _trial(y, inv, b, wb, weight, trace, a, wa, out):
+    """`_scores` of trial row y, with a = Vy computed in full (p^2)."""
+    _mat_vec(inv, y, a)
+    _scores(y, a, b, wb, weight, trace, wa, out)
 
 
 @kernel
@@ -158,12 +164,7 @@ def _trial_near(y, base, a_base, cols, count, inv, b, wb, weight, trace, a, wa, 
         if change != 0.0:
             for r in range(p):
                 a[r] += inv[c, r] * change  # V is symmetric: row c is column c, read in memory order
-    out[0] = _dot(y, a)
-    out[1] = _dot(b, y)
-    if trace:
-        _mat_vec(weight, a, wa)
-        out[2] = _dot(a, wa)
-        out[3] = _dot(a, wb)
+    _scores(y, a, b, wb, weight, trace, wa, out)
 
 
 @kernel
