@@ -7,7 +7,6 @@ rows back. A blinded study's file has no controller column.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 from dataclasses import fields
 from pathlib import Path
@@ -24,6 +23,7 @@ from trials.csv_table import (
     table_text,
 )
 from trials.errors import StudyError
+from trials.numbers import finite_number
 from trials.study import OUTCOMES, PLAN, StudyFolder
 
 CONTROLLER = "controller"
@@ -118,12 +118,7 @@ def _outcome(row: dict[str, str]) -> Outcome:
 
 
 def _number(cell: str, column: str, whole: bool) -> int | float:
-    try:
-        value = float(cell)
-    except ValueError:
-        raise ValueError(f"{column} must be a number, got {cell!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{column} must be a finite number, got {cell!r}")
+    value = finite_number(cell, column)
     if not whole:
         return value
     if cell.lstrip("-").isdigit():

@@ -24,6 +24,7 @@ from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
 from trials.console.progress import progress
 from trials.errors import USER_ERRORS
+from trials.numbers import finite_number
 from trials.run_events import EVENTS
 
 #: Field names of the participant's code and compliance answer.
@@ -165,15 +166,7 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
 def _number(form: Any, name: str) -> float | None:
     """An optional finite number from a form field (None when blank); ValueError naming the field otherwise."""
     text = form.get(name, "").strip()
-    if not text:
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{name} must be a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {text!r}")
-    return value
+    return finite_number(text, name) if text else None
 
 
 def _percent(share: float) -> str:
