@@ -11,9 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robot_logs.detection import DetectorConfig
 from robot_logs.errors import LogError
+from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting, shipped_detector
-from robot_logs.leg_training import LabelledSegments, TrainingSettings, folds, match_labels
+from robot_logs.leg_training import LabelledSegments, StaticFlags, TrainingSettings, candidates, folds, match_labels
+from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.segment_features import CONTEXT_NAMES, FEATURE_NAMES, MAX_RADIUS, SHAPE_NAMES, segment_features
 from trials.cli import main
 
@@ -100,12 +103,30 @@ def test_folds_by_log_hold_out_each_labelled_log_and_deal_out_the_empty_ones() -
     log = np.array([0, 0, 1, 1, 2, 2, 2, 2])  # two labelled logs, then one with nobody present
     block = np.array([0, 1, 2, 2, 3, 4, 5, 6])
     logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "nobody present"}]
-    data = LabelledSegments(np.zeros((8, 1)), np.zeros(8, bool), np.zeros(8, bool), log, block, logs)
+    data = LabelledSegments(np.zeros((8, 1)), np.zeros(8, bool), np.zeros(8, bool), log, block, np.zeros(8, bool), logs)
     assert folds(data, "log").tolist() == [0, 0, 1, 1, 1, 0, 1, 0]
     by_time = folds(data, "time", TrainingSettings(folds=3))
     assert len(set(by_time.tolist())) == 3 and by_time[2] == by_time[3]  # a block is never split
     with pytest.raises(LogError, match="needs two labelled logs"):
-        folds(LabelledSegments(data.features, data.is_leg, data.ignored, np.zeros(8, int), block, logs[:1]), "log")
+        folds(LabelledSegments(data.features, data.is_leg, data.ignored, np.zeros(8, int), block, data.static, logs[:1]), "log")
+
+
+def test_static_flags_take_a_post_after_its_log_has_seen_it_and_never_a_walker() -> None:
+    lidar = LidarSimulator(seed=4, posts=(np.array([[3.0, 1.0]]), np.array([0.06])))
+    flags = StaticFlags()
+    post_static, walker_static = [], []
+    for k in range(40):  # 10 Hz: the post at (3, 1), a person walking along y = -1 at 1 m/s
+        scan = lidar.scan(0.1 * k, Pose2D(), np.array([[1.5 + 0.1 * k, -1.0]]), np.array([[1.0, 0.0]]))
+        segments, mask = candidates(scan, DetectorConfig())
+        static = flags(scan, segments, mask)
+        centroids = segments.centroids[mask]
+        post = np.hypot(*(centroids - [3.0, 1.0]).T) < 0.2
+        assert post.sum() == 1 and (centroids[~post, 1] < -0.5).all()  # the post and the walker's legs
+        post_static.append(bool(static[post][0]))
+        walker_static.extend(static[~post].tolist())
+    # Static from scan 16 on, once the earlier scans 0-15 have hit its cells over 1.5 s; never before.
+    assert post_static == [False] * 16 + [True] * 24
+    assert walker_static and not any(walker_static)
 
 
 @pytest.fixture(scope="module")

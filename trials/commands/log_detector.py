@@ -17,7 +17,8 @@ def register(group: argparse._SubParsersAction) -> None:
         "legs are labelled (geometry_msgs/PoseArray, one pose per leg), plus logs recorded with nobody present "
         "(--empty). Unmatched segments within --ignore-radius of a label are left out; the rest are negatives. "
         "Prints precision and recall cross-validated by whole log and by blocks of time, under that protocol "
-        "and strictly (every unlabelled segment a negative), and writes the detector as an .npz file with its "
+        "and strictly (every unlabelled segment a negative), for the classifier alone and followed by static-world "
+        "rejection (each log's own occupancy grid from its earlier scans), and writes the detector as an .npz file with its "
         "training record for `trials log track --detector`.",
     )
     parser.add_argument("bags", nargs="+", type=types.input_file, metavar="BAG", help="logs with labelled legs")
@@ -52,9 +53,19 @@ def train_detector(args: argparse.Namespace) -> int:
     print(f"leg threshold {levels[0]:.3f}, confirming {levels[1]:.3f}, protecting {levels[2]:.3f} (probabilities "
           f"{settings.recall:.0%}, {settings.confirm_recall:.0%} and {settings.protect_recall:.0%} of the labelled legs "
           f"reach, held out by {held_out})")
-    for name, score in validation.items():
-        rule = "every unlabelled segment a negative" if name.endswith("strict") else "the protocol"
-        print(f"cross-validated by {name.removesuffix(', strict')} ({rule}): precision {score.precision:.3f}, "
-              f"recall {score.recall:.3f} ({score.legs} labelled legs among {score.segments} segments)")
+    print(f"cross-validated precision / recall of the segments called legs (probability >= {levels[0]:.3f}):\n"
+          f"  protocol: unmatched segments within {settings.ignore_radius:g} m of a label left out; "
+          "strict: every unlabelled segment a negative\n"
+          "  + static world: no segment on a cell that its log's own occupancy grid holds static after the earlier "
+          "scans (the grid `trials log track` keeps)")
+    print(f"{'held out by':<13}{'detection':<29}{'protocol':<17}strict")
+    for name in (n for n in validation if not n.endswith(", strict")):
+        design, _, stage = name.partition(", ")
+        protocol, strict = validation[name], validation[f"{name}, strict"]
+        print(f"{design:<13}{'classifier + ' + stage if stage else 'classifier alone':<29}"
+              f"{protocol.precision:.3f} / {protocol.recall:.3f}    {strict.precision:.3f} / {strict.recall:.3f}")
+    legs = validation[next(iter(validation))]
+    print(f"({legs.legs} labelled legs among {legs.segments} segments under the protocol, "
+          f"{validation[next(iter(validation)) + ', strict'].segments} strictly)")
     print(f"detector -> {args.out}")
     return 0
