@@ -34,6 +34,13 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--block", type=types.number(0.0, 3600.0, above=True), default=10.0, metavar="S",
                         help="seconds per time block of the cross-validation (default 10)")
     parser.add_argument("--seed", type=types.seed, default=0, help="seeds the boosting and the folds (default 0)")
+    model = parser.add_argument_group("the model (defaults: robot_logs.leg_training.TrainingSettings)")
+    model.add_argument("--trees", type=types.whole(1), help="boosting iterations (default 200)")
+    model.add_argument("--leaves", type=types.whole(2), help="leaves per tree (default 31)")
+    model.add_argument("--min-leaf", type=types.whole(1), metavar="N", help="fewest segments in a leaf (default 50)")
+    model.add_argument("--l2", type=types.number(0.0, 1e6), help="L2 penalty on leaf values (default 1)")
+    model.add_argument("--balanced", action="store_true", default=None,
+                       help="weight legs and other segments equally (default: no class weights)")
     parser.set_defaults(handler=train_detector)
 
 
@@ -41,7 +48,9 @@ def train_detector(args: argparse.Namespace) -> int:
     from robot_logs.leg_training import TrainingSettings, collect, train, validate
     from robot_logs.topics import TopicNames
 
-    settings = TrainingSettings(ignore_radius=args.ignore_radius, block_s=args.block, recall=args.recall, seed=args.seed)
+    model = {"trees": args.trees, "leaves": args.leaves, "min_leaf": args.min_leaf, "l2": args.l2, "balanced": args.balanced}
+    settings = TrainingSettings(ignore_radius=args.ignore_radius, block_s=args.block, recall=args.recall, seed=args.seed,
+                                **{name: value for name, value in model.items() if value is not None})
     topics = TopicNames(scan=args.scan_topic, people=args.labels_topic)
     data = collect(args.bags, args.empty, topics, settings)
     sys.stderr.write(f"{len(data.is_leg)} segments, {int(data.is_leg.sum())} at labelled legs, {int(data.ignored.sum())} "
