@@ -220,3 +220,13 @@ def test_train_detector_learns_legs_from_one_labelled_log(robot_logs_dir: Path, 
     probability = held_out_probability(data, "time", settings)
     score = scores(data.is_leg, probability, 0.5)
     assert score.precision > 0.5 and score.recall > 0.3  # far better than the 0.06 share of legs by chance
+
+
+def test_train_detector_help_states_the_model_defaults_of_the_training_settings(capsys) -> None:
+    assert main(["log", "train-detector", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    settings = TrainingSettings()
+    assert not settings.balanced and "(default: no class weights)" in text
+    for option, value in (("--trees TREES", settings.trees), ("--leaves LEAVES", settings.leaves),
+                          ("--min-leaf N", settings.min_leaf), ("--l2 L2", f"{settings.l2:g}")):
+        assert f"{option} " in text and f"(default {value})" in text.rsplit(option, 1)[1].split("--", 1)[0]  # the option list, after the usage line
