@@ -33,12 +33,13 @@ _ZOOMS = 5
 
 
 @kernel
-def model_row(s, kinds, levels, col_factor, col_code, out):
-    """The model row of one point `s` (coded settings; level indices for categorical factors) into `out`."""
-    p, parts = col_factor.shape
-    for c in range(p):
+def model_columns(s, kinds, levels, col_factor, col_code, cols, count, out):
+    """Model columns `cols[:count]` of one point `s` (coded settings; level indices for categorical factors)
+    into the same places of `out`."""
+    for t in range(count):
+        c = cols[t]
         value = 1.0
-        for q in range(parts):
+        for q in range(col_factor.shape[1]):
             f = col_factor[c, q]
             if f < 0:
                 break
@@ -53,6 +54,13 @@ def model_row(s, kinds, levels, col_factor, col_code, out):
                 for _ in range(col_code[c, q]):
                     value *= x
         out[c] = value
+
+
+@kernel
+def model_row(s, kinds, levels, col_factor, col_code, out):
+    """The model row of one point `s` into `out`."""
+    p = col_factor.shape[0]
+    model_columns(s, kinds, levels, col_factor, col_code, np.arange(p), p, out)
 
 
 @kernel
@@ -168,6 +176,29 @@ def _trial_near(y, base, a_base, cols, count, inv, b, wb, weight, trace, a, wa, 
 
 
 @kernel
+def _trial_d(y, base, a_base, d_base, xb, b, inv, cols, count, delta, out):
+    """y'Vy and x'Vy into out[0] and out[1] for the trial point `s`, whose row y differs from `base` only in the
+    columns `cols[:count]` (a = V base, d_base = base'V base, xb = x'V base): with delta = y - base on those
+    columns, y'Vy = d_base + 2 delta'a + delta'V delta and x'Vy = xb + delta'b, about count^2 + 2 count flops
+    instead of the p^2 / p x count of forming Vy. The D criterion needs nothing else."""
+    for t in range(count):
+        delta[t] = y[cols[t]] - base[cols[t]]
+    dy = d_base
+    dxy = xb
+    for t in range(count):
+        change = delta[t]
+        if change != 0.0:
+            c = cols[t]
+            quad = 0.0
+            for u in range(count):
+                quad += inv[c, cols[u]] * delta[u]
+            dy += change * (2.0 * a_base[c] + quad)
+            dxy += change * b[c]
+    out[0] = dy
+    out[1] = dxy
+
+
+@kernel
 def factor_columns(col_factor, k):
     """(k, p) the model columns each factor enters, and (k,) how many: a move of factor f changes only those."""
     p, parts = col_factor.shape
@@ -250,6 +281,7 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
     base = np.empty(p)
     a_base = np.empty(p)
     cols, col_count = factor_columns(col_factor, k)
+    delta = np.empty(p)
     out = np.zeros(4)
     stack = np.empty(max(len(ops), 1))
     trial = np.empty(k)
@@ -286,6 +318,8 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
             for r in range(p):
                 base[r] = x[i, r]
                 a_base[r] = b[r]
+            d_base = dx
+            xb = dx
             moved = False  # best_point has left the run's row: base and a_base must follow it
             for f in range(k):
                 if frozen[f]:
@@ -293,14 +327,20 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                 if moved:
                     model_row(best_point, kinds, levels, col_factor, col_code, base)
                     _mat_vec(inv, base, a_base)
+                    d_base = _dot(base, a_base)
+                    xb = _dot(b, base)
                     moved = False
                 for j in range(k):
                     trial[j] = best_point[j]
                 if continuous[f]:
                     for r in range(n_probes):
                         trial[f] = probes[r]
-                        model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        if trace:
+                            model_row(trial, kinds, levels, col_factor, col_code, y)
+                            _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        else:
+                            model_columns(trial, kinds, levels, col_factor, col_code, cols[f], col_count[f], y)
+                            _trial_d(y, base, a_base, d_base, xb, b, inv, cols[f], col_count[f], delta, out)
                         for m in range(4):
                             sampled[m, r] = out[m]
                     for m in range(4):
@@ -350,8 +390,12 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                         trial[f] = value
                         if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
                             continue
-                        model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        if trace:
+                            model_row(trial, kinds, levels, col_factor, col_code, y)
+                            _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        else:
+                            model_columns(trial, kinds, levels, col_factor, col_code, cols[f], col_count[f], y)
+                            _trial_d(y, base, a_base, d_base, xb, b, inv, cols[f], col_count[f], delta, out)
                         g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
                         if g > best + tolerance:
                             best = g
