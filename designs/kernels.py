@@ -447,13 +447,15 @@ def criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace):
 @kernel
 def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
                   frozen, weight, trace, ops, args, bounds, probes, probe_inverse, max_passes, first_free,
-                  candidates, kick_rows, kick_points):
-    """Iterated local search on the grid, in place on `settings`; returns the kicks kept.
+                  candidates, kick_rows, kick_points, patience):
+    """Iterated local search on the grid, in place on `settings`; returns the kicks made.
 
     Kick j replaces the runs `kick_rows[j]` by the candidate points `kick_points[j]` (a run keeps its
     frozen coordinates, and a kicked run that lands on a disallowed point stays as it was), runs the
     coordinate exchange on the grid again and keeps the result when the criterion is no worse. A few
-    runs moved at once leave the local optimum that single-coordinate moves cannot.
+    runs moved at once leave the local optimum that single-coordinate moves cannot. The search stops
+    early once `patience` kicks in a row have not raised the criterion: it is then held in an optimum
+    that a few kicks cannot leave, and the work left is better spent from a fresh opening.
     """
     n, k = settings.shape
     grid_only = np.zeros(k, dtype=np.bool_)
@@ -462,7 +464,7 @@ def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, v
     constrained = len(bounds) > 1
     current = criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace)
     trial = np.empty_like(settings)
-    kept = 0
+    still = 0
     for j in range(kick_rows.shape[0]):
         trial[:, :] = settings
         for r in range(kick_rows.shape[1]):
@@ -476,8 +478,12 @@ def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, v
         optimise_start(trial, kinds, levels, col_factor, col_code, centre, half, values, value_count, grid_only, frozen,
                        weight, trace, ops, args, bounds, no_swaps, probes, probe_inverse, max_passes, first_free)
         value = criterion_of(trial, kinds, levels, col_factor, col_code, weight, trace)
+        still += 1
         if value >= current:
+            if value > current + 1e-9 * max(1.0, abs(current)):
+                still = 0
             settings[:, :] = trial
             current = value
-            kept += 1
-    return kept
+        if still >= patience:
+            return j + 1
+    return kick_rows.shape[0]
