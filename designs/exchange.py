@@ -39,14 +39,14 @@ _SWAP_BUDGET = 4_000
 _MAX_PASSES = 500
 #: Iterated local search when the starts disagree: the work of a start's kicks (runs x factors x p^2 a kick),
 #: the most kicks a start makes, and the runs each kick moves to random candidate points.
-KICK_WORK = 37_000_000
-MAX_KICKS = 200
+KICK_WORK = 28_500_000
+MAX_KICKS = 150
 KICK_RUNS = 3
-#: A search restarts from a fresh opening after this many kicks in a row without gain; an opening is charged as
-#: RESTART_KICKS kicks (its grid exchange costs about as much at 6 factors and 40 runs); a start stops once AGREED
-#: of its searches tie for the best.
+#: A search restarts from a fresh opening after PATIENCE kicks in a row without gain; the opening (random runs and
+#: the grid exchange) is charged as RESTART_KICKS kicks, about its cost (6 factors, 40 runs: 0.46 ms against 0.32 ms
+#: a kick); a start stops once AGREED of its searches tie for the best.
 PATIENCE = 20
-RESTART_KICKS = 12
+RESTART_KICKS = 2
 AGREED = 3
 #: Chebyshev-Lobatto probes of a continuous coordinate: 7 fix a polynomial of degree 6 exactly.
 _PROBES = np.cos(np.pi * np.arange(7) / 6)[::-1].copy()
