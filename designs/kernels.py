@@ -37,9 +37,9 @@ _ZOOMS = 5
 @kernel
 def model_columns(s, kinds, levels, col_factor, col_code, cols, count, out):
     """Model columns `cols[:count]` of one point `s` (coded settings; level indices for categorical factors)
-    into the same places of `out`."""
+    into the same places of `out`; every column when `cols` is None (numba compiles that case apart)."""
     for t in range(count):
-        c = cols[t]
+        c = t if cols is None else cols[t]
         value = 1.0
         for q in range(col_factor.shape[1]):
             f = col_factor[c, q]
@@ -61,8 +61,7 @@ def model_columns(s, kinds, levels, col_factor, col_code, cols, count, out):
 @kernel
 def model_row(s, kinds, levels, col_factor, col_code, out):
     """The model row of one point `s` into `out`."""
-    p = col_factor.shape[0]
-    model_columns(s, kinds, levels, col_factor, col_code, np.arange(p), p, out)
+    model_columns(s, kinds, levels, col_factor, col_code, None, col_factor.shape[0], out)
 
 
 @kernel
