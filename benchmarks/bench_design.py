@@ -8,7 +8,7 @@ with its design figures drawn (--figures: PNG and SVG). The command runs
 with Python's bytecode cache on, in a private folder warmed by one run first, as an ordinary install
 has it (pip compiles bytecode); this environment's PYTHONDONTWRITEBYTECODE would otherwise make
 every import compile its module from source, doubling the start-up. Then, for k continuous factors in a full
-quadratic model, the search time of 100 starts (CPU), the iterated local search's kicks per start (0:
+quadratic model, the search time of 100 starts (CPU), the iterated local search's kick budget per start (0:
 the starts agreed without it), the starts that reached the best design, how far the median start ended
 below it, and its D-efficiency; AlgDesign's figures (optFederov, the same candidate grid and starts) were measured
 in issue 24, since R cannot be installed beside the project: they are printed as the reference.

@@ -100,7 +100,8 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
         },
         "search": {
             "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates; "
-                         "when the starts disagree, iterated local search on the grid (kicks of 3 runs) before a last exchange",
+                         "when the starts disagree, iterated local search on the grid (kicks of 3 runs, restarted from a fresh "
+                         "opening after 20 kicks without gain) before a last exchange",
             "criterion": plan.design.criterion,
             "criterion_value": plan.design.value,
             "starts": plan.design.starts,
@@ -137,7 +138,7 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     lines = [
         f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
         f"Seed {plan.seed}; criterion {plan.design.criterion} ({CRITERION_NAMES[plan.design.criterion]}); "
-        f"{plan.design.starts} exchange starts{f' with {plan.design.kicks} kicks each' if plan.design.kicks else ''}, "
+        f"{plan.design.starts} exchange starts{f' with up to {plan.design.kicks} kicks each' if plan.design.kicks else ''}, "
         f"{plan.design.hits} reached the best design",
     ]
     bound = f"  D-efficiency bound           {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it"

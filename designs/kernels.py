@@ -4,8 +4,10 @@ iterated local search on the grid (`iterate_start`).
 
 The exchange keeps V = (X'X)^-1 and judges replacing a run's row x by a trial row y from
 y'Vy, x'Vy, x'Vx and, for the trace criteria, a'Wa and a'Wb (a = Vy, b = Vx). A trial that moves
-one coordinate changes only the model columns of that factor, so a = Vy costs p per changed
-column from the row it leaves (`_trial_near`); a whole candidate point costs O(p^2).
+one coordinate changes only the model columns of that factor: D needs only y'Vy and x'Vy, which
+follow from the change of those columns alone (`_trial_d`, about c^2 for c changed columns), and
+the trace criteria get a = Vy for p per changed column from the row it leaves (`_trial_near`); a
+whole candidate point costs O(p^2).
 
 - D: det rises by the factor (1 - x'Vx)(1 + y'Vy) + (x'Vy)^2 (Fedorov's delta)
 - I and A: trace(W V) falls by the Woodbury identity with the 2 x 2 core of the exchange, W the
@@ -33,12 +35,13 @@ _ZOOMS = 5
 
 
 @kernel
-def model_row(s, kinds, levels, col_factor, col_code, out):
-    """The model row of one point `s` (coded settings; level indices for categorical factors) into `out`."""
-    p, parts = col_factor.shape
-    for c in range(p):
+def model_columns(s, kinds, levels, col_factor, col_code, cols, count, out):
+    """Model columns `cols[:count]` of one point `s` (coded settings; level indices for categorical factors)
+    into the same places of `out`; every column when `cols` is None (numba compiles that case apart)."""
+    for t in range(count):
+        c = t if cols is None else cols[t]
         value = 1.0
-        for q in range(parts):
+        for q in range(col_factor.shape[1]):
             f = col_factor[c, q]
             if f < 0:
                 break
@@ -53,6 +56,12 @@ def model_row(s, kinds, levels, col_factor, col_code, out):
                 for _ in range(col_code[c, q]):
                     value *= x
         out[c] = value
+
+
+@kernel
+def model_row(s, kinds, levels, col_factor, col_code, out):
+    """The model row of one point `s` into `out`."""
+    model_columns(s, kinds, levels, col_factor, col_code, None, col_factor.shape[0], out)
 
 
 @kernel
@@ -168,6 +177,29 @@ def _trial_near(y, base, a_base, cols, count, inv, b, wb, weight, trace, a, wa, 
 
 
 @kernel
+def _trial_d(y, base, a_base, d_base, xb, b, inv, cols, count, delta, out):
+    """y'Vy and x'Vy into out[0] and out[1] for a trial row y that differs from `base` only in the
+    columns `cols[:count]` (a = V base, d_base = base'V base, xb = x'V base): with delta = y - base on those
+    columns, y'Vy = d_base + 2 delta'a + delta'V delta and x'Vy = xb + delta'b, about count^2 + 2 count flops
+    instead of the p^2 / p x count of forming Vy. The D criterion needs nothing else."""
+    for t in range(count):
+        delta[t] = y[cols[t]] - base[cols[t]]
+    dy = d_base
+    dxy = xb
+    for t in range(count):
+        change = delta[t]
+        if change != 0.0:
+            c = cols[t]
+            quad = 0.0
+            for u in range(count):
+                quad += inv[c, cols[u]] * delta[u]
+            dy += change * (2.0 * a_base[c] + quad)
+            dxy += change * b[c]
+    out[0] = dy
+    out[1] = dxy
+
+
+@kernel
 def factor_columns(col_factor, k):
     """(k, p) the model columns each factor enters, and (k,) how many: a move of factor f changes only those."""
     p, parts = col_factor.shape
@@ -250,6 +282,7 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
     base = np.empty(p)
     a_base = np.empty(p)
     cols, col_count = factor_columns(col_factor, k)
+    delta = np.empty(p)
     out = np.zeros(4)
     stack = np.empty(max(len(ops), 1))
     trial = np.empty(k)
@@ -286,6 +319,8 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
             for r in range(p):
                 base[r] = x[i, r]
                 a_base[r] = b[r]
+            d_base = dx
+            xb = dx
             moved = False  # best_point has left the run's row: base and a_base must follow it
             for f in range(k):
                 if frozen[f]:
@@ -293,14 +328,22 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                 if moved:
                     model_row(best_point, kinds, levels, col_factor, col_code, base)
                     _mat_vec(inv, base, a_base)
+                    d_base = _dot(base, a_base)
+                    xb = _dot(b, base)
                     moved = False
                 for j in range(k):
                     trial[j] = best_point[j]
                 if continuous[f]:
                     for r in range(n_probes):
                         trial[f] = probes[r]
-                        model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        # Written out here and below: one compiled function around these two branches, taking all
+                        # their arrays, made a grid pass 2.4 times slower (numba does not inline it).
+                        if trace:
+                            model_row(trial, kinds, levels, col_factor, col_code, y)
+                            _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        else:
+                            model_columns(trial, kinds, levels, col_factor, col_code, cols[f], col_count[f], y)
+                            _trial_d(y, base, a_base, d_base, xb, b, inv, cols[f], col_count[f], delta, out)
                         for m in range(4):
                             sampled[m, r] = out[m]
                     for m in range(4):
@@ -350,8 +393,12 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                         trial[f] = value
                         if constrained and disallowed(trial, centre, half, kinds, ops, args, bounds, stack):
                             continue
-                        model_row(trial, kinds, levels, col_factor, col_code, y)
-                        _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        if trace:
+                            model_row(trial, kinds, levels, col_factor, col_code, y)
+                            _trial_near(y, base, a_base, cols[f], col_count[f], inv, b, wb, weight, trace, a, wa, out)
+                        else:
+                            model_columns(trial, kinds, levels, col_factor, col_code, cols[f], col_count[f], y)
+                            _trial_d(y, base, a_base, d_base, xb, b, inv, cols[f], col_count[f], delta, out)
                         g = _gain(out[0], out[1], out[2], out[3], dx, bwb, trace)
                         if g > best + tolerance:
                             best = g
@@ -403,13 +450,15 @@ def criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace):
 @kernel
 def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, values, value_count,
                   frozen, weight, trace, ops, args, bounds, probes, probe_inverse, max_passes, first_free,
-                  candidates, kick_rows, kick_points):
-    """Iterated local search on the grid, in place on `settings`; returns the kicks kept.
+                  candidates, kick_rows, kick_points, patience):
+    """Iterated local search on the grid, in place on `settings`; returns the kicks made.
 
     Kick j replaces the runs `kick_rows[j]` by the candidate points `kick_points[j]` (a run keeps its
     frozen coordinates, and a kicked run that lands on a disallowed point stays as it was), runs the
     coordinate exchange on the grid again and keeps the result when the criterion is no worse. A few
-    runs moved at once leave the local optimum that single-coordinate moves cannot.
+    runs moved at once leave the local optimum that single-coordinate moves cannot. The search stops
+    early once `patience` kicks in a row have not raised the criterion: it is then held in an optimum
+    that a few kicks cannot leave, and the work left is better spent from a fresh opening.
     """
     n, k = settings.shape
     grid_only = np.zeros(k, dtype=np.bool_)
@@ -418,7 +467,7 @@ def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, v
     constrained = len(bounds) > 1
     current = criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace)
     trial = np.empty_like(settings)
-    kept = 0
+    still = 0
     for j in range(kick_rows.shape[0]):
         trial[:, :] = settings
         for r in range(kick_rows.shape[1]):
@@ -432,8 +481,12 @@ def iterate_start(settings, kinds, levels, col_factor, col_code, centre, half, v
         optimise_start(trial, kinds, levels, col_factor, col_code, centre, half, values, value_count, grid_only, frozen,
                        weight, trace, ops, args, bounds, no_swaps, probes, probe_inverse, max_passes, first_free)
         value = criterion_of(trial, kinds, levels, col_factor, col_code, weight, trace)
+        still += 1
         if value >= current:
+            if value > current + 1e-9 * max(1.0, abs(current)):
+                still = 0
             settings[:, :] = trial
             current = value
-            kept += 1
-    return kept
+        if still >= patience:
+            return j + 1
+    return kick_rows.shape[0]

@@ -209,6 +209,45 @@ def test_each_start_ends_where_no_joint_continuous_move_raises_det(seed):
     assert -polished.fun - design.value < 1e-6
 
 
+def test_iterated_search_stops_after_patience_kicks_without_gain():
+    """The compiled search returns once `patience` kicks in a row have not raised log det: the same kicks up to
+    `patience` before that stop end at the same value, and without the patience every kick is made."""
+    from designs import kernels
+
+    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(3)))
+    search = exchange._Search.of(model, "D", None, {}, 0)
+    rng = np.random.default_rng(5)
+    opening = search.opening(rng, np.zeros((0, 3)), 14, {})
+    search.exchange(opening, np.zeros(3, dtype=bool))
+    rows = np.argsort(rng.random((300, 14)), axis=1)[:, :3]
+    points = rng.integers(len(search.candidates), size=(300, 3))
+    codes, weight, trace, ops, args, bounds = search.codes
+
+    def kicked(count: int, patience: int) -> tuple[int, float]:
+        settings = opening.copy()
+        made = kernels.iterate_start(settings, *codes, search.frozen, weight, trace, ops, args, bounds, exchange._PROBES,
+                                     exchange._PROBE_INVERSE, 500, 0, search.candidates, rows[:count], points[:count], patience)
+        return made, search.value(settings)
+
+    made, value = kicked(300, 10)
+    assert 10 <= made < 300
+    assert kicked(made - 10, 10**6) == (made - 10, pytest.approx(value, abs=1e-12))
+    assert kicked(300, 10**6)[0] == 300
+
+
+def test_restarts_bring_more_starts_of_the_six_factor_quadratic_to_the_best(monkeypatch):
+    """6 continuous factors, full quadratic (p = 28) in 40 runs: a search held in a deep local optimum gains nothing
+    from more kicks, so restarting it from a fresh opening after `PATIENCE` kicks without gain, within the same kick
+    budget, brings more starts to the best design."""
+    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(6)))
+    design = optimal_design(model, 40, seed=5, starts=20)
+    monkeypatch.setattr(exchange, "PATIENCE", 10**6)
+    single = optimal_design(model, 40, seed=5, starts=20)
+    assert design.kicks == single.kicks == exchange.MAX_KICKS
+    assert design.hits >= 12 and single.hits <= 10  # measured: 15 and 7 of 20
+    assert design.value >= single.value - exchange.VALUE_TOL
+
+
 def test_kicks_bring_the_starts_of_a_near_saturated_quadratic_together(monkeypatch):
     """4 continuous factors, full quadratic (p = 15) in 20 runs: the coordinate exchange alone leaves its starts
     at distinct local optima; iterated local search brings most to the best, and no start ends worse for it."""
