@@ -53,6 +53,8 @@ class Checkpoint:
         generator: the kept (best validation loss) generator weights.
         finished: why training stopped ("early stopping", "epoch limit"), None while it runs.
         state: what resuming needs, None once finished.
+        closed_loop: the closed-loop tuning that changed the kept weights after training, if any
+            (`navigan.closed_loop`: its settings, one entry per round, what resuming needs).
     """
 
     model: ModelConfig
@@ -67,6 +69,7 @@ class Checkpoint:
     generator: dict[str, torch.Tensor] = field(default_factory=dict)
     finished: str | None = None
     state: dict[str, Any] | None = None
+    closed_loop: dict[str, Any] | None = None
 
     def build_generator(self) -> NaviganGenerator | GoalSocialGenerator:
         """The generator with the kept weights, in eval mode."""
@@ -93,6 +96,7 @@ def save(checkpoint: Checkpoint, path: str | Path) -> None:
         "generator": checkpoint.generator,
         "finished": checkpoint.finished,
         "state": checkpoint.state,
+        "closed_loop": checkpoint.closed_loop,
     }
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
     try:
@@ -138,6 +142,7 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoi
             generator=record["generator"],
             finished=record["finished"],
             state=record["state"],
+            closed_loop=record.get("closed_loop"),
         )
     except KeyError as exc:
         raise NaviganError(f"{path} lacks the field {exc}") from exc

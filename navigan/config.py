@@ -132,6 +132,36 @@ class TrainConfig:
         return Sampling(augment=self.augment)
 
 
+@dataclass(frozen=True)
+class ClosedLoopConfig:
+    """How NaviGAN-R is fine-tuned on the states it visits walking playback episodes (`navigan.closed_loop`).
+
+    Attributes:
+        rounds: walk-label-train rounds (DAgger's iterations).
+        epochs: passes over all states gathered so far, per round.
+        batch: states per batch.
+        lr: Adam learning rate.
+        seed: seeds the walks' fluctuation noise and the batch order.
+        margin: the shield's margin (m) that labels the states (`navigan.shield`), and the
+            clearance the hinge term asks of the first step.
+        w_first: weight of the first way-point's squared distance from the expert's, on the states
+            where the shield keeps the plan.
+        w_rest: weight of the other way-points' squared distance from the starting network's plan.
+        w_hinge: weight of the first step's squared shortfall under `margin` from everyone's
+            constant-velocity forecast.
+    """
+
+    rounds: int = 2
+    epochs: int = 2
+    batch: int = 512
+    lr: float = 1e-3
+    seed: int = 0
+    margin: float = 0.5
+    w_first: float = 10.0
+    w_rest: float = 1.0
+    w_hinge: float = 50.0
+
+
 def to_dict(record: Any) -> dict[str, Any]:
     """A config record as a plain dict."""
     return asdict(record)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from navigan.checkpoint import load
-from navigan.config import TrainConfig
+from navigan.config import ClosedLoopConfig, TrainConfig
 from trials.cli import main
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
@@ -121,11 +121,15 @@ def test_rerun_refuses_a_recipe_with_other_settings(data, tmp_path, capsys):
 
 
 SETTINGS = ", ".join(f.name for f in fields(TrainConfig) if f.name != "split")
+TUNING = ", ".join(f.name for f in fields(ClosedLoopConfig))
 
 
 @pytest.mark.parametrize(("text", "message"), [
     ('model = "navigan-r"\n[train]\nbatchsize = 64', f"unknown key train.batchsize: expected one of {SETTINGS}"),
-    ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train"),
+    ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train, closed_loop"),
+    ('model = "navigan-r"\n[closed_loop]\nrounds = 0', "closed_loop.rounds: expected a positive whole number, got 0"),
+    ('model = "navigan-r"\n[closed_loop]\nmargin = -0.5', "closed_loop.margin: expected a positive distance in metres, got -0.5"),
+    ('model = "navigan-r"\n[closed_loop]\nshield = 0.5', f"unknown key closed_loop.shield: expected one of {TUNING}"),
     ('[train]\nepochs = 3', "model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got nothing"),
     ('model = "navigan-x"', 'model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got "navigan-x"'),
     ('model = "navigan-r"\ntrain = 3', "train: expected a table of TrainConfig settings, got 3"),
@@ -146,6 +150,36 @@ def test_bad_recipe_is_one_error_line(data, tmp_path, capsys, text, message):
                  "--out", str(tmp_path / "r.pt"), "--quiet"]) == 2
     assert capsys.readouterr().err == f"error: {mine}: {message}\n"
     assert not (tmp_path / "r.pt").exists()
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--closed-loop-seed", "1"], "--closed-loop-seed: only with --closed-loop"),
+    (["--closed-loop", "--split", "all"], "--closed-loop: needs a split with a held-out test scene, not all"),
+    (["--closed-loop", "--recipe", "navigan"], "--closed-loop: tunes NaviGAN-R only; recipe navigan trains navigan"),
+])
+def test_closed_loop_refusals_are_one_error_line(tmp_path, capsys, extra, message):
+    args = ["train", "--recipe", "playback", "--split", "zara1", *extra, "--out", str(tmp_path / "r.pt"), "--quiet"]
+    assert main(args) == 2
+    assert capsys.readouterr().err == f"error: {message}\n"
+    assert not (tmp_path / "r.pt").exists()
+
+
+@pytest.mark.slow
+def test_train_then_tune_in_closed_loop_then_resume(data, tmp_path, capsys):
+    out = tmp_path / "r.pt"
+    mine = recipe_file(tmp_path, 'model = "navigan-r"\n[network]\npair_pool = true\n[train]\nbatch = 64\n'
+                                 '[closed_loop]\nrounds = 1\nepochs = 1\nbatch = 64\n')
+    args = ["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+            "--out", str(out), "--closed-loop", "--closed-loop-seed", "3"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "closed-loop round 1/1: " in printed and "tuned in closed loop over 1 rounds" in printed
+    record = load(out)
+    assert record.closed_loop["settings"]["seed"] == 3 and record.closed_loop["rounds"][0]["states"] > 100
+    assert record.command.endswith("--closed-loop --closed-loop-seed 3 --out r.pt")
+    before = out.read_bytes()
+    assert main(args) == 0  # tuned: nothing more to do, nothing rewritten
+    assert out.read_bytes() == before
 
 
 def test_unknown_recipe_lists_the_shipped_ones(capsys):

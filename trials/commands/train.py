@@ -5,10 +5,15 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from trials import option_types as types
 from trials.option_types import MAX_THREADS
 from trials.progress import add_quiet
+
+if TYPE_CHECKING:
+    from navigan.checkpoint import Checkpoint
+    from navigan.config import ClosedLoopConfig
 
 #: Training settings the command may override, each a whole number (None: the recipe's).
 OVERRIDES = ("epochs", "patience", "seed")
@@ -24,7 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "its training settings; settings it leaves out keep the defaults of navigan/config.py, the paper's. "
             "The checkpoint (weights, resolved settings, the recipe's text, split files, this command, per-epoch "
             "validation metrics) is saved after every epoch; run the same command again to resume an "
-            "interrupted training."
+            "interrupted training. --closed-loop then tunes the finished NaviGAN-R on the states it visits "
+            "walking playback episodes of the split's training recordings (navigan/closed_loop.py; settings "
+            "from the recipe's [closed_loop] table), saved after every round and resumable the same way."
         ),
     )
     parser.add_argument("--recipe", required=True, metavar="NAME|FILE",
@@ -36,6 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="stop after this many epochs without a better validation loss (default: the recipe's)")
     parser.add_argument("--seed", type=types.seed,
                         help="seed of weights, batch order and noise (default: the recipe's)")
+    parser.add_argument("--closed-loop", action="store_true",
+                        help="after training (or on a finished checkpoint at --out), tune it in closed loop")
+    parser.add_argument("--closed-loop-seed", type=types.seed, metavar="SEED",
+                        help="seed of the closed-loop tuning's walks and batch order (default: the recipe's)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
@@ -50,6 +61,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def command_line(args: argparse.Namespace, out: Path) -> str:
     """The command that reproduces this training with the same recipe (the data folder aside, which is machine-specific)."""
     overrides = [f"--{name} {getattr(args, name)}" for name in OVERRIDES if getattr(args, name) is not None]
+    if args.closed_loop:
+        overrides.append("--closed-loop")
+        if args.closed_loop_seed is not None:
+            overrides.append(f"--closed-loop-seed {args.closed_loop_seed}")
     return " ".join([f"trials train --recipe {args.recipe} --split {args.split}", *overrides, f"--out {out.name}"])
 
 
@@ -59,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from navigan import checkpoint as ckpt
     from navigan import recipes
     from navigan.config import TrainConfig
-    from navigan.data import Scenes, data_dir, load_split
+    from navigan.data import ALL_SCENES, Scenes, data_dir, load_split
     from navigan.errors import NaviganError
     from navigan.training import train
     from trials.progress import Progress, numbered, piped_lines, show_bars
@@ -69,8 +84,14 @@ def run(args: argparse.Namespace) -> int:
         expected = None if value is None else recipes.problem(TrainConfig, name, value)
         if expected is not None:
             raise NaviganError(f"--{name}: expected {expected}, got {value}")
+    if args.closed_loop_seed is not None and not args.closed_loop:
+        raise NaviganError("--closed-loop-seed: only with --closed-loop")
     recipe = recipes.load(args.recipe)
     model, config = recipe.configs(args.split, **{name: getattr(args, name) for name in OVERRIDES})
+    if args.closed_loop and not (model.variant.resistance and model.variant.fluctuation):
+        raise NaviganError(f"--closed-loop: tunes NaviGAN-R only; recipe {args.recipe} trains {model.model}")
+    if args.closed_loop and args.split == ALL_SCENES:
+        raise NaviganError(f"--closed-loop: needs a split with a held-out test scene, not {ALL_SCENES}")
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
     if args.threads:
@@ -93,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
         command=command_line(args, out), recipe=recipe.record(), device=args.device, progress=show_bars(args.quiet),
         on_epoch=trained if piped_lines(args.quiet) else None,
     )
+    if args.closed_loop:
+        record = tune_closed_loop(args, record, recipe.tuning(args.closed_loop_seed), split.train, out)
     best = record.best or {"epoch": 0, "val": {}}
     status = record.finished or "unfinished"
     val = best["val"]
@@ -100,5 +123,26 @@ def run(args: argparse.Namespace) -> int:
         f"{out}: {status} after {record.epoch} epochs; kept epoch {best['epoch']} "
         f"(validation loss {val.get('loss', float('nan')):.4f}, ADE {val.get('ade', float('nan')):.3f} m, "
         f"FDE {val.get('fde', float('nan')):.3f} m)"
+        + (f"; tuned in closed loop over {len(record.closed_loop['rounds'])} rounds" if record.closed_loop else "")
     )
     return 0
+
+
+def tune_closed_loop(args: argparse.Namespace, record: Checkpoint, config: ClosedLoopConfig, files: tuple[Path, ...],
+                     out: Path) -> Checkpoint:
+    """Tune a finished checkpoint in closed loop on playback episodes of the training recordings, one
+    line per round."""
+    from navigan import checkpoint as ckpt
+    from navigan.closed_loop import tune
+    from navigan.playback.episodes import load_episodes
+    from navigan.playback.protocols import DEFAULT_PROTOCOL
+    from trials.progress import Progress
+
+    Progress("round", "tuning", args.quiet).loading(f"Walking {args.split}'s training recordings in closed loop")
+    episodes = load_episodes(files, DEFAULT_PROTOCOL)
+
+    def tuned(round_: int, entry: dict[str, Any]) -> None:
+        terms = ", ".join(f"{k} {v:.4f}" for k, v in entry["train"].items())
+        print(f"closed-loop round {round_}/{config.rounds}: {entry['states']} states, {terms}", flush=True)
+
+    return tune(record, out, episodes, config, save=lambda r: ckpt.save(r, out), on_round=None if args.quiet else tuned)
