@@ -80,7 +80,7 @@ class TrainingSettings:
 class LabelledSegments:
     """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
     but near a label), (N,) log index, (N,) time block (numbered across logs) and (N,) on the
-    static world (`static_flags`); `logs` names each log with its kind and scan count, labelled
+    static world (`StaticFlags`); `logs` names each log with its kind and scan count, labelled
     logs first."""
 
     features: np.ndarray
