@@ -206,6 +206,8 @@ def tune(
     """
     if not record.finished:
         raise NaviganError("closed-loop tuning starts from a finished training; finish it first")
+    if not (record.model.variant.resistance and record.model.variant.fluctuation):
+        raise NaviganError(f"closed-loop tuning tunes NaviGAN-R only, not {record.model.model}")
     tuning = record.closed_loop or {"settings": asdict(config), "rounds": [], "resume": None}
     if tuning["settings"] != asdict(config):
         raise NaviganError(f"the checkpoint holds a closed-loop tuning with other settings ({tuning['settings']}); "

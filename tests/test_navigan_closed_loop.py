@@ -95,6 +95,16 @@ def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
     assert changed and not any(k.startswith("intention_") for k in changed)  # the social-force branch alone
 
 
+def test_tuning_refuses_other_models_and_walks_without_noise(zara1):
+    path, episodes = zara1
+    navil2 = ckpt.shipped("navil2", "zara1")
+    with pytest.raises(NaviganError, match="tunes NaviGAN-R only, not navil2"):
+        tune(ckpt.load(navil2), navil2, episodes, ClosedLoopConfig(), save=lambda r: None)
+    without_noise = Policy.load(navil2)
+    with pytest.raises(NaviganError, match="needs a model with fluctuation noise"):
+        visited(without_noise, Policy.load(path), episodes, margin=0.5)
+
+
 def test_tuning_refuses_other_settings_and_unfinished_trainings(zara1):
     path, episodes = zara1
     record = ckpt.load(path)
