@@ -156,6 +156,8 @@ def test_bad_recipe_is_one_error_line(data, tmp_path, capsys, text, message):
     (["--closed-loop-seed", "1"], "--closed-loop-seed: only with --closed-loop"),
     (["--closed-loop", "--split", "all"], "--closed-loop: needs a split with a held-out test scene, not all"),
     (["--closed-loop", "--recipe", "navigan"], "--closed-loop: tunes NaviGAN-R only; recipe navigan trains navigan"),
+    (["--closed-loop", "--device", "cuda"],
+     "--closed-loop: tunes on the CPU only; train with --device cuda first, then add --closed-loop without it"),
 ])
 def test_closed_loop_refusals_are_one_error_line(tmp_path, capsys, extra, message):
     args = ["train", "--recipe", "playback", "--split", "zara1", *extra, "--out", str(tmp_path / "r.pt"), "--quiet"]
