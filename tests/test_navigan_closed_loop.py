@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.closed_loop import States, losses, tune, visited
+from navigan.closed_loop import States, losses, tune, visited, walk_seed
 from navigan.config import ClosedLoopConfig
 from navigan.data import load_split
 from navigan.errors import NaviganError
@@ -86,6 +86,10 @@ def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
     saved: list[ckpt.Checkpoint] = []
     whole = tune(ckpt.load(path), path, episodes, config, save=lambda r: saved.append(copy.deepcopy(r)))
     assert [r["round"] for r in whole.closed_loop["rounds"]] == [1, 2] and whole.closed_loop["resume"] is None
+    first, second = whole.closed_loop["rounds"]
+    assert first["states"] == first["states_total"] == sum(len(p) for p in visited(
+        Policy.load(path, seed=walk_seed(config, 1)), Policy.load(path), episodes, config.margin))  # round 1 walks the teacher
+    assert second["states_total"] == first["states"] + second["states"]
     start = ckpt.load(path).generator
     after_one = saved[0]
     assert all(torch.equal(after_one.generator[k], start[k]) for k in start)  # the teacher's until the last round

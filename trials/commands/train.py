@@ -146,6 +146,7 @@ def tune_closed_loop(args: argparse.Namespace, record: Checkpoint, config: Close
 
     def tuned(round_: int, entry: dict[str, Any]) -> None:
         terms = ", ".join(f"{k} {v:.4f}" for k, v in entry["train"].items())
-        print(f"closed-loop round {round_}/{config.rounds}: {entry['states']} states, {terms}", flush=True)
+        print(f"closed-loop round {round_}/{config.rounds}: walked {entry['states']} states, "
+              f"trained on {entry['states_total']}, {terms}", flush=True)
 
     return tune(record, out, episodes, config, save=lambda r: ckpt.save(r, out), on_round=None if args.quiet else tuned)
