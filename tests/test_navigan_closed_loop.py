@@ -77,7 +77,10 @@ def test_walk_records_every_state_with_the_teachers_plan(zara1):
     # the teacher walking: each state's planned first way-point is where the walker went next
     np.testing.assert_allclose(parts[0].teacher[:, 0], walked.paths[:, 1], atol=1e-6)
     np.testing.assert_allclose(parts[1].histories[:, -1], walked.paths[:, 1], atol=1e-6)
-    assert parts[0].around.shape[1:] == (parts[0].around.shape[1], T_OBS, 2)
+    # the widest crowd at time 0: everyone present at an episode's first frame but its target
+    widest = max(np.count_nonzero(~np.isnan(episodes.scenes[s].positions[f, :, 0])) - 1
+                 for s, f in zip(episodes.scene, episodes.start))
+    assert widest > 0 and parts[0].around.shape[1:] == (widest, T_OBS, 2)
 
 
 def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
