@@ -196,9 +196,11 @@ def tune(
     """Fine-tune a finished NaviGAN-R checkpoint (read from `path`) in closed loop on `episodes`, or
     resume its tuning.
 
-    `record.closed_loop` holds the tuning: its settings, one entry per finished round, and, until
-    the last round, what resuming needs. The checkpoint is saved (`save`) after every round;
-    `on_round(round, entry)` is called as each finishes.
+    `record.closed_loop` holds the tuning: its settings, one entry per finished round (`states`:
+    the states its walk visited; `states_total`: all rounds' so far, which it trained on; its CPU
+    seconds and last epoch's mean terms) and, until the last round, what resuming needs. The
+    checkpoint is saved (`save`) after every round; `on_round(round, entry)` is called as each
+    finishes.
 
     Raises:
         NaviganError: the checkpoint is unfinished, not a NaviGAN-R with noise, or holds a tuning
@@ -206,6 +208,8 @@ def tune(
     """
     if not record.finished:
         raise NaviganError("closed-loop tuning starts from a finished training; finish it first")
+    if not (record.model.variant.resistance and record.model.variant.fluctuation):
+        raise NaviganError(f"closed-loop tuning tunes NaviGAN-R only, not {record.model.model}")
     tuning = record.closed_loop or {"settings": asdict(config), "rounds": [], "resume": None}
     if tuning["settings"] != asdict(config):
         raise NaviganError(f"the checkpoint holds a closed-loop tuning with other settings ({tuning['settings']}); "
@@ -227,12 +231,13 @@ def tune(
         if round_ > 1:
             learner_net.load_state_dict(resume["learners"][round_ - 2])
         learner = Policy(learner_net, False, record.model.noise, walk_seed(config, round_), path)
-        parts += visited(learner, teacher, episodes, config.margin)
+        walk = visited(learner, teacher, episodes, config.margin)
+        parts += walk
         if done:
             continue
         means = train_round(learner_net, parts, config, rng)
-        entry = {"round": round_, "states": sum(len(p) for p in parts), "cpu_seconds": round(time.process_time() - began, 1),
-                 "train": {k: round(v, 6) for k, v in means.items()}}
+        entry = {"round": round_, "states": sum(len(p) for p in walk), "states_total": sum(len(p) for p in parts),
+                 "cpu_seconds": round(time.process_time() - began, 1), "train": {k: round(v, 6) for k, v in means.items()}}
         tuning["rounds"].append(entry)
         resume["learners"].append(_weights(learner_net))
         resume["rng"] = rng.bit_generator.state

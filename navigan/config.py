@@ -144,9 +144,9 @@ class ClosedLoopConfig:
         seed: seeds the walks' fluctuation noise and the batch order.
         margin: the shield's margin (m) that labels the states (`navigan.shield`), and the
             clearance the hinge term asks of the first step.
-        w_first: weight of the first way-point's squared distance from the expert's, on the states
+        w_first: weight of the first way-point's squared distance from the teacher's, on the states
             where the shield keeps the plan.
-        w_rest: weight of the other way-points' squared distance from the starting network's plan.
+        w_rest: weight of the other way-points' squared distance from the teacher's plan.
         w_hinge: weight of the first step's squared shortfall under `margin` from everyone's
             constant-velocity forecast.
     """

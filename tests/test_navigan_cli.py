@@ -7,6 +7,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import pytest
+import torch
 
 from navigan.checkpoint import load
 from navigan.config import ClosedLoopConfig, TrainConfig
@@ -156,6 +157,8 @@ def test_bad_recipe_is_one_error_line(data, tmp_path, capsys, text, message):
     (["--closed-loop-seed", "1"], "--closed-loop-seed: only with --closed-loop"),
     (["--closed-loop", "--split", "all"], "--closed-loop: needs a split with a held-out test scene, not all"),
     (["--closed-loop", "--recipe", "navigan"], "--closed-loop: tunes NaviGAN-R only; recipe navigan trains navigan"),
+    (["--closed-loop", "--device", "cuda"],
+     "--closed-loop: tunes on the CPU only; train with --device cuda first, then add --closed-loop without it"),
 ])
 def test_closed_loop_refusals_are_one_error_line(tmp_path, capsys, extra, message):
     args = ["train", "--recipe", "playback", "--split", "zara1", *extra, "--out", str(tmp_path / "r.pt"), "--quiet"]
@@ -165,21 +168,50 @@ def test_closed_loop_refusals_are_one_error_line(tmp_path, capsys, extra, messag
 
 
 @pytest.mark.slow
-def test_train_then_tune_in_closed_loop_then_resume(data, tmp_path, capsys):
-    out = tmp_path / "r.pt"
+def test_train_then_tune_in_closed_loop_interrupted_then_resumed(data, tmp_path, capsys, monkeypatch):
+    from navigan import closed_loop
+
     mine = recipe_file(tmp_path, 'model = "navigan-r"\n[network]\npair_pool = true\n[train]\nbatch = 64\n'
-                                 '[closed_loop]\nrounds = 1\nepochs = 1\nbatch = 64\n')
-    args = ["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
-            "--out", str(out), "--closed-loop", "--closed-loop-seed", "3"]
-    assert main(args) == 0
+                                 '[closed_loop]\nrounds = 2\nepochs = 1\nbatch = 64\n')
+
+    def tuning(out: Path) -> list[str]:
+        return ["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+                "--out", str(out), "--closed-loop", "--closed-loop-seed", "3"]
+
+    whole = tmp_path / "whole.pt"
+    assert main(tuning(whole)) == 0
     printed = capsys.readouterr().out
-    assert "closed-loop round 1/1: " in printed and "tuned in closed loop over 1 rounds" in printed
-    record = load(out)
-    assert record.closed_loop["settings"]["seed"] == 3 and record.closed_loop["rounds"][0]["states"] > 100
-    assert record.command.endswith("--closed-loop --closed-loop-seed 3 --out r.pt")
-    before = out.read_bytes()
-    assert main(args) == 0  # tuned: nothing more to do, nothing rewritten
-    assert out.read_bytes() == before
+    first, second = load(whole).closed_loop["rounds"]
+    assert f"closed-loop round 1/2: walked {first['states']} states, trained on {first['states']}, " in printed
+    assert (f"closed-loop round 2/2: walked {second['states']} states, "
+            f"trained on {first['states'] + second['states']}, ") in printed
+    assert "tuned in closed loop over 2 rounds" in printed and first["states"] > 100
+    before = whole.read_bytes()
+    assert main(tuning(whole)) == 0  # tuned: nothing more to do, nothing rewritten
+    assert whole.read_bytes() == before
+
+    # Ctrl-C during round 2's training: round 1 is kept, and the same command finishes the tuning
+    rounds = closed_loop.train_round
+    trained: list[int] = []
+
+    def stopped_in_round_two(generator, parts, config, rng):
+        trained.append(len(parts))
+        if len(trained) == 2:
+            raise KeyboardInterrupt
+        return rounds(generator, parts, config, rng)
+
+    monkeypatch.setattr(closed_loop, "train_round", stopped_in_round_two)
+    out = tmp_path / "r.pt"
+    assert main(tuning(out)) == 130
+    kept = load(out).closed_loop
+    assert [r["round"] for r in kept["rounds"]] == [1] and kept["resume"] is not None
+    monkeypatch.setattr(closed_loop, "train_round", rounds)
+    assert main(tuning(out)) == 0
+    resumed, uninterrupted = load(out), load(whole)
+    assert resumed.closed_loop["resume"] is None and [r["states"] for r in resumed.closed_loop["rounds"]] == [
+        first["states"], second["states"]]
+    assert resumed.command.endswith("--closed-loop --closed-loop-seed 3 --out r.pt")
+    assert all(torch.equal(resumed.generator[k], uninterrupted.generator[k]) for k in uninterrupted.generator)
 
 
 def test_unknown_recipe_lists_the_shipped_ones(capsys):

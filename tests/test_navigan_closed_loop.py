@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.closed_loop import States, losses, tune, visited
+from navigan.closed_loop import States, losses, tune, visited, walk_seed
 from navigan.config import ClosedLoopConfig
 from navigan.data import load_split
 from navigan.errors import NaviganError
@@ -77,7 +77,10 @@ def test_walk_records_every_state_with_the_teachers_plan(zara1):
     # the teacher walking: each state's planned first way-point is where the walker went next
     np.testing.assert_allclose(parts[0].teacher[:, 0], walked.paths[:, 1], atol=1e-6)
     np.testing.assert_allclose(parts[1].histories[:, -1], walked.paths[:, 1], atol=1e-6)
-    assert parts[0].around.shape[1:] == (parts[0].around.shape[1], T_OBS, 2)
+    # the widest crowd at time 0: everyone present at an episode's first frame but its target
+    widest = max(np.count_nonzero(~np.isnan(episodes.scenes[s].positions[f, :, 0])) - 1
+                 for s, f in zip(episodes.scene, episodes.start))
+    assert widest > 0 and parts[0].around.shape[1:] == (widest, T_OBS, 2)
 
 
 def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
@@ -86,6 +89,10 @@ def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
     saved: list[ckpt.Checkpoint] = []
     whole = tune(ckpt.load(path), path, episodes, config, save=lambda r: saved.append(copy.deepcopy(r)))
     assert [r["round"] for r in whole.closed_loop["rounds"]] == [1, 2] and whole.closed_loop["resume"] is None
+    first, second = whole.closed_loop["rounds"]
+    assert first["states"] == first["states_total"] == sum(len(p) for p in visited(
+        Policy.load(path, seed=walk_seed(config, 1)), Policy.load(path), episodes, config.margin))  # round 1 walks the teacher
+    assert second["states_total"] == first["states"] + second["states"]
     start = ckpt.load(path).generator
     after_one = saved[0]
     assert all(torch.equal(after_one.generator[k], start[k]) for k in start)  # the teacher's until the last round
@@ -93,6 +100,16 @@ def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
     assert all(torch.equal(resumed.generator[k], whole.generator[k]) for k in start)
     changed = [k for k in start if not torch.equal(whole.generator[k], start[k])]
     assert changed and not any(k.startswith("intention_") for k in changed)  # the social-force branch alone
+
+
+def test_tuning_refuses_other_models_and_walks_without_noise(zara1):
+    path, episodes = zara1
+    navil2 = ckpt.shipped("navil2", "zara1")
+    with pytest.raises(NaviganError, match="tunes NaviGAN-R only, not navil2"):
+        tune(ckpt.load(navil2), navil2, episodes, ClosedLoopConfig(), save=lambda r: None)
+    without_noise = Policy.load(navil2)
+    with pytest.raises(NaviganError, match="needs a model with fluctuation noise"):
+        visited(without_noise, Policy.load(path), episodes, margin=0.5)
 
 
 def test_tuning_refuses_other_settings_and_unfinished_trainings(zara1):

@@ -125,26 +125,20 @@ class Rollout:
 
 @dataclass(frozen=True)
 class Visit:
-    """What the policy saw and planned at one step of a roll-out, for the B episodes still walking.
+    """What the policy saw at one step of a roll-out, for the B episodes still walking.
 
     Attributes:
-        active: (B,) the episodes' indices.
-        step: the step (0-based).
         histories: (B, T_OBS, 2) each target's last positions, the walked ones once the
             observation is used up.
         around: (B, N, T_OBS, 2) the others present (`neighbours`).
         goals: (B, 2) the (sub-)goals handed to the policy.
         noise: (B, noise) the fluctuation noise, or None.
-        waypoints: (B, T_PRED, 2) the plan.
     """
 
-    active: np.ndarray
-    step: int
     histories: np.ndarray
     around: np.ndarray
     goals: np.ndarray
     noise: np.ndarray | None
-    waypoints: np.ndarray
 
 
 def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
@@ -186,7 +180,7 @@ def roll_out(
         subgoal_speed: the pace of the sub-goals handed to the policy (`navigan.goals.toward`):
             RECORDED (each target's own, see `Episodes.pace`) or a speed in m/s; None hands it
             the episode's goal itself, as the paper describes.
-        visit: called at each step with what the policy saw and planned, before the step is
+        visit: called at each step with what the policy saw, before the step is
             walked (closed-loop training records the states a policy visits: `navigan.closed_loop`).
     """
     speeds = subgoal_speeds(episodes, subgoal_speed)
@@ -207,7 +201,7 @@ def roll_out(
         histories, drawn = track[active, step : step + T_OBS], None if noise is None else noise[active, step]
         waypoints, intention, forces = policy.plan(histories, around, goals, drawn)
         if visit is not None:
-            visit(Visit(active, step, histories, around, goals, drawn, waypoints))
+            visit(Visit(histories, around, goals, drawn))
         walked = (intention if policy.dagger else waypoints)[:, 0]
         if policy.shield is not None:
             walked = shielded_steps(track[active, step + T_OBS - 1], walked, around, policy.shield)

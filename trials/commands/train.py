@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "validation metrics) is saved after every epoch; run the same command again to resume an "
             "interrupted training. --closed-loop then tunes the finished NaviGAN-R on the states it visits "
             "walking playback episodes of the split's training recordings (navigan/closed_loop.py; settings "
-            "from the recipe's [closed_loop] table), saved after every round and resumable the same way."
+            "from the recipe's [closed_loop] table, on the CPU), saved after every round and resumable the same way."
         ),
     )
     parser.add_argument("--recipe", required=True, metavar="NAME|FILE",
@@ -92,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
         raise NaviganError(f"--closed-loop: tunes NaviGAN-R only; recipe {args.recipe} trains {model.model}")
     if args.closed_loop and args.split == ALL_SCENES:
         raise NaviganError(f"--closed-loop: needs a split with a held-out test scene, not {ALL_SCENES}")
+    if args.closed_loop and args.device != "cpu":
+        raise NaviganError(f"--closed-loop: tunes on the CPU only; train with --device {args.device} first, "
+                           "then add --closed-loop without it")
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
     if args.threads:
@@ -143,6 +146,7 @@ def tune_closed_loop(args: argparse.Namespace, record: Checkpoint, config: Close
 
     def tuned(round_: int, entry: dict[str, Any]) -> None:
         terms = ", ".join(f"{k} {v:.4f}" for k, v in entry["train"].items())
-        print(f"closed-loop round {round_}/{config.rounds}: {entry['states']} states, {terms}", flush=True)
+        print(f"closed-loop round {round_}/{config.rounds}: walked {entry['states']} states, "
+              f"trained on {entry['states_total']}, {terms}", flush=True)
 
     return tune(record, out, episodes, config, save=lambda r: ckpt.save(r, out), on_round=None if args.quiet else tuned)
