@@ -48,8 +48,10 @@ KICK_RUNS = 3
 PATIENCE = 20
 RESTART_KICKS = 2
 AGREED = 3
-#: A kick under I or A costs about 5 to 8 times one under D (2.4 against 0.3 to 0.46 ms at 6 factors, 40 runs):
-#: their trials form (X'X)^-1 y and W (X'X)^-1 y, where D's need only the moved columns.
+#: A kick under I or A costs about 7.5 times one under D (2.4 against 0.32 ms at 6 factors, 40 runs): their trials
+#: form (X'X)^-1 y and W (X'X)^-1 y, where D's need only the moved columns. It counts 4 times, not 7.5: that kept
+#: their search times at the previous search's (6 factors, 40 runs, 100 starts: I 27.7 s and A 20.0 s of CPU against
+#: 29.2 and 19.4 s) with 37 kicks a start there, where the full cost would leave 20.
 TRACE_KICK_COST = 4
 #: Chebyshev-Lobatto probes of a continuous coordinate: 7 fix a polynomial of degree 6 exactly.
 _PROBES = np.cos(np.pi * np.arange(7) / 6)[::-1].copy()

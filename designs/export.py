@@ -13,7 +13,7 @@ import numpy as np
 from designs.blinding import WHOLE_KEY
 from designs.diagnostics import POWER_CONVENTION, Diagnostics
 from designs.errors import DesignError
-from designs.exchange import CRITERION_NAMES, VALUE_TOL, candidate_set
+from designs.exchange import AGREED, CRITERION_NAMES, KICK_RUNS, PATIENCE, RESTART_KICKS, VALUE_TOL, candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
 from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
@@ -100,12 +100,15 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
         },
         "search": {
             "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates; "
-                         "when the starts disagree, iterated local search on the grid (kicks of 3 runs, restarted from a fresh "
-                         "opening after 20 kicks without gain) before a last exchange",
+                         f"when the starts disagree, iterated local search on the grid (kicks of {KICK_RUNS} runs, restarted from a "
+                         f"fresh opening after {PATIENCE} kicks without gain) before a last exchange",
             "criterion": plan.design.criterion,
             "criterion_value": plan.design.value,
             "starts": plan.design.starts,
-            "kicks_per_start": plan.design.kicks,
+            "kick_budget_per_start": plan.design.kicks,
+            "patience": PATIENCE,
+            "restart_kicks": RESTART_KICKS,
+            "agreed": AGREED,
             "hits": plan.design.hits,
             "hits_tolerance": VALUE_TOL,
             "design_seed": plan.design.seed,

@@ -153,6 +153,10 @@ def test_spec_criterion_and_disallowed_reach_the_plan(tmp_path, capsys):
     record = json.loads((study / "design.json").read_text())
     assert record["criterion"] == "I" and record["search"]["criterion"] == "I"
     assert record["search"]["criterion_value"] == pytest.approx(record["diagnostics"]["average_prediction_variance"], rel=1e-9)
+    search = record["search"]
+    assert (search["patience"], search["restart_kicks"], search["agreed"]) == (20, 2, 3)
+    assert "kicks of 3 runs" in search["algorithm"] and "after 20 kicks without gain" in search["algorithm"]
+    assert search["kick_budget_per_start"] == 0 and search["hits"] == 100  # every start agrees: no kick
     assert record["disallowed"] == ["Layout == 'doorway' and Speed > 1.0"]
     assert 'criterion = "I"' in (study / "study.toml").read_text()
 
