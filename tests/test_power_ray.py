@@ -45,7 +45,10 @@ def ray_cluster():
 def test_ray_cluster_and_ray_local_match_local_processes(small, tmp_path, ray_cluster, monkeypatch):  # noqa: F811
     base = ["power", "--study", str(small), "--simulations", "2", "--seed", "21", "--campaigns", "3"]
     assert main([*base, "--workers", "2", "--out", str(tmp_path / "local")]) == 0
+    # `--ray local` starts its own instance even where RAY_ADDRESS names a cluster (here one that never answers).
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:9")
     assert main([*base, "--ray", "local", "--workers", "2", "--out", str(tmp_path / "ray_local")]) == 0
+    monkeypatch.delenv("RAY_ADDRESS")
     # `ray start` turns on token authentication; a driver sends the token (~/.ray/auth_token) in this mode.
     monkeypatch.setenv("RAY_AUTH_MODE", "token")
     assert main([*base, "--ray", ray_cluster, "--batch", "2", "--out", str(tmp_path / "cluster")]) == 0

@@ -127,8 +127,9 @@ def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_
 
     assert where.ray is not None
     check_ray(where.ray)
-    address = None if where.ray == LOCAL else where.ray
-    ray.init(address=address, num_cpus=where.workers if address is None else None, include_dashboard=False,
+    # Ray's "local" always starts a new instance; None would join a cluster named by RAY_ADDRESS or `ray start`.
+    address = "local" if where.ray == LOCAL else where.ray
+    ray.init(address=address, num_cpus=where.workers if where.ray == LOCAL else None, include_dashboard=False,
              logging_level=logging.ERROR, log_to_driver=False, configure_logging=True)
     try:
         cpus = max(int(ray.cluster_resources().get("CPU", 1)), 1)
