@@ -49,9 +49,14 @@ def test_ray_cluster_and_ray_local_match_local_processes(small, tmp_path, ray_cl
     monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:9")
     assert main([*base, "--ray", "local", "--workers", "2", "--out", str(tmp_path / "ray_local")]) == 0
     monkeypatch.delenv("RAY_ADDRESS")
-    # `ray start` turns on token authentication; a driver sends the token (~/.ray/auth_token) in this mode.
-    monkeypatch.setenv("RAY_AUTH_MODE", "token")
-    assert main([*base, "--ray", ray_cluster, "--batch", "2", "--out", str(tmp_path / "cluster")]) == 0
+    # The cluster is joined from a fresh process, as a user's `trials power --ray HOST:PORT` joins it, not by a
+    # driver that has already started and shut down Ray instances above. `ray start` turns on token
+    # authentication; a driver sends the token (~/.ray/auth_token) in this mode.
+    joined = subprocess.run([sys.executable, "-m", "trials.cli", *base, "--ray", ray_cluster, "--batch", "2",
+                             "--out", str(tmp_path / "cluster")], env={**os.environ, "RAY_AUTH_MODE": "token"},
+                            capture_output=True, text=True)
+    assert joined.returncode == 0, joined.stderr[-2000:]
+    assert "on the Ray cluster at 127.0.0.1:" in joined.stdout
     local = campaigns(tmp_path / "local")
     assert len(local) == 3
     assert campaigns(tmp_path / "cluster") == local
