@@ -259,31 +259,40 @@ def test_kick_budget_under_i_and_a_is_a_quarter_of_d_s():
     assert budgets == {"D": 150, "I": 37, "A": 37}
 
 
+def returns_of(monkeypatch, method: str) -> list:
+    """The values `_Search.<method>` returns, call by call, while the test runs."""
+    original = getattr(exchange._Search, method)
+    returned = []
+
+    def recording(search, *args):
+        value = original(search, *args)
+        returned.append(value)
+        return value
+
+    monkeypatch.setattr(exchange._Search, method, recording)
+    return returned
+
+
 def test_one_tied_design_is_polished_under_i_and_a_every_one_under_d(monkeypatch):
     """3 factors, full quadratic, 14 runs, 6 starts: after the restarts, D runs the continuous exchange from every
     grid design tied for a start's best, I and A from the first only (one continuous exchange per start)."""
     model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(3)))
-    exchanges, tied = [], []
-    exchange_of, restarts_of = exchange._Search.exchange, exchange._Search.restarts
+    exchanges = []
+    exchange_of = exchange._Search.exchange
 
     def counted_exchange(search, settings, continuous):
         exchanges.append(continuous is search.continuous)  # the first round's and the polishing exchanges
         exchange_of(search, settings, continuous)
 
-    def counted_restarts(search, *args):
-        ends = restarts_of(search, *args)
-        tied.append(len(ends))
-        return ends
-
     monkeypatch.setattr(exchange._Search, "exchange", counted_exchange)
-    monkeypatch.setattr(exchange._Search, "restarts", counted_restarts)
+    tied = returns_of(monkeypatch, "restarts")
     polished = {}
     for criterion in exchange.CRITERIA:
         exchanges.clear()
         tied.clear()
         design = optimal_design(model, 14, seed=1, starts=6, criterion=criterion)
         assert design.kicks == exchange.MAX_KICKS and len(tied) == 6
-        polished[criterion] = (sum(exchanges) - 6, sum(tied))
+        polished[criterion] = (sum(exchanges) - 6, sum(map(len, tied)))
     assert polished == {"D": (13, 13), "I": (6, 16), "A": (6, 15)}
 
 
@@ -293,15 +302,7 @@ def test_a_start_stops_once_agreed_searches_tie(monkeypatch):
     stop it opens searches while the budget lasts (6 of 20 kicks, 5 openings charged 2 each: 130)."""
     model = parse_model("main + interactions + quadratic", (ContinuousFactor("A", -1, 1), ContinuousFactor("B", -1, 1)))
     search = exchange._Search.of(model, "D", None, {}, 0)
-    made = []
-    iterate_of = exchange._Search.iterate
-
-    def counted(search, *args):
-        kicks = iterate_of(search, *args)
-        made.append(kicks)
-        return kicks
-
-    monkeypatch.setattr(exchange._Search, "iterate", counted)
+    made = returns_of(monkeypatch, "iterate")
 
     def searches() -> list[np.ndarray]:
         made.clear()
@@ -327,16 +328,9 @@ def test_restarted_searches_keep_the_kept_runs_and_the_blocks(monkeypatch):
                      "main + interactions + quadratic", 16)
     model, per_run = spec.build_model(), spec.per_run()
     kept = np.array([[-1, -1, -1, 0], [1, 1, 1, 0], [0, 0, 0, 0], [1, -1, 0, 0]], dtype=float)
-    ends = []
-    restarts_of = exchange._Search.restarts
-
-    def recorded(search, *args):
-        tied = restarts_of(search, *args)
-        ends.extend(tied)
-        return tied
-
-    monkeypatch.setattr(exchange._Search, "restarts", recorded)
+    returned = returns_of(monkeypatch, "restarts")
     design = optimal_design(model, 16, seed=2, starts=6, kept=kept, per_run=per_run)
+    ends = [end for tied in returned for end in tied]
     assert design.kicks == exchange.MAX_KICKS and len(ends) == 14
     for settings in ends + [design.settings]:
         np.testing.assert_array_equal(settings[:4], kept)
