@@ -4,7 +4,8 @@ the number of runs grow, beside R's AlgDesign where the issue measured it.
 Prints, per preset: p, the efficiencies, the D-efficiency relative to the approximate design's bound, how many of
 100 seeded starts reached the best value, and the wall time of the whole `trials design` command
 (a fresh process, start-up included; median of 5, with its CPU time, user + sys), and the 27-run plan again
-with its design figures drawn (--figures: PNG and SVG), and a spec of 6 continuous factors in a full quadratic
+with its design figures drawn (--figures: PNG and SVG), a program that only starts the libraries the 27-run plan needs
+(numpy, scipy.special, a cached numba kernel) beside that command, and a spec of 6 continuous factors in a full quadratic
 model, 40 runs, with --seed 2019 and the starts its design.json says reached the best. The command runs
 with Python's bytecode cache on, in a private folder warmed by one run first, as an ordinary install
 has it (pip compiles bytecode); this environment's PYTHONDONTWRITEBYTECODE would otherwise make
@@ -96,6 +97,40 @@ def command_seconds(args: list[str], repeats: int = REPEATS, seed: int | None = 
     return runs
 
 
+#: A program that pays only the libraries' start-up: numpy, scipy.special and numba's first call of a kernel it has
+#: cached, the three the 27-run plan's command cannot do without (numba's first call also imports scipy.linalg).
+LIBRARY_FLOOR = """import numba
+import numpy as np
+import scipy.special
+
+@numba.njit(cache=True)
+def total(values):
+    return values.sum()
+
+total(np.ones(3))
+"""
+
+
+def library_floor(repeats: int = REPEATS) -> CommandRuns:
+    """Wall and CPU seconds of `LIBRARY_FLOOR` in fresh processes, bytecode and kernel cached by a first run."""
+    runs = CommandRuns([], [], [])
+    with tempfile.TemporaryDirectory() as folder:
+        script = Path(folder, "library_floor.py")
+        script.write_text(LIBRARY_FLOOR, encoding="utf-8")
+        env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
+        env["PYTHONPYCACHEPREFIX"] = folder
+        for i in range(-1, repeats):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.perf_counter()
+            subprocess.run([sys.executable, str(script)], check=True, env=env)
+            wall = time.perf_counter() - start
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if i >= 0:
+                runs.walls.append(wall)
+                runs.cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+    return runs
+
+
 def presets() -> None:
     print(f"{'preset':<24}{'p':>3}{'D-eff':>10}{'A-eff':>9}{'G-eff':>9}{'APV':>8}{'bound':>9}{'vs bound':>10}{'hits/100':>10}"
           f"{'median s':>10}{'max s':>8}{'CPU s':>7}")
@@ -112,6 +147,10 @@ def presets() -> None:
     print(f"(wall and CPU time of `trials design` in a fresh process, median of {REPEATS}, load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; goal for the 27-run plan: under 0.8 s; "
           "AlgDesign 0.19 s, the previous release 1.2 s)")
+    floor, plan = library_floor(), command_seconds(["--runs", "27"])
+    print(f"library start-up alone (numpy, scipy.special, numba's first cached call): {statistics.median(floor.walls):.3f} s "
+          f"({statistics.median(floor.cpus):.3f} s CPU); the 27-run command measured beside it {statistics.median(plan.walls):.3f} s "
+          f"({statistics.median(plan.cpus):.3f} s CPU)")
     figures = command_seconds(["--runs", "27", "--figures"], repeats=3)
     print(f"qualitative (--runs 27 --figures): {statistics.median(figures.walls):.3f} s "
           f"({statistics.median(figures.cpus):.3f} s CPU), the two design figures drawn as PNG and SVG")
