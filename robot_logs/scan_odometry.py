@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import small_gicp
 
 from robot_logs.detection import scan_points
 from robot_logs.frames import Pose2D
@@ -67,27 +68,25 @@ class ScanOdometry:
     """
 
     def __init__(self, config: ScanOdometryConfig = ScanOdometryConfig()) -> None:
-        import small_gicp
-
-        self._gicp = small_gicp
         self.config = config
         self.lost = 0
-        self._keyframe = None
-        self._keyframe_tree = None
+        self._keyframe: small_gicp.PointCloud | None = None
+        self._keyframe_tree: small_gicp.KdTree | None = None
         self._keyframe_pose = Pose2D()
         self._pose = Pose2D()
         self._motion = Pose2D()
 
-    def _cloud(self, scan: Scan):
+    def _cloud(self, scan: Scan) -> small_gicp.PointCloud:
+        """The scan's valid points at z = 0, thinned to one per `voxel` square."""
         points = scan_points(scan)
-        return self._gicp.voxelgrid_sampling(np.column_stack((points, np.zeros(len(points)))), self.config.voxel)
+        return small_gicp.voxelgrid_sampling(np.column_stack((points, np.zeros(len(points)))), self.config.voxel)
 
-    def _align(self, cloud, seed: Pose2D):
+    def _align(self, cloud: small_gicp.PointCloud, seed: Pose2D) -> tuple[Pose2D, float]:
         """(pose in the keyframe's frame, matched share) of a thinned scan."""
         config = self.config
-        result = seed_matrix = _matrix(seed)
+        seed_matrix = _matrix(seed)
         for distance in (config.coarse_distance, config.fine_distance):
-            result = self._gicp.align(self._keyframe, cloud, self._keyframe_tree, seed_matrix, registration_type="ICP",
+            result = small_gicp.align(self._keyframe, cloud, self._keyframe_tree, seed_matrix, registration_type="ICP",
                                       max_correspondence_distance=distance, max_iterations=config.max_iterations)
             seed_matrix = result.T_target_source
         return _pose(result.T_target_source), result.num_inliers / cloud.size()
@@ -113,6 +112,6 @@ class ScanOdometry:
             self._set_keyframe(cloud, pose)
         return pose
 
-    def _set_keyframe(self, cloud, pose: Pose2D) -> None:
+    def _set_keyframe(self, cloud: small_gicp.PointCloud, pose: Pose2D) -> None:
         self._keyframe, self._keyframe_pose = cloud, pose
-        self._keyframe_tree = self._gicp.KdTree(cloud)
+        self._keyframe_tree = small_gicp.KdTree(cloud)

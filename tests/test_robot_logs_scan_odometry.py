@@ -56,6 +56,21 @@ def test_a_scan_with_too_few_points_is_not_placed() -> None:
     assert flags.lost == 1
 
 
+def test_a_scan_that_matches_nothing_is_not_placed() -> None:
+    """After the room, a scan of a 2 m box around the laser (another place): under half of its
+    points find a partner, so it is not placed; the room seen again is, from the last pose known."""
+    room = LidarSimulator(seed=3, walls=ROOM.walls)
+    corners = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    box = LidarSimulator(seed=3, walls=np.stack((corners, np.roll(corners, -1, axis=0)), axis=1))
+    odometry = ScanOdometry()
+    nobody = np.zeros((0, 2))
+    assert odometry.update(room.scan(0.0, Pose2D(1.0, 0.0, 0.0), nobody)) == Pose2D()
+    assert odometry.update(box.scan(0.1, Pose2D(), nobody)) is None
+    assert odometry.lost == 1
+    back = odometry.update(room.scan(0.2, Pose2D(1.05, 0.0, 0.0), nobody))
+    assert back is not None and back.x == pytest.approx(0.05, abs=0.02)
+
+
 @pytest.mark.parametrize(("odometry", "static_from"), [(ScanOdometryConfig(), 16), (None, None)])
 def test_a_post_beside_a_walker_turns_static_while_the_robot_drives(odometry: ScanOdometryConfig | None, static_from: int | None) -> None:
     """The robot drives at 0.5 m/s turning 0.1 rad/s past a post 4 m ahead while a person walks
