@@ -4,7 +4,8 @@ with and without furniture clutter, and the learned leg detector against the lab
     python benchmarks/bench_tracking.py [--seeds 10] [--duration 60]
 
 Speed: detection plus tracking of pre-simulated 40 Hz scans with 6 walking people among
-furniture, one thread (goal: 200 scans/s, five times a 40 Hz lidar). Quality: CLEAR-MOT by
+furniture, one thread (goal: 200 scans/s, five times a 40 Hz lidar); scan-matching odometry
+(robot_logs.scan_odometry) along a moving robot's path among furniture and people. Quality: CLEAR-MOT by
 Leigh et al.'s protocol (robot_logs.clear_mot; match radius 0.5 m here) on held-out seeds with
 6 walkers, and false positives per scan (goals in clutter: MOTA >= 0.9, under 0.1 per scan).
 As in a labelled log, only people the lidar sees (at least 3 beams on their legs) are ground
@@ -38,6 +39,7 @@ from robot_logs.leg_classifier import LegClassifier, shipped_detector
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec, body_circles
 from robot_logs.pipeline import PersonTracker
 from robot_logs.reader import LogReader
+from robot_logs.scan_odometry import ScanOdometry
 from tests.support.crowd import walking_crowd
 from tests.support.evaluation import labelled_scans, score_detections
 
@@ -82,6 +84,26 @@ def speed(duration: float, setup: str) -> float:
             tracker.process(scan)
         best = max(best, len(scans) / (time.process_time() - start))
     return best
+
+
+def odometry_speed(duration: float) -> tuple[float, float]:
+    """Scans per CPU second of scan-matching odometry (best of three passes) along a weaving path
+    through furniture at 0.4 m/s with 6 people walking, 10 Hz, and the largest position error (m)."""
+    crowd = walking_crowd(PEOPLE, duration, 10.0, seed=1)
+    room = furnished_room(1)
+    lidar = LidarSimulator(LidarSpec(), seed=1, walls=room.walls, posts=(room.centres, room.radii))
+    path = [Pose2D(0.5 + 0.4 * t, 0.5 * np.sin(0.2 * t), 0.2 * np.sin(0.3 * t)) for t in crowd.times]
+    scans = [lidar.scan(t, pose, p, v) for t, pose, p, v in zip(crowd.times, path, crowd.positions, crowd.velocities)]
+    best, error = 0.0, 0.0
+    for _ in range(3):
+        odometry = ScanOdometry()
+        start = time.process_time()
+        poses = [odometry.update(scan) for scan in scans]
+        best = max(best, len(scans) / (time.process_time() - start))
+    for truth, pose in zip(path, poses):
+        relative = path[0].inverse().compose(truth)
+        error = max(error, np.inf if pose is None else float(np.hypot(pose.x - relative.x, pose.y - relative.y)))
+    return best, error
 
 
 #: Seconds at the start of each walk left out of the "settled" figures: the static-world grid
@@ -146,6 +168,9 @@ def main() -> None:
     for setup in ("rules", "rules+grid", "learned"):
         print(f"speed, {setup}, in clutter: {speed(min(args.duration, 30.0), setup):.0f} scans/s for detection + "
               "tracking on one core (goal >= 200)")
+    rate, error = odometry_speed(min(args.duration, 15.0))
+    print(f"scan odometry (robot_logs.scan_odometry) along {min(args.duration, 15.0):.0f} s of a moving robot's path among "
+          f"furniture and people: {rate:.0f} scans/s on one core, largest position error {error:.3f} m")
     seeds = range(100, 100 + args.seeds)
     for shape, clutter, setup in (("legs", False, "rules"), ("disc", False, "rules"), ("legs", True, "rules"),
                                   ("legs", True, "rules+grid"), ("legs", False, "learned"), ("legs", True, "learned")):

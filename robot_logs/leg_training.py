@@ -34,6 +34,7 @@ from robot_logs.labels import labelled_scans
 from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting
 from robot_logs.reader import LogReader
 from robot_logs.records import Scan
+from robot_logs.scan_odometry import ScanOdometry, ScanOdometryConfig
 from robot_logs.segment_features import FEATURE_NAMES, segment_features
 from robot_logs.static_world import StaticWorld, StaticWorldConfig
 from robot_logs.topics import SCAN_TYPES, TopicNames, pick_topic
@@ -58,6 +59,9 @@ class TrainingSettings:
             labelled legs reach when held out (by log when there are two labelled logs or more,
             else by time blocks).
         seed: seeds the boosting and the fold assignment.
+        scan_odometry: place each scan by scan matching (`robot_logs.scan_odometry`) for the
+            static world, so it holds in the room while the robot moves; off, each sensor's grid
+            stays in the sensor's own frame.
     """
 
     label_radius: float = 0.1
@@ -74,14 +78,15 @@ class TrainingSettings:
     confirm_recall: float = 0.75
     protect_recall: float = 0.5
     seed: int = 0
+    scan_odometry: bool = True
 
 
 @dataclass(frozen=True)
 class LabelledSegments:
     """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
     but near a label), (N,) log index, (N,) time block (numbered across logs) and (N,) on the
-    static world (`StaticFlags`); `logs` names each log with its kind and scan count, labelled
-    logs first."""
+    static world (`StaticFlags`); `logs` names each log with its kind, its scan count and how many
+    of them scan matching could not place (`unplaced`), labelled logs first."""
 
     features: np.ndarray
     is_leg: np.ndarray
@@ -110,6 +115,16 @@ class Scores:
         return {"precision": self.precision, "recall": self.recall, "legs": self.legs, "segments": self.segments}
 
 
+@dataclass(frozen=True)
+class FalsePositives:
+    """The segments of one log wrongly called legs at the threshold under the protocol, held out,
+    and how many of them lie on the static world (which the tracker's stage rejects)."""
+
+    file: str
+    called: int
+    on_static: int
+
+
 #: The protocol, as the training record states it.
 PROTOCOL = {
     "positives": "segments whose centroid is matched one to one to a labelled leg within label_radius",
@@ -121,8 +136,9 @@ PROTOCOL = {
                     "are dealt to those folds in turn",
     "static world": "the figures with the static world call no segment a leg whose middle point lies on a "
                     "cell that the log's own occupancy grid (robot_logs.static_world, default settings, "
-                    "one grid per sensor in its own frame, no track protected) holds static after the "
-                    "log's earlier scans",
+                    "one grid per sensor, no track protected) holds static after the log's earlier scans; "
+                    "with scan_odometry each sensor's scans are placed in the frame of its first scan by "
+                    "scan matching (robot_logs.scan_odometry), else the grid stays in the sensor's frame",
 }
 
 
@@ -153,29 +169,47 @@ def match_labels(centroids: np.ndarray, labels: np.ndarray, settings: TrainingSe
 
 class StaticFlags:
     """Which candidate segments lie on the static world, scan by scan, as the tracker's grid would
-    hold it: one `StaticWorld` per sensor frame, in that frame, asked before each scan is added,
-    so only earlier scans count. A log's scans carry no odometry here, so a robot that moved
-    (such as the one of the sample log recorded with nobody present) keeps little static.
+    hold it: one `StaticWorld` per sensor frame, asked before each scan is added, so only earlier
+    scans count. The logs carry no odometry here, so with `odometry` settings each sensor's scans
+    are placed by scan matching (`ScanOdometry`) in the frame of its first scan, and the room stays
+    put while the robot moves; a scan the matching cannot place has nothing static and is not
+    added. Without (None), each grid stays in its sensor's frame, where a moving robot keeps little
+    static.
 
     No track keeps its surroundings out of this grid, unlike `PersonTracker`'s, so it needs no
     classifier and is built once for every fold; on the sample bags the tracker's own grid, run
     with each fold's classifier, rejected 11 fewer of the 1,825 labelled legs and moved the
     figures by under 0.01 (docs/robot_logs.md)."""
 
-    def __init__(self) -> None:
+    def __init__(self, odometry: ScanOdometryConfig | None = ScanOdometryConfig()) -> None:
+        self.odometry = odometry
         self._worlds: dict[str, StaticWorld] = {}
+        self._odometers: dict[str, ScanOdometry] = {}
+
+    def _pose(self, scan: Scan) -> Pose2D | None:
+        if self.odometry is None:
+            return Pose2D()
+        return self._odometers.setdefault(scan.frame_id, ScanOdometry(self.odometry)).update(scan)
+
+    @property
+    def lost(self) -> int:
+        """Scans the matching could not place, over every sensor."""
+        return sum(odometer.lost for odometer in self._odometers.values())
 
     def __call__(self, scan: Scan, segments: Segments, mask: np.ndarray) -> np.ndarray:
         """(K,) the masked segments on static cells; then adds `scan` to its sensor's grid."""
         world = self._worlds.setdefault(scan.frame_id, StaticWorld(StaticWorldConfig()))
-        static = world.is_static(segments.middles()[mask])
-        world.update(scan, scan_points(scan), Pose2D(), np.zeros((0, 2)))
+        pose = self._pose(scan)
+        if pose is None:
+            return np.zeros(int(mask.sum()), dtype=bool)
+        static = world.is_static(pose.apply(segments.middles()[mask]))
+        world.update(scan, pose.apply(scan_points(scan)), pose, np.zeros((0, 2)))
         return static
 
 
 def _labelled(scans: list[tuple[Scan, np.ndarray]], settings: TrainingSettings, config: DetectorConfig):
     features, is_leg, ignored, static, stamps = [], [], [], [], []
-    flags = StaticFlags()
+    flags = StaticFlags(ScanOdometryConfig() if settings.scan_odometry else None)
     for scan, labels in scans:
         segments, mask = candidates(scan, config)
         on_static = flags(scan, segments, mask)
@@ -187,7 +221,7 @@ def _labelled(scans: list[tuple[Scan, np.ndarray]], settings: TrainingSettings, 
         ignored.append(near)
         static.append(on_static)
         stamps.append(np.full(len(positive), scan.stamp))
-    return features, is_leg, ignored, static, stamps
+    return features, is_leg, ignored, static, stamps, flags.lost
 
 
 def _scans_of_empty_log(log: LogReader) -> list[tuple[Scan, np.ndarray]]:
@@ -221,7 +255,7 @@ def collect(
                 scans = [(scan, label.points) for scan, label in labelled_scans(log, topics)]
             else:
                 scans = _scans_of_empty_log(log)
-        f, legs, near, on_static, stamps = _labelled(scans, settings, config)
+        f, legs, near, on_static, stamps, unplaced = _labelled(scans, settings, config)
         if not f:
             raise LogError(f"{path}: no segment in any scan to learn from")
         stamps_all = np.concatenate(stamps)
@@ -235,7 +269,8 @@ def collect(
         blocks.append(block + next_block)
         next_block += int(block.max()) + 1
         kind = "labelled" if index < len(labelled) else "nobody present"
-        logs.append({"file": Path(path).name, "kind": kind, "scans": len(scans), "sha256": _digest(Path(path))})
+        logs.append({"file": Path(path).name, "kind": kind, "scans": len(scans), "sha256": _digest(Path(path)),
+                     "unplaced": unplaced})
     data = LabelledSegments(
         np.concatenate(features), np.concatenate(is_leg), np.concatenate(ignored), np.concatenate(log_index),
         np.concatenate(blocks), np.concatenate(static), logs,
@@ -312,14 +347,15 @@ def threshold_for_recall(is_leg: np.ndarray, probability: np.ndarray, recall: fl
 
 def validate(
     data: LabelledSegments, settings: TrainingSettings = TrainingSettings()
-) -> tuple[tuple[float, float, float], dict[str, Scores]]:
+) -> tuple[tuple[float, float, float], dict[str, Scores], list[FalsePositives]]:
     """The (threshold, confirm, protect) probabilities, from the held-out predictions by log (by
-    time blocks when only one log is labelled), and the held-out scores at the threshold, by log
+    time blocks when only one log is labelled); the held-out scores at the threshold, by log
     and by time blocks, each under the protocol and strictly (every unlabelled segment a
-    negative), for the classifier alone and followed by the static world (`StaticFlags`).
+    negative), for the classifier alone and followed by the static world (`StaticFlags`); and
+    each log's false positives under the protocol, held out as the threshold was.
 
-    The keys name the design ("logs", "time blocks"), then ", static world" and ", strict" where
-    they apply."""
+    The scores' keys name the design ("logs", "time blocks"), then ", static world" and
+    ", strict" where they apply."""
     designs = (["log"] if data.labelled_logs >= 2 else []) + ["time"]
     held_out = {by: held_out_probability(data, by, settings) for by in designs}
     chosen = held_out[designs[0]]
@@ -332,7 +368,13 @@ def validate(
         for stage, kept in (("", probability), (", static world", np.where(data.static, -np.inf, probability))):
             validation[f"{name}{stage}"] = scores(data.is_leg[scored], kept[scored], levels[0])
             validation[f"{name}{stage}, strict"] = scores(data.is_leg, kept, levels[0])
-    return levels, validation
+    wrong = (chosen >= levels[0]) & ~data.is_leg & ~data.ignored
+    false_positives = [
+        FalsePositives(str(log["file"]), int((wrong & (data.log == index)).sum()),
+                       int((wrong & data.static & (data.log == index)).sum()))
+        for index, log in enumerate(data.logs)
+    ]
+    return levels, validation, false_positives
 
 
 def train(

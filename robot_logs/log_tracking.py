@@ -4,6 +4,10 @@ For the odometry frame, the robot's odometry and the tf transforms are read firs
 is then placed by the pose of its frame in the odometry frame at the scan's header stamp
 (odometry gives odom -> base, tf gives base -> laser; both interpolated in time).
 
+A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
+(`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
+the first scan placed, named `SCAN_ODOMETRY_FRAME`.
+
 A ROS map (`occupancy_map`) is placed the same way: at each scan, the pose of the tracking frame
 (the odometry frame, or the scan's own) in the map's frame is looked up in the same tree, where a
 localiser's map -> odom transform on /tf (or /tf_static) links the two; a map drawn in the odometry
@@ -23,17 +27,23 @@ from robot_logs.occupancy_map import OccupancyMap
 from robot_logs.pipeline import PersonTracker, ScanResult
 from robot_logs.reader import LogReader
 from robot_logs.records import Scan, seconds
+from robot_logs.scan_odometry import ScanOdometry
 from robot_logs.topics import (
     ODOMETRY_TYPES,
     SCAN_TYPES,
     TopicNames,
     is_static_tf,
+    listing,
     pick_topic,
     tf_topics,
 )
 from robot_logs.tracks import TrackRow, TrackTable
 
 Frame = Literal["sensor", "odom"]
+#: Where the robot's motion comes from in the odometry frame: the log's odometry topic, or scan matching.
+Odometry = Literal["log", "scan"]
+#: The output frame's name with scan odometry: the laser's pose at the first scan placed.
+SCAN_ODOMETRY_FRAME = "scan_odom"
 
 
 def read_scans(log: LogReader, topic: str) -> Iterator[Scan]:
@@ -70,6 +80,9 @@ class LogTracking:
     Args:
         log: an open log.
         frame: "sensor" (the scan's own frame) or "odom" (the odometry frame).
+        odometry: with frame "odom", "log" reads the log's odometry topic and tf; "scan" places
+            each scan by scan matching instead (for a log without odometry), and a scan it cannot
+            place is skipped.
         topics: topic names that override the choice by type.
         tracker: detection and tracking (default: `PersonTracker.learned()`, the shipped leg
             classifier with static-world rejection).
@@ -78,8 +91,9 @@ class LogTracking:
             counted in `unmapped`.
 
     Raises:
-        LogError: a needed topic is missing (the message lists the topics there are), or the
-            scan frame or the map's frame is not connected to the odometry frame by tf.
+        LogError: a needed topic is missing (the message lists the topics there are), the
+            scan frame or the map's frame is not connected to the odometry frame by tf, a map is
+            asked for with scan odometry, or scan matching placed no scan.
     """
 
     def __init__(
@@ -89,18 +103,27 @@ class LogTracking:
         topics: TopicNames = TopicNames(),
         tracker: PersonTracker | None = None,
         occupancy: OccupancyMap | None = None,
+        odometry: Odometry = "log",
     ) -> None:
         self.log = log
         self.frame = frame
         self.scan_topic = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic")
         self.tree: FrameTree | None = None
         self.output_frame: str | None = None
+        self.scan_odometry: ScanOdometry | None = None
         tree = odometry_frame = None
-        if frame == "odom" or occupancy is not None:
-            odometry = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
-            tree, odometry_frame = read_frame_tree(log, odometry.name)
-        if frame == "odom":
-            self.tree, self.output_frame = tree, odometry_frame
+        if frame == "odom" and odometry == "scan":
+            if occupancy is not None:
+                raise LogError(f"{log.path}: a map is placed by the log's odometry and tf; scan odometry has no map frame")
+            self.scan_odometry, self.output_frame = ScanOdometry(), SCAN_ODOMETRY_FRAME
+        elif frame == "odom" or occupancy is not None:
+            if occupancy is None and topics.odometry is None and not any(t.msgtype in ODOMETRY_TYPES for t in log.topics):
+                raise LogError(f"{log.path} has no Odometry topic; its topics: {listing(log.topics)}; "
+                               "scan odometry (--odometry scan) places its scans by scan matching instead")
+            odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
+            tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
+            if frame == "odom":
+                self.tree, self.output_frame = tree, odometry_frame
         self._tracker = tracker if tracker is not None else PersonTracker.learned()
         self.occupancy = occupancy
         self._map_tree = tree
@@ -113,6 +136,8 @@ class LogTracking:
         self.unmapped = 0
 
     def _sensor_pose(self, scan: Scan) -> Pose2D | None:
+        if self.scan_odometry is not None:
+            return self.scan_odometry.update(scan)
         if self.tree is None:
             return Pose2D()
         assert self.output_frame is not None
@@ -148,6 +173,8 @@ class LogTracking:
                 continue
             self._place_map(scan)
             yield scan, self._tracker.process(scan, pose, self.output_frame, index)
+        if self.scan_odometry is not None and seen and self.skipped == seen:
+            raise LogError(f"scan matching placed none of the {seen} scans of {self.log.path} (too few points in each)")
         if self.tree is not None and seen and self.skipped == seen:
             raise LogError(
                 f"no scan of {self.log.path} falls within its odometry's time span (last scan stamp "
@@ -170,10 +197,12 @@ def track_log(
     tracker: PersonTracker | None = None,
     salvage: bool = False,
     occupancy: OccupancyMap | None = None,
+    odometry: Odometry = "log",
 ) -> TrackTable:
     """All tracks of a log file, one row per confirmed track per scan (`tracker`: detection and
-    tracking, default `PersonTracker.learned()`; `occupancy`: a map whose occupied cells are static)."""
+    tracking, default `PersonTracker.learned()`; `occupancy`: a map whose occupied cells are static;
+    `odometry`: as `LogTracking`'s)."""
     with LogReader(path, salvage=salvage) as log:
-        tracking = LogTracking(log, frame, topics, tracker, occupancy)
+        tracking = LogTracking(log, frame, topics, tracker, occupancy, odometry)
         rows = [row for _, result in tracking for row in result_rows(result)]
     return TrackTable(rows)

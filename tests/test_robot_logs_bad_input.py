@@ -73,12 +73,24 @@ def test_salvage_reads_what_can_be_read(damaged: dict[str, Path], kind: str, sca
 def test_missing_topic_lists_the_topics_there_are(robot_logs_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, "track", robot_logs_dir / "stationary_ros1.bag", "--frame", "odom")
     assert code == 2
-    assert one_error_line(err).endswith("has no Odometry topic; its topics: /scan (sensor_msgs/msg/LaserScan, 1265)")
+    assert one_error_line(err).endswith("has no Odometry topic; its topics: /scan (sensor_msgs/msg/LaserScan, 1265); "
+                                        "scan odometry (--odometry scan) places its scans by scan matching instead")
     code, _, err = run(capsys, "track", robot_logs_dir / "legs_labelled_ros1.bag", "--scan-topic", "/scan")
     assert code == 2
     line = one_error_line(err)
     assert "has no topic /scan; its topics: /leg_cluster_positions (geometry_msgs/msg/PoseArray, 197)" in line
     assert "/training_scan (sensor_msgs/msg/LaserScan, 197)" in line
+
+
+def test_a_map_needs_the_logs_own_odometry(robot_logs_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from PIL import Image
+
+    Image.new("L", (10, 10), 255).save(tmp_path / "map.pgm")
+    (tmp_path / "map.yaml").write_text("image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
+    bag = robot_logs_dir / "stationary_ros1.bag"
+    code, out, err = run(capsys, "track", bag, "--odometry", "scan", "--map", tmp_path / "map.yaml")
+    assert code == 2 and out == ""
+    assert one_error_line(err) == f"error: {bag}: a map is placed by the log's odometry and tf; scan odometry has no map frame"
 
 
 def test_a_topic_of_the_wrong_type_is_refused(robot_logs_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:

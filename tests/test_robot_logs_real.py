@@ -58,6 +58,17 @@ def test_people_walking_the_loop_are_tracked_for_long(tracked: dict[str, Path]) 
     assert len(walkers) >= 5
 
 
+def test_scan_odometry_keeps_the_walkers_of_a_standing_robot(robot_logs_dir: Path, tmp_path: Path) -> None:
+    """The log holds no odometry; placed by scan matching, the standing laser's walkers stay (in
+    its own frame: 1,548 rows, 10 tracks of 5 m; by scan matching: 1,527 and 9, measured)."""
+    out = tmp_path / "tracks.csv"
+    assert main(["log", "track", str(robot_logs_dir / "stationary_ros1.bag"), "--odometry", "scan", "--out", str(out)]) == 0
+    table = TrackTable.read_csv(out)
+    assert {row.frame for row in table.rows} == {"scan_odom"}
+    paths = [float(np.hypot(*np.diff(table.track(i)[1], axis=0).T).sum()) for i in table.ids]
+    assert len(table) > 1450 and sum(path >= 5.0 for path in paths) >= 8
+
+
 def test_csv_rows_follow_the_issue_layout(tracked: dict[str, Path]) -> None:
     header, first = tracked["ros1"].read_text().splitlines()[:2]
     assert header == "stamp,scan_index,track_id,x,y,vx,vy,frame"

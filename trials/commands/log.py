@@ -91,6 +91,9 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--mcap", type=types.output_file, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
+    parser.add_argument("--odometry", choices=("log", "scan"), default="log",
+                        help="the robot's motion for --frame odom: the log's odometry and tf (default), or matching each "
+                        "scan to the earlier ones, for a log recorded without odometry (implies --frame odom; frame 'scan_odom')")
     parser.add_argument("--detector", type=types.input_file, metavar="FILE",
                         help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
     types.add_map(parser)
@@ -216,10 +219,11 @@ def track(args: argparse.Namespace) -> int:
     classifier = LegClassifier.load(args.detector) if args.detector is not None else None
     occupancy = read_map(args.map, args.map_frame) if args.map is not None else None
     with LogReader(args.file, salvage=args.salvage) as log, ExitStack() as outputs:
-        tracking = LogTracking(log, args.frame, topics, PersonTracker.learned(classifier), occupancy)
+        frame = "odom" if args.odometry == "scan" else args.frame
+        tracking = LogTracking(log, frame, topics, PersonTracker.learned(classifier), occupancy, args.odometry)
         writer = None
         if args.mcap is not None:
-            meta = {"source": str(args.file), "frame": args.frame, "scan_topic": tracking.scan_topic.name}
+            meta = {"source": str(args.file), "frame": frame, "odometry": args.odometry, "scan_topic": tracking.scan_topic.name}
             writer = outputs.enter_context(FoxgloveWriter(args.mcap, metadata={"tracking": meta}))
         bar = outputs.enter_context(tqdm(total=tracking.scan_topic.count, unit="scan", desc="tracking",
                                          disable=not show_bars(args.quiet), leave=False))
@@ -232,7 +236,7 @@ def track(args: argparse.Namespace) -> int:
             bar.update(1)
         damage = log.damage
         if writer is not None and (damage or tracking.skipped):
-            note = f"read up to damage: {damage}" if damage else f"{tracking.skipped} scans had no odometry pose"
+            note = f"read up to damage: {damage}" if damage else f"{tracking.skipped} scans had no pose"
             writer.write("/log", "foxglove.Log", log_line(last_stamp, note, "warning"), last_stamp)
     table = TrackTable(rows)
     if args.out is not None:
@@ -240,7 +244,10 @@ def track(args: argparse.Namespace) -> int:
     else:
         write_rows(sys.stdout, table.rows)
     _warn_damage(damage)
-    if tracking.skipped:
+    if tracking.skipped and tracking.scan_odometry is not None:
+        sys.stderr.write(f"warning: scan matching could not place {tracking.skipped} scans (too few points or too few "
+                         "matched); they were left out\n")
+    elif tracking.skipped:
         sys.stderr.write(f"warning: {tracking.skipped} scans fell outside the odometry's time span and were left out\n")
     if tracking.unmapped:
         sys.stderr.write(f"warning: at {tracking.unmapped} scans tf gave no pose in the map's frame {args.map_frame!r}; "

@@ -18,7 +18,7 @@ def register(group: argparse._SubParsersAction) -> None:
         "(--empty). Unmatched segments within --ignore-radius of a label are left out; the rest are negatives. "
         "Prints precision and recall cross-validated by whole log and by blocks of time, under that protocol "
         "and strictly (every unlabelled segment a negative), for the classifier alone and followed by static-world "
-        "rejection (each log's own occupancy grid from its earlier scans), and writes the detector as an .npz file with its "
+        "rejection (each log's own occupancy grid from its earlier scans, each scan placed by scan matching), and writes the detector as an .npz file with its "
         "training record for `trials log track --detector`.",
     )
     parser.add_argument("bags", nargs="+", type=types.input_file, metavar="BAG", help="logs with labelled legs")
@@ -34,6 +34,9 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--block", type=types.number(0.0, 3600.0, above=True), default=10.0, metavar="S",
                         help="seconds per time block of the cross-validation (default 10)")
     parser.add_argument("--seed", type=types.seed, default=0, help="seeds the boosting and the folds (default 0)")
+    parser.add_argument("--no-scan-odometry", dest="scan_odometry", action="store_false",
+                        help="keep each sensor's static-world grid in the sensor's own frame instead of placing its "
+                        "scans by scan matching (the logs carry no odometry; a moving robot then keeps little static)")
     model = parser.add_argument_group("the model (defaults: robot_logs.leg_training.TrainingSettings)")
     model.add_argument("--trees", type=types.whole(1), help="boosting iterations (default 200)")
     model.add_argument("--leaves", type=types.whole(2), help="leaves per tree (default 31)")
@@ -50,12 +53,13 @@ def train_detector(args: argparse.Namespace) -> int:
 
     model = {"trees": args.trees, "leaves": args.leaves, "min_leaf": args.min_leaf, "l2": args.l2, "balanced": args.balanced}
     settings = TrainingSettings(ignore_radius=args.ignore_radius, block_s=args.block, recall=args.recall, seed=args.seed,
+                                scan_odometry=args.scan_odometry,
                                 **{name: value for name, value in model.items() if value is not None})
     topics = TopicNames(scan=args.scan_topic, people=args.labels_topic)
     data = collect(args.bags, args.empty, topics, settings)
     sys.stderr.write(f"{len(data.is_leg)} segments, {int(data.is_leg.sum())} at labelled legs, {int(data.ignored.sum())} "
                      f"ignored near a label, from {len(data.logs)} logs\n")
-    levels, validation = validate(data, settings)
+    levels, validation, false_positives = validate(data, settings)
     classifier = train(data, levels, settings, validation)
     classifier.save(Path(args.out))
     held_out = "log" if "logs" in validation else "time blocks"
@@ -76,5 +80,12 @@ def train_detector(args: argparse.Namespace) -> int:
     legs = validation[next(iter(validation))]
     print(f"({legs.legs} labelled legs among {legs.segments} segments under the protocol, "
           f"{validation[next(iter(validation)) + ', strict'].segments} strictly)")
+    print(f"segments wrongly called legs under the protocol, held out by {held_out}, and those on the static world:")
+    for log in false_positives:
+        print(f"  {log.file:<32}{log.called:>6}{log.on_static:>6}")
+    unplaced = {str(log["file"]): log["unplaced"] for log in data.logs if log["unplaced"]}
+    if unplaced:
+        print("scans scan matching could not place (nothing static on them): "
+              + ", ".join(f"{file} {count}" for file, count in unplaced.items()))
     print(f"detector -> {args.out}")
     return 0
