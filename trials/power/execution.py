@@ -97,6 +97,10 @@ def check_reachable(address: str) -> None:
                          "`ray start --head` or check the address") from None
 
 
+#: How many times Ray restarts a dead actor and reruns the batches it lost.
+RAY_RETRIES = 2
+
+
 class RayWorker:
     """A Ray actor's state: the campaign handler, built once when the actor starts."""
 
@@ -133,7 +137,9 @@ def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_
              logging_level=logging.ERROR, log_to_driver=False, configure_logging=True)
     try:
         cpus = max(int(ray.cluster_resources().get("CPU", 1)), 1)
-        actor = ray.remote(num_cpus=1)(RayWorker)
+        # A batch is a pure function of its seeds, so one whose actor died (a worker lost on a busy or failing node)
+        # is safely run again on the actor Ray restarts; errors the batch itself raises are never retried.
+        actor = ray.remote(num_cpus=1, max_restarts=RAY_RETRIES, max_task_retries=RAY_RETRIES)(RayWorker)
         pool = ActorPool([actor.remote(*setup) for _ in range(min(cpus, len(work)))])
         try:
             for results in pool.map_unordered(lambda a, batch: a.run.remote(batch), work):
