@@ -28,7 +28,6 @@ weights that walked them and continues.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
@@ -43,10 +42,9 @@ from navigan.config import ClosedLoopConfig
 from navigan.data import fill_tracks
 from navigan.errors import NaviganError
 from navigan.generators import NaviganGenerator
-from navigan.playback.episodes import CUTOFF_STEPS, Episodes, SceneGrid
+from navigan.playback.episodes import Episodes
 from navigan.playback.rollout import Policy, Visit, roll_out
 from navigan.shield import HORIZON, forecast, shielded_steps
-from robot_logs.physical import T_OBS
 
 #: Generator parameters the tuning leaves alone: the intention branch, blind to the others.
 FROZEN_PREFIX = "intention_"
@@ -54,57 +52,6 @@ FROZEN_PREFIX = "intention_"
 KEPT = 1e-4
 #: Stand-in for an absent agent's forecast position (m): far enough to never fall short.
 FAR = 1e6
-#: The fewest frames a crowd copy is shifted by, either way round: an episode's observation and
-#: cut-off, so no target walks beside its own copy.
-MIN_SHIFT = T_OBS + CUTOFF_STEPS
-
-
-def overlay(grid: SceneGrid, copies: int, rng: np.random.Generator) -> SceneGrid:
-    """`grid` with `copies` time-shifted copies of its pedestrians laid over it as further columns.
-
-    A copy shifted by d frames (drawn by `rng` from MIN_SHIFT to F - MIN_SHIFT) holds at frame t
-    whoever was there at frame (t + d) mod F; each pedestrian's copy is split at the wrap into two
-    columns, so nobody jumps from the recording's end to its start, and columns empty throughout
-    are dropped. The original columns come first and unchanged, so an episode cut from `grid` keeps
-    its target; a copy's id is its original's plus a multiple of (largest id + 1).
-
-    Raises:
-        NaviganError: the recording is shorter than 2 * MIN_SHIFT frames, too short to shift.
-    """
-    frames = len(grid.positions)
-    if frames < 2 * MIN_SHIFT:
-        raise NaviganError(f"{grid.name}: {frames} frames, too few for crowd copies (needs {2 * MIN_SHIFT})")
-    columns = [grid.positions]
-    for shift in rng.integers(MIN_SHIFT, frames - MIN_SHIFT, size=copies, endpoint=True):
-        head = np.roll(grid.positions, -shift, axis=0)
-        tail = head.copy()
-        head[frames - shift :] = np.nan
-        tail[: frames - shift] = np.nan
-        columns += [head, tail]
-    positions = np.concatenate(columns, axis=1)
-    span = np.floor(grid.ids.max()) + 1
-    ids = np.concatenate([grid.ids + k * span for k in range(len(columns))])
-    keep = np.ones(positions.shape[1], dtype=bool)
-    keep[len(grid.ids) :] = ~np.isnan(positions[:, len(grid.ids) :, 0]).all(axis=0)
-    return SceneGrid(grid.name, ids[keep], positions[:, keep])
-
-
-def around_at_start(episodes: Episodes, scene: int) -> float:
-    """The mean number of others present at the first frame of a scene's episodes (0 without any)."""
-    starts = episodes.start[episodes.scene == scene]
-    present = ~np.isnan(episodes.scenes[scene].positions[starts, :, 0])
-    return float(present.sum(axis=1).mean()) - 1 if len(starts) else 0.0
-
-
-def crowded(episodes: Episodes, crowd: float, seed: int) -> Episodes:
-    """The same episodes among denser crowds: each scene whose episodes start among fewer than
-    about `crowd` others on average is `overlay`-ed with as many copies as bring it near `crowd`
-    (round(crowd / mean) - 1, the mean at least 1; the others kept as they are), the shifts drawn
-    from `seed` and the scene's place in `episodes.scenes`."""
-    copies = [max(0, round(crowd / max(around_at_start(episodes, s), 1.0)) - 1) for s in range(len(episodes.scenes))]
-    scenes = tuple(overlay(grid, n, np.random.default_rng([seed, s])) if n else grid
-                   for s, (grid, n) in enumerate(zip(episodes.scenes, copies)))
-    return dataclasses.replace(episodes, scenes=scenes)
 
 
 @dataclass(frozen=True)
@@ -246,8 +193,8 @@ def tune(
     save: Callable[[ckpt.Checkpoint], None],
     on_round: Callable[[int, dict[str, Any]], object] | None = None,
 ) -> ckpt.Checkpoint:
-    """Fine-tune a finished NaviGAN-R checkpoint (read from `path`) in closed loop on `episodes`
-    (`crowded` up to `config.crowd` others), or resume its tuning.
+    """Fine-tune a finished NaviGAN-R checkpoint (read from `path`) in closed loop on `episodes`, or
+    resume its tuning.
 
     `record.closed_loop` holds the tuning: its settings, one entry per finished round (`states`:
     the states its walk visited; `states_total`: all rounds' so far, which it trained on; its CPU
@@ -270,8 +217,6 @@ def tune(
     if len(tuning["rounds"]) >= config.rounds:
         return record
     resume = tuning["resume"] or {"learners": [], "rng": None}
-    if config.crowd:
-        episodes = crowded(episodes, config.crowd, config.seed)
     teacher_net = record.build_generator()  # the kept weights stay the starting network's until the last round
     learner_net = copy.deepcopy(teacher_net)
     teacher = Policy(teacher_net, False, record.model.noise, 0, path)

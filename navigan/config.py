@@ -149,9 +149,6 @@ class ClosedLoopConfig:
         w_rest: weight of the other way-points' squared distance from the teacher's plan.
         w_hinge: weight of the first step's squared shortfall under `margin` from everyone's
             constant-velocity forecast.
-        crowd: the walks' recordings are brought up to about this many others around a target at
-            its episode's start by time-shifted copies of their own pedestrians, so the walks visit
-            crowds as dense as univ's (`navigan.closed_loop.crowded`, shifts drawn from `seed`); 0: none.
     """
 
     rounds: int = 2
@@ -163,7 +160,6 @@ class ClosedLoopConfig:
     w_first: float = 10.0
     w_rest: float = 1.0
     w_hinge: float = 50.0
-    crowd: float = 0.0
 
 
 def to_dict(record: Any) -> dict[str, Any]:

@@ -130,7 +130,6 @@ TUNING = ", ".join(f.name for f in fields(ClosedLoopConfig))
     ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train, closed_loop"),
     ('model = "navigan-r"\n[closed_loop]\nrounds = 0', "closed_loop.rounds: expected a positive whole number, got 0"),
     ('model = "navigan-r"\n[closed_loop]\nmargin = -0.5', "closed_loop.margin: expected a positive distance in metres, got -0.5"),
-    ('model = "navigan-r"\n[closed_loop]\ncrowd = -4', "closed_loop.crowd: expected a number >= 0, got -4"),
     ('model = "navigan-r"\n[closed_loop]\nshield = 0.5', f"unknown key closed_loop.shield: expected one of {TUNING}"),
     ('[train]\nepochs = 3', "model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got nothing"),
     ('model = "navigan-x"', 'model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got "navigan-x"'),

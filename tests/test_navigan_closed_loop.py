@@ -1,6 +1,5 @@
-"""Closed-loop tuning (navigan/closed_loop.py): its terms on a hand-made state, the crowd copies
-laid over a hand-made recording, the states a walk records, and a resumed tuning ending where an
-uninterrupted one does."""
+"""Closed-loop tuning (navigan/closed_loop.py): its terms on a hand-made state, the states a walk
+records, and a resumed tuning ending where an uninterrupted one does."""
 
 from __future__ import annotations
 
@@ -11,13 +10,12 @@ import pytest
 import torch
 
 from navigan import checkpoint as ckpt
-from navigan.closed_loop import States, around_at_start, crowded, losses, overlay, tune, visited, walk_seed
+from navigan.closed_loop import States, losses, tune, visited, walk_seed
 from navigan.config import ClosedLoopConfig
 from navigan.data import load_split
 from navigan.errors import NaviganError
 from navigan.generators import Prediction
-from navigan.playback.episodes import SceneGrid, episodes_of, load_episodes
-from navigan.playback.protocols import OBSERVED
+from navigan.playback.episodes import load_episodes
 from navigan.playback.rollout import Policy, roll_out
 from robot_logs.physical import T_OBS, T_PRED
 
@@ -60,43 +58,6 @@ def test_a_step_the_shield_replaces_answers_to_the_hinge_alone():
     generator, state = standing_walker_state(kept=False)
     terms = losses(generator, state, margin=0.5)
     assert terms["first"].item() == 0.0 and terms["hinge"].item() == pytest.approx(0.14, abs=1e-6)
-
-
-def two_walkers(frames: int = 200) -> SceneGrid:
-    """Pedestrian 1 walks 0.1 m a frame along x throughout; pedestrian 4 along y in frames 10-59."""
-    positions = np.full((frames, 2, 2), np.nan, dtype=np.float32)
-    positions[:, 0, 0], positions[:, 0, 1] = 0.1 * np.arange(frames), 0.0
-    positions[10:60, 1, 0], positions[10:60, 1, 1] = 0.0, 0.1 * np.arange(10, 60)
-    return SceneGrid("two.txt", np.array([1.0, 4.0]), positions)
-
-
-def test_a_crowd_copy_is_the_recording_shifted_and_split_at_the_wrap():
-    grid = two_walkers()
-    laid = overlay(grid, 1, np.random.default_rng(0))  # seed 0 draws a shift of 123 frames
-    # 1's copy before and after the wrap; 4's after it only (its frames 10-59 at frames 87-136)
-    assert laid.ids.tolist() == [1.0, 4.0, 6.0, 11.0, 14.0]
-    np.testing.assert_array_equal(laid.positions[:, :2], grid.positions)
-    ahead, wrapped, other = laid.positions[:, 2], laid.positions[:, 3], laid.positions[:, 4]
-    np.testing.assert_allclose(ahead[:77, 0], 0.1 * np.arange(123, 200), atol=1e-5)
-    np.testing.assert_allclose(wrapped[77:, 0], 0.1 * np.arange(0, 123), atol=1e-5)
-    assert np.isnan(ahead[77:]).all() and np.isnan(wrapped[:77]).all()
-    assert np.flatnonzero(~np.isnan(other[:, 0])).tolist() == list(range(87, 137))
-    np.testing.assert_allclose(other[87, 1], 1.0, atol=1e-6)
-
-
-def test_crowded_brings_a_sparse_recording_near_the_crowd_and_keeps_its_targets():
-    episodes = episodes_of([two_walkers()], OBSERVED)
-    # 1's episode starts at frame 7, alone; 4's at frame 17, beside 1: half an other on average
-    assert len(episodes) == 2 and around_at_start(episodes, 0) == 0.5
-    dense = crowded(episodes, 4.0, seed=0)  # round(4 / 1) - 1 = 3 copies
-    assert around_at_start(dense, 0) == 3.5 and dense.scenes[0].positions.shape == (200, 2 + 3 * 2 + 3, 2)
-    np.testing.assert_array_equal(dense.history(), episodes.history())
-    assert dense.ids == episodes.ids and crowded(episodes, 1.0, seed=0).scenes[0] is episodes.scenes[0]
-
-
-def test_a_recording_too_short_for_crowd_copies_is_refused():
-    with pytest.raises(NaviganError, match="two.txt: 135 frames, too few for crowd copies"):
-        overlay(two_walkers(135), 1, np.random.default_rng(0))
 
 
 @pytest.fixture(scope="module")

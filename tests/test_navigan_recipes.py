@@ -45,8 +45,8 @@ def test_overrides_replace_only_what_they_set():
 
 def test_closed_loop_table_sets_the_tuning_and_the_seed_override_wins(tmp_path):
     mine = tmp_path / "mine.toml"
-    mine.write_text('model = "navigan-r"\n[closed_loop]\nrounds = 3\nseed = 4\nw_hinge = 20\ncrowd = 44\n')
+    mine.write_text('model = "navigan-r"\n[closed_loop]\nrounds = 3\nseed = 4\nw_hinge = 20\n')
     recipe = recipes.load(str(mine))
-    assert recipe.tuning() == config.ClosedLoopConfig(rounds=3, seed=4, w_hinge=20.0, crowd=44.0)
-    assert recipe.tuning(seed=9) == config.ClosedLoopConfig(rounds=3, seed=9, w_hinge=20.0, crowd=44.0)
+    assert recipe.tuning() == config.ClosedLoopConfig(rounds=3, seed=4, w_hinge=20.0)
+    assert recipe.tuning(seed=9) == config.ClosedLoopConfig(rounds=3, seed=9, w_hinge=20.0)
     assert recipes.load("playback").tuning() == config.ClosedLoopConfig()

@@ -53,7 +53,7 @@ LIMITS: dict[str, tuple[Callable[[Any], bool], str]] = {
     **{name: _WHOLE_POSITIVE for name in ("hidden", "embed", "goal", "pool", "noise", "mlp", "epochs", "patience", "batch",
                                           "rounds")},
     **{name: _AT_LEAST_ZERO for name in ("w_l2", "w_fde", "w_adversarial", "w_resistance", "encounters", "force_size",
-                                         "w_first", "w_rest", "w_hinge", "crowd")},
+                                         "w_first", "w_rest", "w_hinge")},
     "seed": (_at_least_zero, "a whole number >= 0"),
     "lr": (_positive, "a positive number"),
     "clip": (_positive, "a positive number"),
