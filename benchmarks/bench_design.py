@@ -98,8 +98,13 @@ def command_seconds(args: list[str], repeats: int = REPEATS, seed: int | None = 
 
 
 #: A program that pays only the libraries' start-up: numpy, scipy.special and numba's first call of a kernel it has
-#: cached, the three the 27-run plan's command cannot do without (numba's first call also imports scipy.linalg).
-LIBRARY_FLOOR = """import numba
+#: cached, the three the 27-run plan's command cannot do without (numba's first call also imports scipy.linalg),
+#: run as `trials` runs: OpenBLAS on one thread, no garbage collection at exit.
+LIBRARY_FLOOR = """import gc
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import numba
 import numpy as np
 import scipy.special
 
@@ -108,6 +113,7 @@ def total(values):
     return values.sum()
 
 total(np.ones(3))
+gc.freeze()
 """
 
 

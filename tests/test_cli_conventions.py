@@ -6,17 +6,18 @@ from __future__ import annotations
 
 import csv
 import fcntl
+import gc
 import json
 import os
 import shutil
-from importlib.metadata import version
+from importlib.metadata import entry_points, version
 from pathlib import Path
 
 import pytest
 
 from robot_logs.run_log import read_run
 from tests.support.run_studies import design_small_study
-from trials import progress
+from trials import cli, progress
 from trials.cli import main
 from trials.commands.run import run_line
 from trials.outcomes import columns, read_outcomes
@@ -52,6 +53,20 @@ def study(template, tmp_path) -> Path:
 def test_version_prints_the_installed_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"trials (navtrials) {version('navtrials')}"
+
+
+def test_the_trials_script_exits_with_mains_code_and_skips_the_last_collection(monkeypatch):
+    """The installed script runs `console`, which exits with `main`'s code after freezing what is left for the exit
+    to free, rather than collecting it."""
+    (script,) = [entry for entry in entry_points(group="console_scripts") if entry.name == "trials"]
+    assert script.value == "trials.cli:console"
+    monkeypatch.setattr(cli, "main", lambda: 3)
+    try:
+        with pytest.raises(SystemExit) as exit_:
+            cli.console()
+        assert exit_.value.code == 3 and gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
 
 
 @pytest.mark.parametrize("argv, command", [(["run", "--bogus"], "trials run"), (["status", "extra"], "trials status"),
