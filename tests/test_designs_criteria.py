@@ -235,6 +235,7 @@ def test_iterated_search_stops_after_patience_kicks_without_gain():
     assert kicked(300, 10**6)[0] == 300
 
 
+@pytest.mark.slow  # six searches of 20 starts at p = 28, about 12 s
 def test_restarts_bring_more_starts_of_the_six_factor_quadratic_to_the_best(monkeypatch):
     """6 continuous factors, full quadratic (p = 28) in 40 runs: a search held in a deep local optimum gains nothing
     from more kicks, so restarting it from a fresh opening after `PATIENCE` kicks without gain, within the same kick

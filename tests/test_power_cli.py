@@ -49,6 +49,7 @@ def test_no_plan_is_one_line(tmp_path, capsys):
     assert "no plan in" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # two model-based power runs of 12 simulations, about 10 s
 def test_model_based_only_writes_json_md_and_figure_with_the_seed(small, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["power", "--study", str(small), "--out", str(out), "--simulations", "12", "--seed", str(2**53 - 1)]) == 0
