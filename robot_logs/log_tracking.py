@@ -33,7 +33,6 @@ from robot_logs.topics import (
     SCAN_TYPES,
     TopicNames,
     is_static_tf,
-    listing,
     pick_topic,
     tf_topics,
 )
@@ -117,10 +116,9 @@ class LogTracking:
                 raise LogError(f"{log.path}: a map is placed by the log's odometry and tf; scan odometry has no map frame")
             self.scan_odometry, self.output_frame = ScanOdometry(), SCAN_ODOMETRY_FRAME
         elif frame == "odom" or occupancy is not None:
-            if occupancy is None and topics.odometry is None and not any(t.msgtype in ODOMETRY_TYPES for t in log.topics):
-                raise LogError(f"{log.path} has no Odometry topic; its topics: {listing(log.topics)}; "
-                               "scan odometry (--odometry scan) places its scans by scan matching instead")
-            odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
+            # A map needs the log's own odometry; tracking alone can do without it.
+            hint = "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead"
+            odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
             tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
             if frame == "odom":
                 self.tree, self.output_frame = tree, odometry_frame

@@ -36,7 +36,8 @@ def _same(a: str, b: str) -> bool:
 
 
 def pick_topic(
-    topics: list[TopicInfo], types: tuple[str, ...], what: str, override: str | None, path: Path, option: str
+    topics: list[TopicInfo], types: tuple[str, ...], what: str, override: str | None, path: Path, option: str,
+    hint: str = "",
 ) -> TopicInfo:
     """The topic to read for one kind of data.
 
@@ -47,6 +48,7 @@ def pick_topic(
         override: a topic name the user gave (leading slash optional), or None.
         path: the log, for messages.
         option: the command-line option that overrides the choice, for messages.
+        hint: appended to the message when no topic has a fitting type (what to do instead).
 
     Raises:
         LogError: the named topic is missing or of another type, no topic has a fitting
@@ -62,7 +64,7 @@ def pick_topic(
     else:
         fitting = [t for t in topics if t.msgtype in types]
         if not fitting:
-            raise LogError(f"{path} has no {what} topic; its topics: {listing(topics)}")
+            raise LogError(f"{path} has no {what} topic; its topics: {listing(topics)}{hint}")
         if len(fitting) > 1:
             names = ", ".join(t.name for t in fitting)
             raise LogError(f"{path} has several {what} topics ({names}); choose one with {option}")
