@@ -10,6 +10,7 @@ import gc
 import json
 import os
 import shutil
+import sys
 from importlib.metadata import entry_points, version
 from pathlib import Path
 
@@ -147,12 +148,39 @@ def test_piped_progress_numbers_each_line_and_shows_no_bar_or_startup_line(capsy
     assert captured.out == "[1/2] first\n" and captured.err == "[2/2] second\n"
 
 
+class _Writes:
+    """A stream that keeps each write apart, to count the writes a reader could time."""
+
+    def __init__(self) -> None:
+        self.writes: list[str] = []
+
+    def write(self, text: str) -> int:
+        self.writes.append(text)
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+def test_held_lines_come_in_one_write_per_stream_in_the_order_given(monkeypatch):
+    out, err = _Writes(), _Writes()
+    monkeypatch.setattr(sys, "stdout", out)
+    monkeypatch.setattr(sys, "stderr", err)
+    bar = progress.Progress("run", "running", bar=False)
+    bar.start(5)
+    bar.close()
+    bar.held([("a", False), ("b", False), ("c", True), ("d", False), ("e", False)])
+    assert out.writes == ["[1/5] a\n[2/5] b\n", "[4/5] d\n[5/5] e\n"] and err.writes == ["[3/5] c\n"]
+    assert bar.count == 5
+
+
 def test_quiet_progress_prints_nothing(capsys):
     bar = progress.Progress("run", "running", quiet=True)
     bar.loading("Loading")
-    bar.start(1)
+    bar.start(2)
     bar.item("first")
-    assert capsys.readouterr() == ("", "")
+    bar.held([("second", False)])
+    assert capsys.readouterr() == ("", "") and bar.count == 2
 
 
 def test_on_a_terminal_the_startup_line_and_a_bar_show(monkeypatch, capsys):

@@ -12,6 +12,7 @@ Item lines go to standard output (failures to standard error), so `> file` keeps
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 from typing import IO, Any
 
@@ -71,9 +72,9 @@ class Progress:
         """`[n/N] line`, n the item's number (the next one by default)."""
         return numbered(self.count + 1 if count is None else count, self.total, line)
 
-    def item(self, line: str | None, error: bool = False, count: int | None = None) -> None:
+    def item(self, line: str | None, error: bool = False) -> None:
         """One item done: its line (numbered) printed, the bar advanced."""
-        text = self.numbered(line, count) if line is not None else None
+        text = self.numbered(line) if line is not None else None
         self.count += 1
         if self.quiet or text is None:
             if self._bar is not None:
@@ -85,6 +86,16 @@ class Progress:
             self._bar.update(1)
         else:
             print(text, file=stream, flush=True)
+
+    def held(self, lines: list[tuple[str, bool]]) -> None:
+        """Items whose (line, error) were held back, as a blinded study's runs are: numbered in the order
+        given and written as one block per stream, so that no time a reader could measure passes between them."""
+        if not self.quiet:
+            for error, group in itertools.groupby(enumerate(lines, start=self.count + 1), key=lambda item: item[1][1]):
+                stream = sys.stderr if error else sys.stdout
+                stream.write("".join(self.numbered(line, n) + "\n" for n, (line, _) in group))
+                stream.flush()
+        self.count += len(lines)
 
     def close(self) -> None:
         if self._bar is not None:

@@ -84,13 +84,18 @@ def mtime_gaps(paths: Mapping[str, Path]) -> dict[str, float]:
     return gaps
 
 
+#: Console gaps are read to the millisecond: lines that one write brings reach the reader together, and
+#: what differs between them below that is the reader's own parsing, noise that may split 6 runs from 6 by chance.
+CONSOLE_RESOLUTION_S = 1e-3
+
+
 def console_gaps(run: TimedRun, codes: list[str]) -> dict[str, float]:
-    """For each run, the time its console line came minus the previous line's."""
+    """For each run, the time its console line came minus the previous line's (to CONSOLE_RESOLUTION_S)."""
     gaps, last = {}, 0.0
     for stamp, line in run.lines:
         code = next((c for c in codes if f", {c} (" in line), None)  # "[n/N] order k, CODE (settings): ..."
         if code is not None:
-            gaps[code] = stamp - last
+            gaps[code] = round((stamp - last) / CONSOLE_RESOLUTION_S) * CONSOLE_RESOLUTION_S
         last = stamp
     return gaps
 

@@ -150,9 +150,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
         signal.signal(signal.SIGTERM, previous)
-        for n, code in enumerate((c for c in study.codes if c in held), start=1):
-            line, error = held[code]
-            progress.item(line, error, count=n)
+        progress.held([held[code] for code in study.codes if code in held])
     if summary.stale_lock is not None:
         print(f"note: {study.folder.path(RUN_LOCK)} was left by pid {summary.stale_lock}, a `trials run` that no "
               "longer runs (killed, or of an earlier release); it was taken over", file=sys.stderr)
