@@ -26,7 +26,8 @@ from numba import njit
 
 from designs.constraints import ADD, AND, CATEGORICAL, CONST, DIV, EQ, GE, GT, LE, LT, MUL, NE, NEG, NOT, SUB, VAR
 
-kernel = njit(cache=True)
+#: Compiled once and cached; the GIL is released, so starts can search on threads side by side.
+kernel = njit(cache=True, nogil=True)
 
 #: Points of the fine grid a continuous coordinate is first searched on, and its refinements.
 _FINE_POINTS = 201

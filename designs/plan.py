@@ -65,12 +65,13 @@ class KeptRuns:
 
 
 def build_plan(spec: StudySpec, allocation_seed: int | None = None,
-               progress: Callable[[int, int], None] | None = None, kept: KeptRuns | None = None) -> StudyPlan:
+               progress: Callable[[int, int], None] | None = None, kept: KeptRuns | None = None,
+               threads: int = 1) -> StudyPlan:
     """Design, bound, diagnose and randomize a study; seal its blind factor if it has one.
 
-    `progress(done, starts)` follows the exchange's starts. With `kept` (augmenting; `spec` is the
-    study's public spec, `spec.runs` the new total) the kept runs stay first and unchanged, the new
-    ones are searched around them and randomized after them, and the sealed key stays as it is.
+    `progress(done, starts)` follows the exchange's starts, searched on `threads` threads. With `kept`
+    (augmenting; `spec` is the study's public spec, `spec.runs` the new total) the kept runs stay first and
+    unchanged, the new ones are searched around them and randomized after them, and the sealed key stays as it is.
 
     The public seed (drawn when the spec has none) drives the exchange starts, the run order
     and the run codes; the blind allocation uses its own secret seed.
@@ -93,7 +94,7 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
                             criterion=spec.criterion, restrictions=restrictions, progress=progress,
                             kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
-                            per_run=spec.per_run())
+                            per_run=spec.per_run(), threads=threads)
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
     order = len(old) + _run_order(spec, spec.runs - len(old), np.random.default_rng(order_seed))
     codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})

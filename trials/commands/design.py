@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -10,6 +11,7 @@ from typing import TYPE_CHECKING
 from designs.exchange import CRITERIA
 from designs.spec import MAX_RUNS, MAX_SNR, MAX_STARTS
 from trials import option_types as types
+from trials.option_types import MAX_THREADS
 from trials.progress import add_quiet
 
 if TYPE_CHECKING:
@@ -46,6 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="D: largest det(X'X) (default); I: smallest average prediction variance; A: smallest trace((X'X)^-1)")
     parser.add_argument("--seed", type=types.seed, help="seed of the design search, run order and run codes (default: drawn and recorded)")
     parser.add_argument("--starts", type=types.whole(1, MAX_STARTS), help=f"random starts of the exchange algorithm (default 100, at most {MAX_STARTS})")
+    parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), metavar="N",
+                        help="starts searched side by side (default: the CPUs this process may use; the design is the same whatever N)")
     parser.add_argument("--snr", type=types.number(0, MAX_SNR, above=True), help="signal-to-noise ratio for the power table (default 1)")
     parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
@@ -57,6 +61,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
     parser.set_defaults(handler=run)
+
+
+def _threads(args: argparse.Namespace) -> int:
+    """--threads, or the CPUs this process may use."""
+    if args.threads:
+        return args.threads
+    affinity = getattr(os, "sched_getaffinity", None)
+    return len(affinity(0)) if affinity is not None else os.cpu_count() or 1
 
 
 def _progress(done: int, starts: int) -> None:
@@ -128,7 +140,8 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     if args.seed is None:
         spec = replace(spec, seed=None)  # a fresh seed for the new runs, recorded
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
-    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None)
+    plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None,
+                      threads=_threads(args))
     run = run_table(folder.path(SPEC))  # the [run] table stays with the study
     copied = folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))
     written = write_design(folder, plan, None, run, args.dpi if args.figures else None)
@@ -191,7 +204,8 @@ def run(args: argparse.Namespace) -> int:
     quiet = args.quiet or args.json
     Progress("start", "design", quiet).loading(f"Searching for a {spec.criterion}-optimal design of {spec.runs} runs ({spec.starts} exchange starts)")
     follow = sys.stderr.isatty() and not quiet
-    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None)  # every bad input fails here
+    # every bad input fails here
+    plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None, threads=_threads(args))
     if follow:
         print(file=sys.stderr)
     from trials.design_files import write_design
