@@ -360,10 +360,10 @@ def test_starts_searched_on_threads_end_exactly_as_one_after_another(criterion):
     """Each start has its own generator and arrays, so the design and every start's value are the same on 3
     threads as on one, through both rounds (the starts disagree here, so the kicks run) and under D's
     and I's kernels; the progress still counts every start of each round."""
-    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(4)))
+    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(3)))
     seen: list[tuple[int, int]] = []
-    one = optimal_design(model, 18, seed=7, starts=6, criterion=criterion)
-    threaded = optimal_design(model, 18, seed=7, starts=6, criterion=criterion, threads=3,
+    one = optimal_design(model, 12, seed=7, starts=6, criterion=criterion)
+    threaded = optimal_design(model, 12, seed=7, starts=6, criterion=criterion, threads=3,
                               progress=lambda done, starts: seen.append((done, starts)))
     assert one.kicks > 0
     np.testing.assert_array_equal(threaded.start_values, one.start_values)
