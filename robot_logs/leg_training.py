@@ -354,20 +354,23 @@ def validate(
     negative), for the classifier alone and followed by the static world (`StaticFlags`); and
     each log's false positives under the protocol, held out as the threshold was.
 
-    The scores' keys name the design ("logs", "time blocks"), then ", static world" and
-    ", strict" where they apply."""
+    The scores' keys name the design ("logs", "time blocks"), then ", labelled logs" for the figures
+    over the labelled logs' segments alone (the logs with nobody present left out), ", static world"
+    and ", strict" where they apply."""
     designs = (["log"] if data.labelled_logs >= 2 else []) + ["time"]
     held_out = {by: held_out_probability(data, by, settings) for by in designs}
     chosen = held_out[designs[0]]
     shares = (settings.recall, settings.confirm_recall, settings.protect_recall)
     levels = tuple(threshold_for_recall(data.is_leg, chosen, share) for share in shares)
     validation = {}
-    scored = ~data.ignored
+    scopes = (("", np.ones(len(data.is_leg), dtype=bool)), (", labelled logs", data.log < data.labelled_logs))
     for by, probability in held_out.items():
         name = {"log": "logs", "time": "time blocks"}[by]
-        for stage, kept in (("", probability), (", static world", np.where(data.static, -np.inf, probability))):
-            validation[f"{name}{stage}"] = scores(data.is_leg[scored], kept[scored], levels[0])
-            validation[f"{name}{stage}, strict"] = scores(data.is_leg, kept, levels[0])
+        for scope, within in scopes:
+            scored = within & ~data.ignored
+            for stage, kept in (("", probability), (", static world", np.where(data.static, -np.inf, probability))):
+                validation[f"{name}{scope}{stage}"] = scores(data.is_leg[scored], kept[scored], levels[0])
+                validation[f"{name}{scope}{stage}, strict"] = scores(data.is_leg[within], kept[within], levels[0])
     wrong = (chosen >= levels[0]) & ~data.is_leg & ~data.ignored
     false_positives = [
         FalsePositives(str(log["file"]), int((wrong & (data.log == index)).sum()),

@@ -17,7 +17,8 @@ def register(group: argparse._SubParsersAction) -> None:
         "legs are labelled (geometry_msgs/PoseArray, one pose per leg), plus logs recorded with nobody present "
         "(--empty). Unmatched segments within --ignore-radius of a label are left out; the rest are negatives. "
         "Prints precision and recall cross-validated by whole log and by blocks of time, under that protocol "
-        "and strictly (every unlabelled segment a negative), for the classifier alone and followed by static-world "
+        "and strictly (every unlabelled segment a negative), over every log's segments and over the labelled logs' "
+        "alone, for the classifier alone and followed by static-world "
         "rejection (each log's own occupancy grid from its earlier scans, each scan placed by scan matching), and writes the detector as an .npz file with its "
         "training record for `trials log track --detector`.",
     )
@@ -71,12 +72,16 @@ def train_detector(args: argparse.Namespace) -> int:
           "strict: every unlabelled segment a negative\n"
           "  + static world: no segment on a cell that its log's own occupancy grid holds static after the earlier "
           "scans (the grid `trials log track` keeps)")
-    print(f"{'held out by':<13}{'detection':<29}{'protocol':<17}strict")
-    for name in (n for n in validation if not n.endswith(", strict")):
-        design, _, stage = name.partition(", ")
-        protocol, strict = validation[name], validation[f"{name}, strict"]
-        print(f"{design:<13}{'classifier + ' + stage if stage else 'classifier alone':<29}"
-              f"{protocol.precision:.3f} / {protocol.recall:.3f}    {strict.precision:.3f} / {strict.recall:.3f}")
+    print(f"{'held out by':<13}{'segments of':<16}{'detection':<29}{'protocol':<17}strict")
+    for design in ("logs", "time blocks"):
+        for scope, logs in (("", "every log"), (", labelled logs", "labelled logs")):
+            for stage in ("", ", static world"):
+                name = f"{design}{scope}{stage}"
+                if name not in validation:
+                    continue
+                protocol, strict = validation[name], validation[f"{name}, strict"]
+                print(f"{design:<13}{logs:<16}{'classifier + static world' if stage else 'classifier alone':<29}"
+                      f"{protocol.precision:.3f} / {protocol.recall:.3f}    {strict.precision:.3f} / {strict.recall:.3f}")
     legs = validation[next(iter(validation))]
     print(f"({legs.legs} labelled legs among {legs.segments} segments under the protocol, "
           f"{validation[next(iter(validation)) + ', strict'].segments} strictly)")
