@@ -3,8 +3,8 @@
 A gradient-boosted ensemble of decision trees, trained with scikit-learn's
 HistGradientBoostingClassifier (`robot_logs.leg_training`) and stored as the trees' arrays in an
 .npz file with a format version and the training record, never as a pickle, so a detector file
-is safe to open and easy to version. Prediction walks all trees at once with numpy, one level
-per step.
+is safe to open and easy to version. Prediction walks each segment down every tree in a compiled
+loop (`robot_logs.tree_walk`).
 """
 
 from __future__ import annotations
@@ -66,15 +66,12 @@ class LegClassifier:
 
     def probability(self, features: np.ndarray) -> np.ndarray:
         """(K,) leg probability of each row of (K, F) segment features."""
-        features = np.asarray(features, dtype=np.float64)
-        rows = np.arange(len(features))[None, :]
-        nodes = np.repeat(self.roots[:, None], len(features), axis=1)
-        for _ in range(self.depth):
-            seen = features[rows, self.feature[nodes]]
-            go_left = np.where(np.isnan(seen), self.missing_left[nodes], seen <= self.split[nodes])
-            nodes = np.where(go_left, self.left[nodes], self.right[nodes])
-        log_odds = self.bias + self.value[nodes].sum(axis=0)
-        return 1.0 / (1.0 + np.exp(-log_odds))
+        from robot_logs.tree_walk import log_odds
+
+        features = np.ascontiguousarray(features, dtype=np.float64)
+        total = log_odds(features, self.feature, self.split, self.left, self.right, self.missing_left, self.value,
+                         self.roots, self.depth, self.bias)
+        return 1.0 / (1.0 + np.exp(-total))
 
     def save(self, path: str | Path) -> None:
         """Write the .npz file (complete or not at all)."""
