@@ -237,3 +237,22 @@ def test_train_detector_help_states_the_model_defaults_of_the_training_settings(
     for option, value in (("--trees TREES", settings.trees), ("--leaves LEAVES", settings.leaves),
                           ("--min-leaf N", settings.min_leaf), ("--l2 L2", f"{settings.l2:g}")):
         assert f"{option} " in text and f"(default {value})" in text.rsplit(option, 1)[1].split("--", 1)[0]  # the option list, after the usage line
+
+
+def test_the_tree_walk_follows_splits_and_missing_values_and_stops_at_the_depth() -> None:
+    """Two hand-made stumps on features 0 and 1 (leaves are their own children), and a damaged
+    tree whose nodes point at each other: the walk sums the right leaves and ends after `depth` steps."""
+    from robot_logs.tree_walk import log_odds
+
+    #            node: 0 (x0 <= 0.5?)  1 leaf  2 leaf  3 (x1 <= 0, missing right)  4 leaf  5 leaf  6 -> 7 -> 6 ...
+    feature = np.array([0, 0, 0, 1, 0, 0, 0, 0], dtype=np.int32)
+    split = np.array([0.5, 0, 0, 0.0, 0, 0, 0, 0])
+    left = np.array([1, 1, 2, 4, 4, 5, 7, 6], dtype=np.int32)
+    right = np.array([2, 1, 2, 5, 4, 5, 7, 6], dtype=np.int32)
+    missing_left = np.array([True, False, False, False, False, False, False, False])
+    value = np.array([0, -1.0, 1.0, 0, 10.0, 20.0, 100.0, 200.0])
+    features = np.array([[0.2, -1.0], [0.9, 1.0], [np.nan, np.nan]])
+    stumps = log_odds(features, feature, split, left, right, missing_left, value, np.array([0, 3], dtype=np.int32), 1, 0.5)
+    np.testing.assert_array_equal(stumps, [0.5 - 1 + 10, 0.5 + 1 + 20, 0.5 - 1 + 20])
+    looped = log_odds(features[:1], feature, split, left, right, missing_left, value, np.array([6], dtype=np.int32), 3, 0.0)
+    assert looped.tolist() == [200.0]  # 6 -> 7 -> 6 -> 7, three steps, then stopped
