@@ -9,8 +9,9 @@ recall are cross-validated with whole groups held out (each labelled log, or blo
 so neighbouring scans of one walk never sit on both sides of a split; the stricter figure that
 counts every unlabelled segment as a negative is reported beside it.
 
-Each figure is given twice: for the classifier alone, and for the detection stage the tracker
-uses, the classifier followed by static-world rejection (`robot_logs.static_world`): a segment on
+Each figure is given over every log's segments and over the labelled logs' alone, and for the
+classifier alone and for the detection stage the tracker uses, the classifier followed by
+static-world rejection (`robot_logs.static_world`): a segment on
 a cell that the log's own occupancy grid, built from its earlier scans only, holds static is not a
 leg.
 """
