@@ -55,7 +55,7 @@ def test_judgments_per_run_follow_the_pedestrians_unless_set(ab_study):
     assert set(model_based.judgments_per_run(plan, 5)) == {5}
 
 
-@pytest.mark.parametrize("runs", [18, 24])
+@pytest.mark.parametrize("runs", [18, pytest.param(24, marks=pytest.mark.slow)])  # 6-7 s each; the quick loop keeps one
 def test_simulated_gaussian_power_agrees_with_the_analytic_power(ab_study, runs):
     """Without clustering, the Monte Carlo power of each term's F test matches JMP's noncentral-F power
     (design.json's for the study's own plan, `diagnose`'s for a 24-run plan designed from its spec)."""
