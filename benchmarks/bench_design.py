@@ -41,6 +41,7 @@ from designs.factors import ContinuousFactor
 from designs.model import parse_model
 from designs.plan import build_plan
 from designs.presets import ab, qualitative
+from trials.commands.design import usable_cpus
 from trials.controllers.registry import NAMES as CONTROLLERS
 
 PRESETS = {"qualitative (--runs 27)": (qualitative(), ["--runs", "27"]), "A/B (--runs 18 --ab)": (ab(CONTROLLERS), ["--runs", "18", "--ab"])}
@@ -52,8 +53,6 @@ BEFORE = {(6, 40): 145.0, (6, 80): 262.0, (4, 20): 33.6}
 #: p from 6 to 28 at 40 runs, then 6 factors from 40 to 200 runs, and the issue's 4-factor case.
 SIZES = [(2, 40), (3, 40), (4, 40), (5, 40), (6, 40), (6, 80), (6, 120), (6, 200), (4, 20)]
 QUICK = [(2, 40), (4, 20), (6, 40)]
-#: The CPUs `trials design` searches its starts on by default.
-CPUS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
 #: The seed of the 6-factor spec's whole command (the scaling table's searches use 2019 as the design seed itself).
 SPEC_SEED = 2019
 QUADRATIC_SPEC = """[study]
@@ -170,7 +169,7 @@ def presets() -> None:
         quadratic = command_seconds(["--spec", spec], repeats=1, seed=SPEC_SEED)
         one_thread = command_seconds(["--spec", spec, "--threads", "1"], repeats=1, seed=SPEC_SEED)
     print(f"6 continuous factors, full quadratic, 40 runs, 100 starts: `trials design --spec --seed {SPEC_SEED}` "
-          f"{quadratic.walls[0]:.1f} s ({quadratic.cpus[0]:.1f} s CPU, starts on the {CPUS} CPUs this process may use), "
+          f"{quadratic.walls[0]:.1f} s ({quadratic.cpus[0]:.1f} s CPU, starts on the {usable_cpus()} CPUs this process may use), "
           f"{quadratic.hits[0]} of 100 starts at the best; with --threads 1 {one_thread.walls[0]:.1f} s "
           "(goal: at most 10 s, 50 of 100; AlgDesign 5.0 s, the previous release 145 s)")
 

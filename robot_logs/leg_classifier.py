@@ -66,7 +66,7 @@ class LegClassifier:
 
     def probability(self, features: np.ndarray) -> np.ndarray:
         """(K,) leg probability of each row of (K, F) segment features."""
-        from robot_logs.tree_walk import log_odds
+        from robot_logs.tree_walk import log_odds  # numba loads only once legs are classified
 
         features = np.ascontiguousarray(features, dtype=np.float64)
         total = log_odds(features, self.feature, self.split, self.left, self.right, self.missing_left, self.value,

@@ -63,12 +63,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def _threads(args: argparse.Namespace) -> int:
-    """--threads, or the CPUs this process may use."""
-    if args.threads:
-        return args.threads
+def usable_cpus() -> int:
+    """The CPUs this process may use: the starts' threads unless --threads says otherwise."""
     affinity = getattr(os, "sched_getaffinity", None)
     return len(affinity(0)) if affinity is not None else os.cpu_count() or 1
+
+
+def _threads(args: argparse.Namespace) -> int:
+    return args.threads or usable_cpus()
 
 
 def _progress(done: int, starts: int) -> None:
