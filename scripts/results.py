@@ -498,7 +498,7 @@ small network that chooses among the shield's own moves, so nothing has to be av
   playback episodes, rounds 1 and 2 walk R with the head trained so far (DAgger); at every visited
   state the shield's test labels all 122 steps, and a new head is fitted to all rounds' states
   (binary cross-entropy, 40 epochs of Adam at 1e-3 in batches of 512, each batch turned by a random
-  multiple of 15 degrees and mirrored at random, which maps the ring of moves onto itself).  3 to 11
+  multiple of 15 degrees and mirrored at random, which maps the ring of moves onto itself). 3 to 11
   CPU minutes a split.
 
 Two versions that did not learn the test are not in the script: one flat network over all the
