@@ -21,6 +21,7 @@ import torch
 from navigan.config import ModelConfig, TrainConfig, from_dict, to_dict
 from navigan.data import T_PRED
 from navigan.errors import NaviganError
+from navigan.evasion import Evasion
 from navigan.generators import GoalSocialGenerator, NaviganGenerator, build_generator
 
 FORMAT = "navigan-checkpoint/1"
@@ -44,7 +45,8 @@ class Checkpoint:
         model, train: the configs, as resolved from the recipe and the command's overrides.
         split: the split's name and data files (relative to the data folder).
         data: window and target counts and NaN/missing rows skipped, per part.
-        command: the command line that made it.
+        command: the command line that made it (that trained its generator; evasion networks
+            record their own).
         recipe: the recipe's name, file and text (see `navigan.recipes`); None in checkpoints
             made before recipes were files.
         epoch: epochs completed.
@@ -55,6 +57,9 @@ class Checkpoint:
         state: what resuming needs, None once finished.
         closed_loop: the closed-loop tuning that changed the kept weights after training, if any
             (`navigan.closed_loop`: its settings, one entry per round, what resuming needs).
+        evasion: the evasion networks trained beside the kept weights, if any
+            (`navigan.evasion_training`: the command that trained them, their settings, one entry
+            per round, what resuming needs, and once finished the networks' weights).
     """
 
     model: ModelConfig
@@ -70,12 +75,21 @@ class Checkpoint:
     finished: str | None = None
     state: dict[str, Any] | None = None
     closed_loop: dict[str, Any] | None = None
+    evasion: dict[str, Any] | None = None
 
     def build_generator(self) -> NaviganGenerator | GoalSocialGenerator:
         """The generator with the kept weights, in eval mode."""
         generator = build_generator(self.model)
         generator.load_state_dict(self.generator)
         return generator.eval()
+
+    def build_evasion(self) -> Evasion | None:
+        """The finished evasion networks, in eval mode; None if the checkpoint has none."""
+        if not self.evasion or self.evasion.get("weights") is None:
+            return None
+        networks = Evasion(self.evasion["settings"]["width"])
+        networks.load_state_dict(self.evasion["weights"])
+        return networks.eval()
 
 
 def save(checkpoint: Checkpoint, path: str | Path) -> None:
@@ -97,6 +111,7 @@ def save(checkpoint: Checkpoint, path: str | Path) -> None:
         "finished": checkpoint.finished,
         "state": checkpoint.state,
         "closed_loop": checkpoint.closed_loop,
+        "evasion": checkpoint.evasion,
     }
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
     try:
@@ -143,6 +158,7 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> Checkpoi
             finished=record["finished"],
             state=record["state"],
             closed_loop=record.get("closed_loop"),
+            evasion=record.get("evasion"),
         )
     except KeyError as exc:
         raise NaviganError(f"{path} lacks the field {exc}") from exc

@@ -162,6 +162,33 @@ class ClosedLoopConfig:
     w_hinge: float = 50.0
 
 
+@dataclass(frozen=True)
+class EvasionConfig:
+    """How NaviGAN-R's evasion networks are trained on the states it visits walking playback episodes
+    (`navigan.evasion_training`).
+
+    Attributes:
+        rounds: DAgger rounds after the first walk (of the generator alone); each walks the networks
+            trained so far and trains a new head on all the states gathered.
+        epochs: passes of the head's training over all states, per round.
+        batch: states per batch.
+        lr: Adam learning rate of both networks.
+        seed: seeds the walks' fluctuation noise, the networks' initial weights, batch order and turns.
+        margin: the shield's margin (m) that labels the states (`navigan.shield`).
+        width: hidden units of each network's two layers.
+        shortfall_batches: batches the shortfall network is trained on (once, on the first walk's states).
+    """
+
+    rounds: int = 2
+    epochs: int = 40
+    batch: int = 512
+    lr: float = 1e-3
+    seed: int = 0
+    margin: float = 0.5
+    width: int = 128
+    shortfall_batches: int = 3000
+
+
 def to_dict(record: Any) -> dict[str, Any]:
     """A config record as a plain dict."""
     return asdict(record)

@@ -179,8 +179,10 @@ def start(
             f"{out} holds another training ({found.model.model} on {found.split['name']}, "
             f"{found.train}); choose another --out or delete it"
         )
-    # The limits may differ: the command and recipe that finish the training are the ones to record.
-    found.train, found.command, found.recipe = config, command, recipe
+    # The limits may differ: the command and recipe that finish the training are the ones to record;
+    # a command that finds it finished with the same limits trains nothing and leaves the record as it is.
+    if not found.finished or found.train != config:
+        found.train, found.command, found.recipe = config, command, recipe
     return found
 
 

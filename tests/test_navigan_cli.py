@@ -127,10 +127,12 @@ TUNING = ", ".join(f.name for f in fields(ClosedLoopConfig))
 
 @pytest.mark.parametrize(("text", "message"), [
     ('model = "navigan-r"\n[train]\nbatchsize = 64', f"unknown key train.batchsize: expected one of {SETTINGS}"),
-    ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train, closed_loop"),
+    ('model = "navigan-r"\nsplit = "eth"', "unknown key split: expected one of model, network, train, closed_loop, evasion"),
     ('model = "navigan-r"\n[closed_loop]\nrounds = 0', "closed_loop.rounds: expected a positive whole number, got 0"),
     ('model = "navigan-r"\n[closed_loop]\nmargin = -0.5', "closed_loop.margin: expected a positive distance in metres, got -0.5"),
     ('model = "navigan-r"\n[closed_loop]\nshield = 0.5', f"unknown key closed_loop.shield: expected one of {TUNING}"),
+    ('model = "navigan-r"\n[evasion]\nwidth = 0', "evasion.width: expected a positive whole number, got 0"),
+    ('model = "navigan-r"\n[evasion]\nshortfall_batches = 2.5', "evasion.shortfall_batches: expected a positive whole number, got 2.5"),
     ('[train]\nepochs = 3', "model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got nothing"),
     ('model = "navigan-x"', 'model: expected one of goal-social-lstm, navil2, navigan, navigan-r, got "navigan-x"'),
     ('model = "navigan-r"\ntrain = 3', "train: expected a table of TrainConfig settings, got 3"),
@@ -159,6 +161,12 @@ def test_bad_recipe_is_one_error_line(data, tmp_path, capsys, text, message):
     (["--closed-loop", "--recipe", "navigan"], "--closed-loop: tunes NaviGAN-R only; recipe navigan trains navigan"),
     (["--closed-loop", "--device", "cuda"],
      "--closed-loop: tunes on the CPU only; train with --device cuda first, then add --closed-loop without it"),
+    (["--evasion-seed", "1"], "--evasion-seed: only with --evasion"),
+    (["--retrain-evasion"], "--retrain-evasion: only with --evasion"),
+    (["--evasion", "--recipe", "navigan"],
+     "--evasion: trains NaviGAN-R's evasion networks only; recipe navigan trains navigan"),
+    (["--evasion", "--device", "cuda"],
+     "--evasion: trains on the CPU only; train with --device cuda first, then add --evasion without it"),
 ])
 def test_closed_loop_refusals_are_one_error_line(tmp_path, capsys, extra, message):
     args = ["train", "--recipe", "playback", "--split", "zara1", *extra, "--out", str(tmp_path / "r.pt"), "--quiet"]
@@ -212,6 +220,60 @@ def test_train_then_tune_in_closed_loop_interrupted_then_resumed(data, tmp_path,
         first["states"], second["states"]]
     assert resumed.command.endswith("--closed-loop --closed-loop-seed 3 --out r.pt")
     assert all(torch.equal(resumed.generator[k], uninterrupted.generator[k]) for k in uninterrupted.generator)
+
+
+@pytest.mark.slow
+def test_train_then_add_evasion_networks_interrupted_then_resumed(data, tmp_path, capsys, monkeypatch):
+    from navigan import evasion_training
+
+    mine = recipe_file(tmp_path, 'model = "navigan-r"\n[network]\npair_pool = true\n[train]\nbatch = 64\n'
+                                 '[evasion]\nrounds = 1\nepochs = 1\nbatch = 64\nwidth = 16\nshortfall_batches = 3\n')
+
+    def training(out: Path) -> list[str]:
+        return ["train", "--recipe", str(mine), "--split", "zara2", "--epochs", "1", "--data", str(data),
+                "--out", str(out), "--evasion", "--evasion-seed", "4"]
+
+    whole = tmp_path / "whole.pt"
+    assert main(training(whole)) == 0
+    printed = capsys.readouterr().out
+    first, second = load(whole).evasion["rounds"]
+    assert (f"evasion walk 0/1: walked {first['states']} states ({first['planned_short']:.3f} of the planned steps "
+            f"short), head trained on {first['states']}") in printed
+    assert f"head trained on {first['states'] + second['states']}" in printed
+    assert "evasion networks trained over 2 walks" in printed and first["states"] > 100
+    before, before_weights = whole.read_bytes(), load(whole).evasion["weights"]
+    assert main(training(whole)) == 0  # trained: nothing more to do, nothing rewritten
+    assert whole.read_bytes() == before
+    other_seed = [*training(whole)[:-1], "5"]
+    assert main(other_seed) == 2 and "evasion networks trained with other settings" in capsys.readouterr().err
+    assert whole.read_bytes() == before
+    assert main([*other_seed, "--retrain-evasion"]) == 0  # the networks replaced by seed 5's
+    retrained = load(whole)
+    assert retrained.evasion["settings"]["seed"] == 5 and retrained.evasion["command"].endswith(
+        "--evasion --evasion-seed 5 --retrain-evasion --out whole.pt")
+    assert retrained.command.endswith("--evasion --evasion-seed 4 --out whole.pt")  # the generator's: it trained it
+    capsys.readouterr()
+
+    # Ctrl-C during the second head's training: the first walk is kept, and the same command finishes
+    fit = evasion_training.fit_head
+    fitted: list[int] = []
+
+    def stopped_in_the_second_fit(states, config, rng, seed):
+        fitted.append(len(states))
+        if len(fitted) == 2:
+            raise KeyboardInterrupt
+        return fit(states, config, rng, seed)
+
+    monkeypatch.setattr(evasion_training, "fit_head", stopped_in_the_second_fit)
+    out = tmp_path / "r.pt"
+    assert main(training(out)) == 130
+    kept = load(out).evasion
+    assert [r["round"] for r in kept["rounds"]] == [0] and kept["weights"] is None
+    monkeypatch.setattr(evasion_training, "fit_head", fit)
+    assert main(training(out)) == 0
+    resumed = load(out)
+    assert resumed.evasion["command"].endswith("--evasion --evasion-seed 4 --out r.pt")
+    assert all(torch.equal(resumed.evasion["weights"][k], v) for k, v in before_weights.items())  # seed 4's, whole
 
 
 def test_unknown_recipe_lists_the_shipped_ones(capsys):

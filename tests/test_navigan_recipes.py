@@ -50,3 +50,12 @@ def test_closed_loop_table_sets_the_tuning_and_the_seed_override_wins(tmp_path):
     assert recipe.tuning() == config.ClosedLoopConfig(rounds=3, seed=4, w_hinge=20.0)
     assert recipe.tuning(seed=9) == config.ClosedLoopConfig(rounds=3, seed=9, w_hinge=20.0)
     assert recipes.load("playback").tuning() == config.ClosedLoopConfig()
+
+
+def test_evasion_table_sets_the_networks_training_and_the_seed_override_wins(tmp_path):
+    mine = tmp_path / "mine.toml"
+    mine.write_text('model = "navigan-r"\n[evasion]\nrounds = 1\nwidth = 64\nseed = 4\nmargin = 0.6\n')
+    recipe = recipes.load(str(mine))
+    assert recipe.evasion_training() == config.EvasionConfig(rounds=1, width=64, seed=4, margin=0.6)
+    assert recipe.evasion_training(seed=9) == config.EvasionConfig(rounds=1, width=64, seed=9, margin=0.6)
+    assert recipes.load("playback").evasion_training() == config.EvasionConfig()

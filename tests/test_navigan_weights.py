@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import pytest
 
 from navigan import checkpoint as ckpt
+from navigan.config import EvasionConfig
 from navigan.data import SPLITS, Scenes, load_split
 from navigan.evaluation import evaluate, evaluate_constant_velocity
 
@@ -30,6 +33,18 @@ def test_every_model_and_split_is_shipped_with_its_record():
         assert record.split["train"] and record.split["val"]
         assert record.best["epoch"] <= record.epoch == len(record.history)
     assert total < 8 * 2**20
+
+
+@pytest.mark.parametrize("split", SPLITS)
+def test_each_split_navigan_r_holds_evasion_networks_and_how_they_were_trained(split):
+    record = ckpt.load(ckpt.shipped("navigan-r", split))
+    epochs = " --epochs 60" if split == "univ" else ""
+    assert record.evasion["command"] == (f"trials train --recipe playback --split {split}{epochs} --evasion "
+                                         f"--evasion-seed 0 --out navigan-r-{split}.pt")
+    assert record.evasion["settings"] == asdict(EvasionConfig()) and record.evasion["resume"] is None
+    assert [r["round"] for r in record.evasion["rounds"]] == [0, 1, 2]
+    assert record.build_evasion() is not None
+    assert ckpt.load(ckpt.shipped("navigan-r", "all")).evasion is None  # the trial controller's has none
 
 
 @pytest.mark.parametrize("split", SPLITS)

@@ -142,6 +142,36 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     assert sorted(p.name for p in (out / "episodes" / "zara1").iterdir()) == ["navigan-r-shield.json", "navigan-r.json"]
 
 
+def test_the_evasion_column_walks_the_networks_its_checkpoint_holds_and_refuses_one_without(
+        eth_ucy_dir, tmp_path, capsys):
+    from navigan import checkpoint as ckpt
+    from navigan.config import EvasionConfig
+    from navigan.data import load_split
+    from navigan.evasion_training import train_evasion
+    from navigan.playback.episodes import load_episodes
+
+    weights = tmp_path / "weights"
+    weights.mkdir()
+    mine = weights / "navigan-r-zara1.pt"
+    record = ckpt.load(ckpt.shipped("navigan-r", "zara1"))
+    record.evasion = None  # the shipped networks left out
+    ckpt.save(record, mine)
+    out = tmp_path / "pb"
+    assert playback(eth_ucy_dir, out, "--checkpoints", str(weights), "--models", "navigan-r,navigan-r-evasion") == 2
+    assert error_line(capsys) == (f"error: no evasion networks in {mine}: add them with trials train --evasion, "
+                                  "or leave the -evasion column out\n")
+    assert not out.exists()
+    episodes = load_episodes(load_split(eth_ucy_dir, "zara1").train, "observed").subset(range(20))
+    config = EvasionConfig(rounds=1, epochs=2, width=16, shortfall_batches=20)
+    train_evasion(ckpt.load(mine), mine, episodes, config, save=lambda r: ckpt.save(r, mine))
+    assert playback(eth_ucy_dir, out, "--checkpoints", str(weights), "--models", "navigan-r,navigan-r-evasion") == 0
+    with (out / "table1.csv").open() as f:
+        assert list(next(csv.DictReader(f)))[3:] == ["R", "R_evasion"]
+    assert "R+evasion walks NaviGAN-R with its evasion networks" in (out / "table1.md").read_text()
+    record = json.loads((out / "episodes" / "zara1" / "navigan-r-evasion.json").read_text())
+    assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and len(record["results"]) == 3
+
+
 def test_figures_are_png_at_the_dpi_asked_and_svg_that_a_redraw_keeps_byte_for_byte(eth_ucy_dir, tmp_path):
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", "navigan-r,human", "--dpi", "200") == 0

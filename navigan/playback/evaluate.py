@@ -53,6 +53,8 @@ MODELS: tuple[str, ...] = tuple(COLUMNS)
 HUMAN = "human"
 #: The shielded columns' margin by default (m): the paper's d_safe between people.
 SHIELD_MARGIN = 0.5
+#: Column suffixes: the intention-only path, the shield's check, the checkpoint's evasion networks.
+DAGGER, SHIELDED, EVADING = "-dagger", "-shield", "-evasion"
 #: Which model's full and dagger paths Fig. 4 shows: the first of these that a requested column walks with.
 FIGURE_MODELS = ("navigan-r", "navigan", "navil2")
 
@@ -85,15 +87,21 @@ class Settings:
                                        "shield": self.shield, "protocol": self.protocol}
 
     def policy(self, model: str, record: ckpt.Checkpoint, path: Path) -> Policy:
-        """The policy a learned column walks with: its checkpoint's, its dagger or shield, our seed."""
-        shield = self.shield if model.endswith("-shield") else None
-        return Policy.of(record, path, dagger=model.endswith("-dagger"), seed=self.seed, shield=shield)
+        """The policy a learned column walks with: its checkpoint's, its dagger, shield or evasion
+        networks, our seed.
+
+        Raises:
+            NaviganError: an evasion column's checkpoint has no evasion networks.
+        """
+        shield = self.shield if model.endswith(SHIELDED) else None
+        return Policy.of(record, path, dagger=model.endswith(DAGGER), seed=self.seed, shield=shield,
+                         evasion=model.endswith(EVADING))
 
 
 def base_model(model: str) -> str:
-    """The trained model a column walks with: `navigan-dagger` and `navigan-r-shield` -> `navigan`
-    and `navigan-r`."""
-    return model.removesuffix("-dagger").removesuffix("-shield")
+    """The trained model a column walks with: `navigan-dagger`, `navigan-r-shield` and
+    `navigan-r-evasion` -> `navigan`, `navigan-r` and `navigan-r`."""
+    return model.removesuffix(DAGGER).removesuffix(SHIELDED).removesuffix(EVADING)
 
 
 def checkpoint_file(model: str, split: str, folder: Path) -> Path | None:
@@ -102,7 +110,8 @@ def checkpoint_file(model: str, split: str, folder: Path) -> Path | None:
 
 
 def check_request(splits: Sequence[str], models: Sequence[str], folder: Path) -> None:
-    """Refuse unknown splits or models, and missing checkpoints, before any work.
+    """Refuse unknown splits or models, missing checkpoints, and checkpoints without the evasion
+    networks an evasion column walks, before any work.
 
     Raises:
         NaviganError: naming every unknown name or missing file.
@@ -117,6 +126,11 @@ def check_request(splits: Sequence[str], models: Sequence[str], folder: Path) ->
                       if (p := checkpoint_file(m, s, folder)) is not None and not p.is_file()})
     if missing:
         raise NaviganError(f"missing checkpoint{'s' if len(missing) > 1 else ''}: {', '.join(missing)}")
+    without = sorted({str(p) for s in splits for m in models if m.endswith(EVADING)
+                      if (p := checkpoint_file(m, s, folder)) is not None and ckpt.load(p).build_evasion() is None})
+    if without:
+        raise NaviganError(f"no evasion networks in {', '.join(without)}: add them with trials train --evasion, "
+                           f"or leave the {EVADING} column out")
 
 
 def write_atomic(path: Path, data: bytes) -> None:

@@ -5,8 +5,9 @@ the observation is used up), the other pedestrians' recorded last T_OBS position
 plans T_PRED way-points and walks to the first. The networks were trained with goals T_PRED steps
 (4.8 s) ahead, so by default they are handed a sub-goal that far ahead toward the episode's goal
 at the recorded person's pace (as the trial controller hands the robot's at its speed); given the
-goal itself, 36 steps ahead, they hurry to reach it in 12. A policy with a shield has its first
-step checked against everyone's constant-velocity forecast (`navigan.shield`) before it is walked.
+goal itself, 36 steps ahead, they hurry to reach it in 12. A policy with evasion networks walks
+the first step they choose (`navigan.evasion`); one with a shield has its first step checked
+against everyone's constant-velocity forecast (`navigan.shield`) before it is walked.
 An episode stops when it reaches its goal or its cut-off, and leaves the batch. The fluctuation
 noise of each episode and step is drawn from the seed and the episode's name alone, so a batch
 walks exactly as its episodes one at a time.
@@ -24,6 +25,8 @@ import torch
 
 from navigan import checkpoint as ckpt
 from navigan.data import fill_tracks
+from navigan.errors import NaviganError
+from navigan.evasion import Evasion
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
 from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes
@@ -53,6 +56,8 @@ class Policy:
         checkpoint: where the weights came from.
         shield: the margin (m) its first step must keep from everyone's constant-velocity
             forecast (`navigan.shield.shielded_steps`); None walks the plan as it is.
+        evasion: the checkpoint's evasion networks, which choose the walked first step
+            (`navigan.evasion`); None walks the plan as it is.
     """
 
     generator: NaviganGenerator | GoalSocialGenerator
@@ -61,22 +66,31 @@ class Policy:
     seed: int
     checkpoint: Path
     shield: float | None = None
+    evasion: Evasion | None = None
 
     @classmethod
-    def load(cls, path: str | Path, dagger: bool = False, seed: int = 0, shield: float | None = None) -> Policy:
+    def load(cls, path: str | Path, dagger: bool = False, seed: int = 0, shield: float | None = None,
+             evasion: bool = False) -> Policy:
         """The policy of a checkpoint file.
 
         Raises:
-            NaviganError: the checkpoint cannot be read.
+            NaviganError: the checkpoint cannot be read, or has no evasion networks when asked for them.
         """
-        return cls.of(ckpt.load(path), Path(path), dagger, seed, shield)
+        return cls.of(ckpt.load(path), Path(path), dagger, seed, shield, evasion)
 
     @classmethod
     def of(cls, record: ckpt.Checkpoint, path: Path, dagger: bool = False, seed: int = 0,
-           shield: float | None = None) -> Policy:
-        """The policy of a loaded checkpoint (read from `path`)."""
+           shield: float | None = None, evasion: bool = False) -> Policy:
+        """The policy of a loaded checkpoint (read from `path`), walking its evasion networks if `evasion`.
+
+        Raises:
+            NaviganError: `evasion` and the checkpoint has none.
+        """
         noise = record.model.noise if record.model.variant.fluctuation else 0
-        return cls(record.build_generator(), dagger, noise, seed, path, shield)
+        networks = record.build_evasion() if evasion else None
+        if evasion and networks is None:
+            raise NaviganError(f"{path} has no evasion networks: add them with trials train --evasion")
+        return cls(record.build_generator(), dagger, noise, seed, path, shield, networks)
 
     def noise(self, names: list[str]) -> np.ndarray | None:
         """(E, CUTOFF_STEPS, noise) each episode's noise for each step, or None without noise."""
@@ -133,12 +147,14 @@ class Visit:
         around: (B, N, T_OBS, 2) the others present (`neighbours`).
         goals: (B, 2) the (sub-)goals handed to the policy.
         noise: (B, noise) the fluctuation noise, or None.
+        planned: (B, 2) the first way-point the policy planned, before any check changes it.
     """
 
     histories: np.ndarray
     around: np.ndarray
     goals: np.ndarray
     noise: np.ndarray | None
+    planned: np.ndarray
 
 
 def neighbours(episodes: Episodes, active: np.ndarray, step: int) -> np.ndarray:
@@ -200,9 +216,11 @@ def roll_out(
         around = neighbours(episodes, active, step)
         histories, drawn = track[active, step : step + T_OBS], None if noise is None else noise[active, step]
         waypoints, intention, forces = policy.plan(histories, around, goals, drawn)
-        if visit is not None:
-            visit(Visit(histories, around, goals, drawn))
         walked = (intention if policy.dagger else waypoints)[:, 0]
+        if visit is not None:
+            visit(Visit(histories, around, goals, drawn, walked))
+        if policy.evasion is not None:
+            walked = policy.evasion.steps(histories, around, walked)
         if policy.shield is not None:
             walked = shielded_steps(track[active, step + T_OBS - 1], walked, around, policy.shield)
         track[active, step + T_OBS] = walked

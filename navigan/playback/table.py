@@ -25,6 +25,7 @@ COLUMNS: dict[str, str] = {
     "navigan-dagger": "NG-dagger",
     "navigan-r": "R",
     "navigan-r-dagger": "R-dagger",
+    "navigan-r-evasion": "R+evasion",
     "navigan-r-shield": "R+shield",
     "human": "human",
 }
@@ -240,7 +241,12 @@ def document(
            f"steps ({HORIZON * STEP_S:g} s), it would come within {settings['shield']:g} m of anyone's "
            "constant-velocity forecast, it is replaced by the move nearest to it that keeps the "
            "distance (navigan/shield.py)."
-           if "navigan-r-shield" in columns else ""), "",
+           if "navigan-r-shield" in columns else "")
+        + (" R+evasion walks NaviGAN-R with its evasion networks, trained beside it on the shield's test: "
+           "they keep the plan's first step unless they predict it falls short of the margin, else walk the "
+           "move that best trades nearness to the plan against predicted shortfall; nothing is forecast "
+           "while walking (navigan/evasion.py)."
+           if "navigan-r-evasion" in columns else ""), "",
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
         f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
         "(collision), else +1 if the step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 "

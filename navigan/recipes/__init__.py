@@ -8,6 +8,7 @@ same way. A recipe sets only what differs from the defaults of `navigan.config.M
     [network]               # ModelConfig fields: sizes, pair_pool
     [train]                 # TrainConfig fields but split
     [closed_loop]           # ClosedLoopConfig fields: the tuning `trials train --closed-loop` adds
+    [evasion]               # EvasionConfig fields: the networks `trials train --evasion` adds
 
 The split, the output file, the device and the data folder belong to the command, not the recipe.
 """
@@ -23,7 +24,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Union, get_args, get_origin, get_type_hints
 
-from navigan.config import MODELS, ClosedLoopConfig, ModelConfig, TrainConfig
+from navigan.config import MODELS, ClosedLoopConfig, EvasionConfig, ModelConfig, TrainConfig
 from navigan.errors import NaviganError
 from robot_logs.physical import T_PRED
 
@@ -31,7 +32,8 @@ from robot_logs.physical import T_PRED
 RECIPES_DIR = Path(__file__).resolve().parent
 
 #: The tables of a recipe file and the config each one fills (the model's name is a top-level key).
-TABLES: dict[str, type] = {"network": ModelConfig, "train": TrainConfig, "closed_loop": ClosedLoopConfig}
+TABLES: dict[str, type] = {"network": ModelConfig, "train": TrainConfig, "closed_loop": ClosedLoopConfig,
+                           "evasion": EvasionConfig}
 
 #: Config fields a recipe may not set: the model is named at the top, the split by the command.
 NOT_IN_TABLES = frozenset({"model", "split"})
@@ -51,7 +53,7 @@ _AT_LEAST_ZERO = (_at_least_zero, "a number >= 0")
 #: Settings whose values have bounds, with what a value must be (other settings need only the field's type).
 LIMITS: dict[str, tuple[Callable[[Any], bool], str]] = {
     **{name: _WHOLE_POSITIVE for name in ("hidden", "embed", "goal", "pool", "noise", "mlp", "epochs", "patience", "batch",
-                                          "rounds")},
+                                          "rounds", "width", "shortfall_batches")},
     **{name: _AT_LEAST_ZERO for name in ("w_l2", "w_fde", "w_adversarial", "w_resistance", "encounters", "force_size",
                                          "w_first", "w_rest", "w_hinge")},
     "seed": (_at_least_zero, "a whole number >= 0"),
@@ -109,6 +111,7 @@ class TrainingRecipe:
         network: the ModelConfig fields it sets.
         train: the TrainConfig fields it sets.
         closed_loop: the ClosedLoopConfig fields it sets.
+        evasion: the EvasionConfig fields it sets.
     """
 
     name: str
@@ -118,6 +121,7 @@ class TrainingRecipe:
     network: dict[str, Any]
     train: dict[str, Any]
     closed_loop: dict[str, Any]
+    evasion: dict[str, Any]
 
     def configs(self, split: str, **overrides: Any) -> tuple[ModelConfig, TrainConfig]:
         """The model and training configs on `split`; `overrides` replace training settings (None: the recipe's)."""
@@ -127,6 +131,10 @@ class TrainingRecipe:
     def tuning(self, seed: int | None = None) -> ClosedLoopConfig:
         """The closed-loop tuning's settings; `seed` replaces the recipe's (None: the recipe's)."""
         return ClosedLoopConfig(**(self.closed_loop | ({} if seed is None else {"seed": seed})))
+
+    def evasion_training(self, seed: int | None = None) -> EvasionConfig:
+        """The evasion networks' training settings; `seed` replaces the recipe's (None: the recipe's)."""
+        return EvasionConfig(**(self.evasion | ({} if seed is None else {"seed": seed})))
 
     def record(self) -> dict[str, str]:
         """What a checkpoint keeps of the recipe (its configs hold the settings as resolved)."""
@@ -161,7 +169,8 @@ def load(name_or_file: str) -> TrainingRecipe:
     except tomllib.TOMLDecodeError as exc:
         raise NaviganError(f"{file}: not valid TOML: {exc}") from None
     model, tables = _settings(values, str(file))
-    return TrainingRecipe(name_or_file, file, text, model, tables["network"], tables["train"], tables["closed_loop"])
+    return TrainingRecipe(name_or_file, file, text, model, tables["network"], tables["train"], tables["closed_loop"],
+                          tables["evasion"])
 
 
 def _settings(values: dict[str, Any], where: str) -> tuple[str, dict[str, dict[str, Any]]]:

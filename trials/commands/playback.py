@@ -16,7 +16,7 @@ SPLIT_CHOICES = "eth, hotel, univ, zara1, zara2 or all"
 MAX_SPEED_M_S = 10.0
 MAX_SHIELD_M = 10.0
 ALL_MODELS = ("goal-social-lstm,navil2,navil2-dagger,navigan,navigan-dagger,navigan-r,navigan-r-dagger,"
-              "navigan-r-shield,human")
+              "navigan-r-evasion,navigan-r-shield,human")
 
 
 def register(sub: argparse._SubParsersAction) -> None:

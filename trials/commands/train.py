@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -13,7 +14,7 @@ from trials.progress import add_quiet
 
 if TYPE_CHECKING:
     from navigan.checkpoint import Checkpoint
-    from navigan.config import ClosedLoopConfig
+    from navigan.config import ClosedLoopConfig, EvasionConfig
 
 #: Training settings the command may override, each a whole number (None: the recipe's).
 OVERRIDES = ("epochs", "patience", "seed")
@@ -31,7 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "validation metrics) is saved after every epoch; run the same command again to resume an "
             "interrupted training. --closed-loop then tunes the finished NaviGAN-R on the states it visits "
             "walking playback episodes of the split's training recordings (navigan/closed_loop.py; settings "
-            "from the recipe's [closed_loop] table, on the CPU), saved after every round and resumable the same way."
+            "from the recipe's [closed_loop] table, on the CPU), saved after every round and resumable the same way. "
+            "--evasion then trains NaviGAN-R's evasion networks beside the finished generator on the states it visits "
+            "walking the same episodes (navigan/evasion_training.py; settings from the recipe's [evasion] table, "
+            "on the CPU), saved and resumable the same way; `trials playback --models navigan-r-evasion` walks them."
         ),
     )
     parser.add_argument("--recipe", required=True, metavar="NAME|FILE",
@@ -47,6 +51,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="after training (or on a finished checkpoint at --out), tune it in closed loop")
     parser.add_argument("--closed-loop-seed", type=types.seed, metavar="SEED",
                         help="seed of the closed-loop tuning's walks and batch order (default: the recipe's)")
+    parser.add_argument("--evasion", action="store_true",
+                        help="after training (and any closed-loop tuning), train the evasion networks")
+    parser.add_argument("--evasion-seed", type=types.seed, metavar="SEED",
+                        help="seed of the evasion training's walks, weights and batch order (default: the recipe's)")
+    parser.add_argument("--retrain-evasion", action="store_true",
+                        help="with --evasion: discard the finished evasion networks the checkpoint at --out holds "
+                             "(such as the shipped ones) and train them again")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="torch device (default cpu)")
     parser.add_argument("--threads", type=types.whole(1, MAX_THREADS), help="CPU threads for torch (default: torch's choice)")
     parser.add_argument("--data", type=Path, metavar="DIR",
@@ -65,6 +76,12 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         overrides.append("--closed-loop")
         if args.closed_loop_seed is not None:
             overrides.append(f"--closed-loop-seed {args.closed_loop_seed}")
+    if args.evasion:
+        overrides.append("--evasion")
+        if args.evasion_seed is not None:
+            overrides.append(f"--evasion-seed {args.evasion_seed}")
+        if args.retrain_evasion:
+            overrides.append("--retrain-evasion")
     return " ".join([f"trials train --recipe {args.recipe} --split {args.split}", *overrides, f"--out {out.name}"])
 
 
@@ -86,6 +103,9 @@ def run(args: argparse.Namespace) -> int:
             raise NaviganError(f"--{name}: expected {expected}, got {value}")
     if args.closed_loop_seed is not None and not args.closed_loop:
         raise NaviganError("--closed-loop-seed: only with --closed-loop")
+    for option in ("evasion_seed", "retrain_evasion"):
+        if getattr(args, option) not in (None, False) and not args.evasion:
+            raise NaviganError(f"--{option.replace('_', '-')}: only with --evasion")
     recipe = recipes.load(args.recipe)
     model, config = recipe.configs(args.split, **{name: getattr(args, name) for name in OVERRIDES})
     if args.closed_loop and not (model.variant.resistance and model.variant.fluctuation):
@@ -95,6 +115,11 @@ def run(args: argparse.Namespace) -> int:
     if args.closed_loop and args.device != "cpu":
         raise NaviganError(f"--closed-loop: tunes on the CPU only; train with --device {args.device} first, "
                            "then add --closed-loop without it")
+    if args.evasion and not (model.variant.resistance and model.variant.fluctuation):
+        raise NaviganError(f"--evasion: trains NaviGAN-R's evasion networks only; recipe {args.recipe} trains {model.model}")
+    if args.evasion and args.device != "cpu":
+        raise NaviganError(f"--evasion: trains on the CPU only; train with --device {args.device} first, "
+                           "then add --evasion without it")
     if args.device == "cuda" and not torch.cuda.is_available():
         raise NaviganError("--device cuda: this torch build sees no CUDA device")
     if args.threads:
@@ -119,6 +144,12 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.closed_loop:
         record = tune_closed_loop(args, record, recipe.tuning(args.closed_loop_seed), split.train, out)
+    if args.evasion:
+        config = recipe.evasion_training(args.evasion_seed)
+        if args.retrain_evasion and record.evasion and (record.evasion["weights"] is not None
+                                                        or record.evasion["settings"] != asdict(config)):
+            record.evasion = None  # an unfinished training with these settings is resumed, not restarted
+        record = train_evasion_networks(args, record, config, split.train, out)
     best = record.best or {"epoch": 0, "val": {}}
     status = record.finished or "unfinished"
     val = best["val"]
@@ -127,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
         f"(validation loss {val.get('loss', float('nan')):.4f}, ADE {val.get('ade', float('nan')):.3f} m, "
         f"FDE {val.get('fde', float('nan')):.3f} m)"
         + (f"; tuned in closed loop over {len(record.closed_loop['rounds'])} rounds" if record.closed_loop else "")
+        + (f"; evasion networks trained over {len(record.evasion['rounds'])} walks" if record.evasion else "")
     )
     return 0
 
@@ -150,3 +182,25 @@ def tune_closed_loop(args: argparse.Namespace, record: Checkpoint, config: Close
               f"trained on {entry['states_total']}, {terms}", flush=True)
 
     return tune(record, out, episodes, config, save=lambda r: ckpt.save(r, out), on_round=None if args.quiet else tuned)
+
+
+def train_evasion_networks(args: argparse.Namespace, record: Checkpoint, config: EvasionConfig, files: tuple[Path, ...],
+                           out: Path) -> Checkpoint:
+    """Train the evasion networks beside a finished checkpoint on playback episodes of the training
+    recordings, one line per walk."""
+    from navigan import checkpoint as ckpt
+    from navigan.evasion_training import train_evasion
+    from navigan.playback.episodes import load_episodes
+    from navigan.playback.protocols import DEFAULT_PROTOCOL
+    from trials.progress import Progress
+
+    Progress("walk", "evasion", args.quiet).loading(f"Walking {args.split}'s training recordings for the evasion networks")
+    episodes = load_episodes(files, DEFAULT_PROTOCOL)
+
+    def trained(round_: int, entry: dict[str, Any]) -> None:
+        print(f"evasion walk {round_}/{config.rounds}: walked {entry['states']} states "
+              f"({entry['planned_short']:.3f} of the planned steps short), head trained on {entry['states_total']}",
+              flush=True)
+
+    return train_evasion(record, out, episodes, config, save=lambda r: ckpt.save(r, out),
+                         on_round=None if args.quiet else trained, command=command_line(args, out))
