@@ -159,13 +159,13 @@ def train_evasion(
     or resume their training.
 
     `record.evasion` holds the training: the command that trained them (`command`; the checkpoint's
-    own is the generator's), its settings, one entry per finished walk (`states`: what
-    it visited; `states_total`: what the head after it trained on; the share of planned steps that
-    fall short; CPU seconds), until the last round what resuming needs, and then the networks'
-    weights. The checkpoint is saved (`save`) after every walk; `on_round(round, entry)` is called
-    as each finishes (round 0 is the generator's own walk). Seeds, from `config.seed` s: walk r's
-    noise s * 1000 + r, the initial weights of the shortfall network s * 1000 and of the head fitted
-    after walk r s * 1000 + 500 + r, the batches' order and turns one generator seeded with s.
+    own is the generator's), its settings, one entry per finished walk (`states`: what it visited;
+    `states_total`: what the head after it trained on; the share of planned steps that fall short;
+    CPU seconds), until the last round what resuming needs, and then the networks' weights. The
+    checkpoint is saved (`save`) after every walk; `on_round(round, entry)` is called as each
+    finishes (round 0 is the generator's own walk). Seeds, from `config.seed` s: walk r's noise
+    s * 1000 + r, the initial weights of the shortfall network s * 1000 and of the head fitted after
+    walk r s * 1000 + 500 + r, the batches' order and turns one generator seeded with s.
 
     Raises:
         NaviganError: the checkpoint is unfinished, not a NaviGAN-R with noise, or holds evasion
