@@ -200,7 +200,7 @@ def tune(
     the states its walk visited; `states_total`: all rounds' so far, which it trained on; its CPU
     seconds and last epoch's mean terms) and, until the last round, what resuming needs. The
     checkpoint is saved (`save`) after every round; `on_round(round, entry)` is called as each
-    finishes.
+    finishes. Evasion networks trained beside the starting weights are dropped with them.
 
     Raises:
         NaviganError: the checkpoint is unfinished, not a NaviGAN-R with noise, or holds a tuning
@@ -246,6 +246,7 @@ def tune(
         record.closed_loop = tuning
         if last:
             record.generator = _weights(learner_net)
+            record.evasion = None  # taught on the starting network's plans, they no longer fit
         save(record)
         if on_round is not None:
             on_round(round_, entry)

@@ -285,15 +285,16 @@ def r_alone(checkpoints: Path | None, folder: Path, model: str = "navigan-r") ->
                 if r["source"] == "ours" and r["metric"] in ("C", "A")}
 
 
-def closed_loop_tuned(seed: int, folder: Path) -> Path:
-    """A folder of the shipped per-split NaviGAN-R, each tuned in closed loop with `seed`."""
+def shipped_then(options: list[str], folder: Path) -> Path:
+    """A folder of the shipped per-split NaviGAN-R, each taken further by `trials train --recipe
+    playback` with `options` (the closed-loop tuning, or the evasion networks)."""
     weights = folder / "weights"
     weights.mkdir()
     for split in SPLITS:
         out = weights / f"navigan-r-{split}.pt"
         shutil.copyfile(ROOT / "navigan" / "weights" / out.name, out)
         trials(["train", "--recipe", "playback", "--split", split, *(["--epochs", "60"] if split == "univ" else []),
-                "--closed-loop", "--closed-loop-seed", str(seed), "--threads", "1", "--out", str(out), "--quiet"], folder)
+                *options, "--threads", "1", "--out", str(out), "--quiet"], folder)
     return weights
 
 
@@ -308,7 +309,8 @@ def moonshot() -> str:
         for seed in MOONSHOT_SEEDS:
             run = Path(folder) / f"seed{seed}"
             run.mkdir()
-            figures[f"tuned, seed {seed}"] = r_alone(closed_loop_tuned(seed, run), run)
+            figures[f"tuned, seed {seed}"] = r_alone(shipped_then(["--closed-loop", "--closed-loop-seed", str(seed)], run),
+                                                     run)
     return moonshot_text(figures)
 
 
@@ -898,19 +900,6 @@ print(f"RESULT {{SPLIT}} seed {{SEED}}: n {{n}}, R with the head and the regress
 </details>"""
 
 
-def evasion_trained(seed: int, folder: Path) -> Path:
-    """A folder of the shipped per-split NaviGAN-R, each with evasion networks trained anew with `seed`."""
-    weights = folder / "weights"
-    weights.mkdir()
-    for split in SPLITS:
-        out = weights / f"navigan-r-{split}.pt"
-        shutil.copyfile(ROOT / "navigan" / "weights" / out.name, out)
-        trials(["train", "--recipe", "playback", "--split", split, *(["--epochs", "60"] if split == "univ" else []),
-                "--evasion", "--evasion-seed", str(seed), "--retrain-evasion", "--threads", "1", "--out", str(out),
-                "--quiet"], folder)
-    return weights
-
-
 def evasion() -> str:
     """Issue 25's moonshot in the product: R+evasion over three training seeds beside R alone and R+shield."""
     figures = {}
@@ -922,7 +911,8 @@ def evasion() -> str:
             run = Path(folder) / f"seed{seed}"
             run.mkdir()
             name = f"R+evasion, seed {seed}" + (" (shipped)" if seed == EVASION_SEEDS[0] else "")
-            figures[name] = r_alone(evasion_trained(seed, run), run, "navigan-r-evasion")
+            weights = shipped_then(["--evasion", "--evasion-seed", str(seed), "--retrain-evasion"], run)
+            figures[name] = r_alone(weights, run, "navigan-r-evasion")
         figures["shipped, R+shield"] = r_alone(None, shipped, "navigan-r-shield")
     return evasion_text(figures)
 

@@ -89,6 +89,7 @@ def test_a_resumed_tuning_ends_where_an_uninterrupted_one_does(zara1):
     saved: list[ckpt.Checkpoint] = []
     whole = tune(ckpt.load(path), path, episodes, config, save=lambda r: saved.append(copy.deepcopy(r)))
     assert [r["round"] for r in whole.closed_loop["rounds"]] == [1, 2] and whole.closed_loop["resume"] is None
+    assert ckpt.load(path).evasion is not None and whole.evasion is None  # the shipped networks fit the old weights
     first, second = whole.closed_loop["rounds"]
     assert first["states"] == first["states_total"] == sum(len(p) for p in visited(
         Policy.load(path, seed=walk_seed(config, 1)), Policy.load(path), episodes, config.margin))  # round 1 walks the teacher
