@@ -55,10 +55,11 @@ class TrainingSettings:
         min_leaf, l2: the fewest segments a leaf may hold and the L2 penalty on leaf values;
             together they keep a tree from growing leaves for a few segments of one room.
         balanced: weight legs and other segments equally (legs are about 3 % of the segments).
-        recall, confirm_recall, protect_recall: the leg threshold, the confirming and the
-            protecting mean probability are the highest probabilities that this share of the
-            labelled legs reach when held out (by log when there are two labelled logs or more,
-            else by time blocks).
+        recall: the leg threshold is the highest probability at which the detection stage the
+            tracker uses (the classifier, then the static world) keeps this share of the labelled
+            legs held out (by log when there are two labelled logs or more, else by time blocks).
+        confirm_recall, protect_recall: the confirming and the protecting mean probability are
+            the highest probabilities that this share of the labelled legs reach, held out alike.
         seed: seeds the boosting and the fold assignment.
         scan_odometry: place each scan by scan matching (`robot_logs.scan_odometry`) for the
             static world, so it holds in the room while the robot moves; off, each sensor's grid
@@ -133,6 +134,8 @@ PROTOCOL = {
                  "farther than ignore_radius from every label",
     "ignored": "unmatched segments of labelled scans within ignore_radius of a label (not trained on, "
                "not scored by the protocol; the strict figures count them as negatives)",
+    "threshold": "the highest held-out probability at which the classifier followed by the static world "
+                 "keeps the settings' recall of the labelled legs",
     "folds by log": "each labelled log held out whole; the time blocks of logs with nobody present "
                     "are dealt to those folds in turn",
     "static world": "the figures with the static world call no segment a leg whose middle point lies on a "
@@ -346,11 +349,26 @@ def threshold_for_recall(is_leg: np.ndarray, probability: np.ndarray, recall: fl
     return float(leg_probability[keep - 1])
 
 
+def stage_threshold(is_leg: np.ndarray, probability: np.ndarray, static: np.ndarray, recall: float) -> float:
+    """The highest probability threshold at which the classifier followed by the static world
+    (which drops the `static` segments) still calls a share `recall` of the labelled legs; where
+    the static world holds more legs than that leaves out, the threshold that keeps every leg off it.
+
+    Raises:
+        LogError: every labelled leg lies on the static world.
+    """
+    kept = is_leg & ~static
+    if not kept.any():
+        raise LogError("every labelled leg lies on its log's static world: no threshold keeps any")
+    return max(threshold_for_recall(is_leg, np.where(static, -np.inf, probability), recall), float(probability[kept].min()))
+
+
 def validate(
     data: LabelledSegments, settings: TrainingSettings = TrainingSettings()
 ) -> tuple[tuple[float, float, float], dict[str, Scores], list[FalsePositives]]:
     """The (threshold, confirm, protect) probabilities, from the held-out predictions by log (by
-    time blocks when only one log is labelled); the held-out scores at the threshold, by log
+    time blocks when only one log is labelled), the threshold for the classifier followed by the
+    static world (`stage_threshold`); the held-out scores at the threshold, by log
     and by time blocks, each under the protocol and strictly (every unlabelled segment a
     negative), for the classifier alone and followed by the static world (`StaticFlags`); and
     each log's false positives under the protocol, held out as the threshold was.
@@ -361,8 +379,8 @@ def validate(
     designs = (["log"] if data.labelled_logs >= 2 else []) + ["time"]
     held_out = {by: held_out_probability(data, by, settings) for by in designs}
     chosen = held_out[designs[0]]
-    shares = (settings.recall, settings.confirm_recall, settings.protect_recall)
-    levels = tuple(threshold_for_recall(data.is_leg, chosen, share) for share in shares)
+    levels = (stage_threshold(data.is_leg, chosen, data.static, settings.recall),
+              *(threshold_for_recall(data.is_leg, chosen, share) for share in (settings.confirm_recall, settings.protect_recall)))
     validation = {}
     scopes = (("", np.ones(len(data.is_leg), dtype=bool)), (", labelled logs", data.log < data.labelled_logs))
     for by, probability in held_out.items():

@@ -1,10 +1,11 @@
 """Static-world rejection: an occupancy grid of the surroundings, accumulated scan by scan in
 the output frame (the odometry frame when tracking a moving robot's log).
 
-Every scan adds a hit to the cells its points fall in and a free count to the known cells its
-beams pass through; a cell hit in most of the scans that saw it, for long enough, is part of the
-static world (furniture legs, wall ends, pillars), and a leg there is not a person; optionally a
-cell hit a few times and never seen free is static sooner. Points near a track the detector is
+Every scan adds a hit to the cells its points fall in, a free count to the known cells its
+beams pass through, and a hidden count to the known cells just behind a beam's end; a cell hit
+in most of the scans that saw it or hid it close behind something, for long enough, is part of
+the static world (furniture legs, wall ends, pillars), and a leg there is not a person;
+optionally a cell hit a few times and never seen free is static sooner. Points near a track the detector is
 sure of (`PersonTracker` decides which) are not added, so a person standing still never turns
 into furniture; a walking leg's cells are soon seen free again.
 
@@ -36,7 +37,12 @@ class StaticWorldConfig:
         min_hits: scans that must have hit a cell before it can be static.
         min_duration: seconds from a cell's first hit before it can be static (longer than a
             walking leg stands on the ground).
-        occupied_share: share of the scans that saw a cell which must have hit it.
+        occupied_share: share of the scans that saw a cell, or hid it within `hidden_gap`, which
+            must have hit it.
+        hidden_gap: a cell whose beam ends less than this far in front of it (m) counts as seen
+            without a hit. A person walking along the beams, towards the lidar, hides the cells
+            their legs just left, which would otherwise collect hits alone and turn static; a
+            cell seen past something farther ahead (furniture behind furniture) is not counted.
         keep_out: points this close to a protected track are not added (m).
         protect_confidence: tracks whose mean detection confidence reaches this are protected.
         never_free_hits, never_free_duration: a cell hit in this many scans over at least this
@@ -50,6 +56,7 @@ class StaticWorldConfig:
     min_hits: int = 3
     min_duration: float = 1.5
     occupied_share: float = 0.8
+    hidden_gap: float = 1.0
     keep_out: float = 0.4
     protect_confidence: float = 0.7
     never_free_hits: int = 1_000_000
@@ -57,13 +64,14 @@ class StaticWorldConfig:
 
 
 class StaticWorld:
-    """Hit and free counts per cell; `update` once per scan, `is_static` for positions."""
+    """Hit, free and hidden counts per cell; `update` once per scan, `is_static` for positions."""
 
     def __init__(self, config: StaticWorldConfig = StaticWorldConfig()) -> None:
         self.config = config
         self.side = int(np.ceil(2.0 * config.half_size / config.cell))
         self.hits = np.zeros(self.side * self.side, dtype=np.int32)
         self.free = np.zeros(self.side * self.side, dtype=np.int32)
+        self.hidden = np.zeros(self.side * self.side, dtype=np.int32)
         self.first_hit = np.full(self.side * self.side, np.inf)
         self.time = -np.inf
         self._known = np.zeros(0, dtype=np.int64)
@@ -93,7 +101,7 @@ class StaticWorld:
         cells = self.cells(points)
         hit = np.unique(cells[cells >= 0])
         self._scans += 1
-        self._free_pass(scan, sensor_pose, hit)
+        self._free_and_hidden(scan, sensor_pose, hit)
         self.hits[hit] += 1
         self.time = scan.stamp
         self.first_hit[hit] = np.minimum(self.first_hit[hit], scan.stamp)
@@ -101,7 +109,7 @@ class StaticWorld:
         self._is_known[new] = True
         self._known = np.concatenate((self._known, new))
 
-    def _free_pass(self, scan: Scan, sensor_pose: Pose2D, hit: np.ndarray) -> None:
+    def _free_and_hidden(self, scan: Scan, sensor_pose: Pose2D, hit: np.ndarray) -> None:
         # Cells beside a hit one are not counted free: a beam grazing a wall passes the centre of
         # a wall cell that this scan's points happened to skip.
         offsets = (np.arange(-1, 2)[:, None] * self.side + np.arange(-1, 2)[None, :]).ravel()
@@ -117,19 +125,22 @@ class StaticWorld:
         ranges = np.where(scan.valid(), scan.ranges, np.where(np.isposinf(scan.ranges), np.inf, np.nan))
         beyond = np.full(len(known), np.nan)
         beyond[seen] = ranges[beam[seen]]
+        margin = 2.0 * self.config.cell
         with np.errstate(invalid="ignore"):
-            passed = seen & (beyond > distance + 2.0 * self.config.cell)
+            passed = seen & (beyond > distance + margin)
+            hidden = seen & (beyond < distance - margin) & (beyond > distance - self.config.hidden_gap)
         self.free[known[passed]] += 1
+        self.hidden[known[hidden]] += 1
 
     def is_static(self, positions: np.ndarray) -> np.ndarray:
         """(N,) True where a position's cell is part of the static world, or `known_static` says it is static."""
         cells = self.cells(positions)
         inside = cells >= 0
         cells = np.maximum(cells, 0)
-        hits, free = self.hits[cells], self.free[cells]
+        hits, free, hidden = self.hits[cells], self.free[cells], self.hidden[cells]
         age = self.time - self.first_hit[cells]
         config = self.config
-        settled = (age >= config.min_duration) & (hits >= config.min_hits) & (hits >= config.occupied_share * (hits + free))
+        settled = (age >= config.min_duration) & (hits >= config.min_hits) & (hits >= config.occupied_share * (hits + free + hidden))
         solid = (free == 0) & (hits >= config.never_free_hits) & (age >= config.never_free_duration)
         static = inside & (settled | solid)
         return static if self.known_static is None else static | self.known_static(positions)

@@ -15,7 +15,16 @@ from robot_logs.detection import DetectorConfig
 from robot_logs.errors import LogError
 from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting, shipped_detector
-from robot_logs.leg_training import LabelledSegments, StaticFlags, TrainingSettings, candidates, folds, match_labels
+from robot_logs.leg_training import (
+    LabelledSegments,
+    StaticFlags,
+    TrainingSettings,
+    candidates,
+    folds,
+    match_labels,
+    stage_threshold,
+    threshold_for_recall,
+)
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.segment_features import CONTEXT_NAMES, FEATURE_NAMES, MAX_RADIUS, SHAPE_NAMES, segment_features
 from trials.cli import main
@@ -129,6 +138,19 @@ def test_static_flags_take_a_post_after_its_log_has_seen_it_and_never_a_walker()
     assert walker_static and not any(walker_static)
 
 
+def test_the_threshold_keeps_the_recall_through_the_static_world() -> None:
+    probability = np.array([0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, 0.05, 0.95])
+    is_leg = np.arange(11) < 10  # ten legs, and one other segment
+    static = np.zeros(11, dtype=bool)
+    assert stage_threshold(is_leg, probability, static, 0.8) == threshold_for_recall(is_leg, probability, 0.8) == 0.2
+    static[1] = True  # the 0.8 leg is on the static world: the eighth leg kept is now the 0.1 one
+    assert stage_threshold(is_leg, probability, static, 0.8) == 0.1
+    static[[0, 2]] = True  # three of ten legs static: 0.8 cannot be kept, so every leg off it is
+    assert stage_threshold(is_leg, probability, static, 0.8) == 0.05
+    with pytest.raises(LogError, match="every labelled leg lies on its log's static world"):
+        stage_threshold(is_leg, probability, is_leg, 0.8)
+
+
 @pytest.fixture(scope="module")
 def small_model():
     from sklearn.ensemble import HistGradientBoostingClassifier
@@ -184,7 +206,7 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
     assert sum(log["scans"] for log in record["logs"] if log["kind"] == "labelled") == 1204
     assert files["negative_2.bag"]["kind"] == "nobody present" and files["negative_2.bag"]["scans"] == 1304
     assert record["legs"] == 1825 and record["settings"]["seed"] == 0 and record["ignored"] > 0
-    assert set(record["protocol"]) == {"positives", "negatives", "ignored", "folds by log", "static world"}
+    assert set(record["protocol"]) == {"positives", "negatives", "ignored", "threshold", "folds by log", "static world"}
     figures = record["cross_validation"]
     assert set(figures) == {f"{design}{scope}{stage}{rule}" for design in ("logs", "time blocks")
                             for scope in ("", ", labelled logs") for stage in ("", ", static world") for rule in ("", ", strict")}
@@ -193,9 +215,12 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
         every = figures[name.replace(", labelled logs", "")]
         assert figures[name]["legs"] == every["legs"] and figures[name]["recall"] == every["recall"]
         assert figures[name]["segments"] < every["segments"] and figures[name]["precision"] >= every["precision"]
-    # The goal, leg precision 0.8 at recall 0.9 held out by bag over the labelled sample bags, under the protocol.
-    assert figures["logs, labelled logs"]["precision"] >= 0.8 and figures["logs, labelled logs"]["recall"] >= 0.9
-    assert figures["logs"]["recall"] >= record["settings"]["recall"]  # the threshold is set by log
+    # The goal, leg precision 0.8 at recall 0.9 held out by bag over the labelled sample bags, for the detection
+    # stage the tracker uses: under the protocol (measured 0.908) and strictly (0.837).
+    for rule in ("", ", strict"):
+        goal = figures[f"logs, labelled logs, static world{rule}"]
+        assert goal["precision"] >= 0.8 and goal["recall"] >= 0.9
+    assert figures["logs, static world"]["recall"] >= record["settings"]["recall"]  # the threshold is set by log
     assert figures["logs"]["segments"] == record["segments"] - record["ignored"] == figures["logs, strict"]["segments"] - record["ignored"]
     for design in ("logs", "time blocks"):
         for stage in ("", ", static world"):  # the strict figure counts the ignored segments as negatives

@@ -29,7 +29,8 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic of the labelled logs (default: their only one)")
     parser.add_argument("--labels-topic", metavar="TOPIC", help="PoseArray topic of the labelled legs (default: the only one)")
     parser.add_argument("--recall", type=types.number(0.0, 1.0, above=True), default=0.9,
-                        help="the threshold keeps this share of the labelled legs in cross-validation (default 0.9)")
+                        help="the threshold keeps this share of the labelled legs through the classifier and the static "
+                        "world in cross-validation (default 0.9)")
     parser.add_argument("--ignore-radius", type=types.number(0.0, 10.0), default=1.0, metavar="M",
                         help="unmatched segments this close to a label are neither legs nor negatives (default 1.0)")
     parser.add_argument("--block", type=types.number(0.0, 3600.0, above=True), default=10.0, metavar="S",
@@ -64,9 +65,9 @@ def train_detector(args: argparse.Namespace) -> int:
     classifier = train(data, levels, settings, validation)
     classifier.save(Path(args.out))
     held_out = "log" if "logs" in validation else "time blocks"
-    print(f"leg threshold {levels[0]:.3f}, confirming {levels[1]:.3f}, protecting {levels[2]:.3f} (probabilities "
-          f"{settings.recall:.0%}, {settings.confirm_recall:.0%} and {settings.protect_recall:.0%} of the labelled legs "
-          f"reach, held out by {held_out})")
+    print(f"leg threshold {levels[0]:.3f} (the classifier followed by the static world keeps {settings.recall:.0%} of "
+          f"the labelled legs there), confirming {levels[1]:.3f} and protecting {levels[2]:.3f} (probabilities "
+          f"{settings.confirm_recall:.0%} and {settings.protect_recall:.0%} of them reach); held out by {held_out}")
     print(f"cross-validated precision / recall of the segments called legs (probability >= {levels[0]:.3f}):\n"
           f"  protocol: unmatched segments within {settings.ignore_radius:g} m of a label left out; "
           "strict: every unlabelled segment a negative\n"
