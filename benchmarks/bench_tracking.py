@@ -194,7 +194,7 @@ def main() -> None:
             for stage, detection in (("", "classifier alone"), (", static world", "classifier + static world")):
                 for rule, scored in (("", "the documented protocol"), (", strict", "every unlabelled segment a negative")):
                     figures = record["cross_validation"][f"{design}{scope}{stage}{rule}"]
-                    goal = " (goal: precision >= 0.8 at recall >= 0.9)" if design == "logs" and scope and not stage + rule else ""
+                    goal = " (goal: precision >= 0.8 at recall >= 0.9)" if design == "logs" and scope and stage else ""
                     print(f"  cross-validated by {design}, segments of {logs}, {detection} ({scored}): leg precision "
                           f"{figures['precision']:.3f}, recall {figures['recall']:.3f}{goal}")
     print("detection vs hand-labelled legs (real scans):")
