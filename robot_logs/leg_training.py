@@ -183,7 +183,7 @@ class StaticFlags:
     No track keeps its surroundings out of this grid, unlike `PersonTracker`'s, so it needs no
     classifier and is built once for every fold; on the sample bags the tracker's own grid, run
     with each fold's classifier, rejected 11 fewer of the 1,825 labelled legs and moved the
-    figures by under 0.01 (docs/robot_logs.md)."""
+    figures by under 0.01 (measured before the grid counted hidden cells; docs/robot_logs.md)."""
 
     def __init__(self, odometry: ScanOdometryConfig | None = ScanOdometryConfig()) -> None:
         self.odometry = odometry

@@ -5,9 +5,9 @@ Every scan adds a hit to the cells its points fall in, a free count to the known
 beams pass through, and a hidden count to the known cells just behind a beam's end; a cell hit
 in most of the scans that saw it or hid it close behind something, for long enough, is part of
 the static world (furniture legs, wall ends, pillars), and a leg there is not a person;
-optionally a cell hit a few times and never seen free is static sooner. Points near a track the detector is
-sure of (`PersonTracker` decides which) are not added, so a person standing still never turns
-into furniture; a walking leg's cells are soon seen free again.
+optionally a cell hit a few times and never seen free is static sooner. Points near a track the
+detector is sure of (`PersonTracker` decides which) are not added, so a person standing still
+never turns into furniture; a walking leg's cells are soon seen free or hidden again.
 
 What is known to be static beforehand (a ROS map, `robot_logs.occupancy_map`) joins the grid as
 `StaticWorld.known_static`: a leg on an occupied map cell is static from the first scan.

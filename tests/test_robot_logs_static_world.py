@@ -134,8 +134,8 @@ def test_a_cell_never_seen_free_is_static_sooner_only_when_asked() -> None:
 def test_a_walker_coming_straight_at_the_lidar_leaves_no_static_cells_behind() -> None:
     """Walking along the beams towards the lidar, a person hides the cells their legs just left,
     so no beam ever passes them free; counted as seen without a hit (`hidden_gap`), they stay
-    free of the static world. Without that count, 17 of the 62 points of the first steps were
-    on static cells 2 s later (measured)."""
+    free of the static world. Without that count, 17 of the 62 points of the first steps lie on
+    static cells by the end of the 3 s walk (measured)."""
     lidar = LidarSimulator(seed=4)
     worlds = {gap: StaticWorld(StaticWorldConfig(hidden_gap=gap)) for gap in (1.0, 0.0)}
     first_steps = []
