@@ -92,6 +92,11 @@ class Checkpoint:
         return networks.eval()
 
 
+def weights(module: torch.nn.Module) -> dict[str, torch.Tensor]:
+    """A copy of a module's weights, detached, to keep in a checkpoint while the module trains on."""
+    return {k: v.detach().clone() for k, v in module.state_dict().items()}
+
+
 def save(checkpoint: Checkpoint, path: str | Path) -> None:
     """Write atomically: a temporary file in the same folder, then a rename."""
     path = Path(path)

@@ -181,10 +181,6 @@ def walk_seed(config: ClosedLoopConfig, round_: int) -> int:
     return config.seed * 1000 + round_
 
 
-def _weights(generator: torch.nn.Module) -> dict[str, torch.Tensor]:
-    return {k: v.detach().clone() for k, v in generator.state_dict().items()}
-
-
 def tune(
     record: ckpt.Checkpoint,
     path: Path,
@@ -239,13 +235,13 @@ def tune(
         entry = {"round": round_, "states": sum(len(p) for p in walk), "states_total": sum(len(p) for p in parts),
                  "cpu_seconds": round(time.process_time() - began, 1), "train": {k: round(v, 6) for k, v in means.items()}}
         tuning["rounds"].append(entry)
-        resume["learners"].append(_weights(learner_net))
+        resume["learners"].append(ckpt.weights(learner_net))
         resume["rng"] = rng.bit_generator.state
         last = round_ == config.rounds
         tuning["resume"] = None if last else resume
         record.closed_loop = tuning
         if last:
-            record.generator = _weights(learner_net)
+            record.generator = ckpt.weights(learner_net)
             record.evasion = None  # taught on the starting network's plans, they no longer fit
         save(record)
         if on_round is not None:

@@ -161,8 +161,8 @@ class Evasion(nn.Module):
         short = self.head(x)[:, 0].numpy() >= 0.0  # probability >= 0.5
         if not short.any():
             return planned
-        ring = torch.from_numpy(np.ascontiguousarray(candidates(step[short])[:, 1:]))
-        cost = (ring - torch.from_numpy(step[short, None])).norm(dim=-1) + PENALTY * self.shortfall(x[short])[:, 1:]
+        detour = (torch.from_numpy(RING) - torch.from_numpy(step[short, None])).norm(dim=-1)
+        cost = detour + PENALTY * self.shortfall(x[short])[:, 1:]
         walked = planned.copy()
         walked[short] = position[short] + RING[cost.argmin(dim=1).numpy()]
         return walked

@@ -142,10 +142,6 @@ def _networks(head: EvasionHead, shortfall: ShortfallNet, width: int) -> Evasion
     return networks.eval()
 
 
-def _weights(module: nn.Module) -> dict[str, torch.Tensor]:
-    return {k: v.detach().clone() for k, v in module.state_dict().items()}
-
-
 def train_evasion(
     record: ckpt.Checkpoint,
     path: Path,
@@ -204,9 +200,9 @@ def train_evasion(
             continue  # walked again only to gather its states
         if round_ == 0:
             shortfall = fit_shortfall(parts[0], config, rng, config.seed * 1000)
-            resume["shortfall"] = _weights(shortfall)
+            resume["shortfall"] = ckpt.weights(shortfall)
         head = fit_head(join(parts), config, rng, walk_seed(config, round_) + 500)
-        resume["heads"].append(_weights(head))
+        resume["heads"].append(ckpt.weights(head))
         resume["rng"] = rng.bit_generator.state
         entry = {"round": round_, "states": len(parts[-1]), "states_total": sum(len(p) for p in parts),
                  "planned_short": round(float(parts[-1].short[:, 0].mean()), 4),
@@ -216,7 +212,7 @@ def train_evasion(
         last = round_ == config.rounds
         training["resume"] = None if last else resume
         if last:
-            training["weights"] = _weights(_networks(head, shortfall, config.width))
+            training["weights"] = ckpt.weights(_networks(head, shortfall, config.width))
         record.evasion = training
         save(record)
         if on_round is not None:
