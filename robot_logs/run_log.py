@@ -48,6 +48,9 @@ CONTROLLER_RECORD = Topic("/controller/record", "navtrials.ControllerRecord")
 COMPARISON = Topic("/replay/comparison", "navtrials.ReplayComparison")
 RECORDED_POSES = Topic("/replay/recorded_poses", "foxglove.PosesInFrame")
 EVENTS = Topic("/events", "navtrials.Event")
+#: A live run's own sensors: every scan (placed in the run's frame at its stamp) and the robot's tf as it sent it.
+SCAN = Topic("/scan", "foxglove.LaserScan")
+ROBOT_TF = Topic("/robot/tf", "foxglove.FrameTransform")
 #: What the controller computed (its plans, its own record, a logged trial's plans against the log):
 #: a blinded run keeps these out of its public log, in its sealed record, with the `replay` metadata.
 CONTROLLER_TOPICS = (PLAN, PLAN_POSES, CONTROLLER_RECORD, COMPARISON, RECORDED_POSES)

@@ -15,7 +15,6 @@ from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
 from trials.atomic import write_files
 from trials.errors import StudyError
-from trials.run_settings import TABLE
 from trials.study import (
     ALLOCATION,
     DESIGN,
@@ -41,19 +40,20 @@ if TYPE_CHECKING:
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None,
-                 run: Mapping[str, Any] | None = None, figures_dpi: int | None = None) -> list[Path]:
+                 tables: Mapping[str, Mapping[str, Any]] | None = None, figures_dpi: int | None = None) -> list[Path]:
     """Write study.toml, plan.csv, design.json, the design figures when `figures_dpi` is given (PNG at that
     resolution, and SVG) and the sealed key (sealed/ 0700, its files 0600).
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
-    it is kept under sealed/. `run` is the spec's `[run]` table (`trials.run_settings`), written
-    after the design's tables. Returns the public files written.
+    it is kept under sealed/. `tables` are the study's own tables beside the design (`[run]`:
+    `trials.run_settings`; `[robot]`: `trials.robot.settings`), written after the design's. Returns the public files written.
     """
     created = utc_now()
     table = plan_table(plan)
     record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
+    own_tables = "".join(f"\n{tomli_w.dumps({name: dict(table)})}" for name, table in (tables or {}).items() if table)
     public = {
-        folder.path(SPEC): (spec_to_toml(plan.spec) + (f"\n{tomli_w.dumps({TABLE: dict(run)})}" if run else "")).encode(),
+        folder.path(SPEC): (spec_to_toml(plan.spec) + own_tables).encode(),
         folder.path(PLAN): plan_content(*table),
         folder.path(DESIGN): json_content(record),
     }

@@ -11,6 +11,11 @@ class StudyError(ValueError):
     """A study folder or command request that cannot be served; the message says what and where."""
 
 
+class RunAborted(StudyError):
+    """A live run stopped before its own ending (e-stop, stale sensors, a signal, the middleware lost); the message says
+    why and where its log went, and names no controller. The row stays pending."""
+
+
 class DiskFullError(StudyError):
     """A file could not be written for want of space; every later write would fail too, so work stops."""
 

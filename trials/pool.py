@@ -15,6 +15,7 @@ import os
 import queue
 import signal
 import sys
+import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -44,10 +45,10 @@ class PoolError(RuntimeError):
         self.failure = failure
 
 
-def _die_with_parent(parent: int) -> None:
+def _die_with_parent(parent: int, death: int) -> None:
     if sys.platform.startswith("linux"):
         libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        libc.prctl(PR_SET_PDEATHSIG, death)
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
 
@@ -57,9 +58,9 @@ def _failure(exc: BaseException, user_errors: tuple[type[BaseException], ...]) -
 
 
 def _serve(tasks: Any, results: Any, parent: int, setup: Callable[..., Callable[[Any], Any]], args: tuple[Any, ...],
-           user_errors: tuple[type[BaseException], ...]) -> None:
+           user_errors: tuple[type[BaseException], ...], death: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent(parent)
+    _die_with_parent(parent, death)
     try:
         handler = setup(*args)
     except Exception as exc:
@@ -79,16 +80,20 @@ class WorkerPool:
     """`workers` processes, each set up by `setup(*args)`; use as a context manager.
 
     Leaving the block normally lets idle workers exit; leaving it by an exception (Ctrl-C
-    included) kills them at once, wherever they are.
+    included) kills them at once, wherever they are. With `graceful` (seconds), workers that must
+    finish something first (a live run stopping its robot) are sent SIGTERM instead, also when the
+    parent dies, and killed only if they have not exited after that many seconds.
     """
 
     def __init__(self, workers: int, setup: Callable[..., Callable[[Any], Any]], args: tuple[Any, ...] = (),
-                 user_errors: tuple[type[BaseException], ...] = ()) -> None:
+                 user_errors: tuple[type[BaseException], ...] = (), graceful: float | None = None) -> None:
         context = mp.get_context("spawn")
+        self._graceful = graceful
+        death = signal.SIGKILL if graceful is None else signal.SIGTERM
         self._tasks = context.Queue()
         self._results = context.Queue()
         self._processes = [
-            context.Process(target=_serve, args=(self._tasks, self._results, os.getpid(), setup, args, user_errors), daemon=True)
+            context.Process(target=_serve, args=(self._tasks, self._results, os.getpid(), setup, args, user_errors, death), daemon=True)
             for _ in range(workers)
         ]
         for process in self._processes:
@@ -133,6 +138,12 @@ class WorkerPool:
             for process in self._processes:
                 process.join()
         else:
+            if self._graceful is not None:
+                for process in self._processes:
+                    process.terminate()
+                deadline = time.monotonic() + self._graceful
+                for process in self._processes:
+                    process.join(max(deadline - time.monotonic(), 0.0))
             for process in self._processes:
                 process.kill()
             for process in self._processes:

@@ -90,11 +90,12 @@ class RunLog:
         if cone is not None:
             self._fixed.append(entity(0, FRAME, "cone", cylinders=[{**cylinder(*cone, 0.15, 0.5, CONE_COLOUR), "top_scale": 0.0}]))
 
-    def _stamp(self, time: float) -> int:
+    def stamp(self, time: float) -> int:
+        """The log time (ns) of a run time (s)."""
         return self._start_ns + fmt.stamp_ns(time)
 
     def state(self, time: float, robot: RobotState, command: tuple[float, float], crowd: Crowd) -> None:
-        stamp = self._stamp(time)
+        stamp = self.stamp(time)
         w = self.writer
         w.write(*fmt.TRANSFORM, frame_transform(stamp, FRAME, "base_link", Pose2D(robot.x, robot.y, robot.theta)), stamp)
         w.write(*fmt.SCENE, scene_update([*self._fixed, self._robot(stamp, robot), self._people(stamp, crowd)]), stamp)
@@ -108,10 +109,10 @@ class RunLog:
         newest = history[:, -1, :] if len(ids) else np.zeros((0, 2))
         previous = history[:, -2, :] if len(ids) else np.zeros((0, 2))
         velocity = np.nan_to_num((newest - previous) / STEP_S)
-        self.writer.write(*fmt.PERCEIVED, fmt.pedestrians(time, ids, newest, velocity), self._stamp(time))
+        self.writer.write(*fmt.PERCEIVED, fmt.pedestrians(time, ids, newest, velocity), self.stamp(time))
 
     def planned(self, time: float, plan: Plan) -> None:
-        stamp = self._stamp(time)
+        stamp = self.stamp(time)
         points = np.asarray(plan.waypoints, dtype=float).reshape(-1, 2)
         self._controller_output(fmt.PLAN, fmt.plan(time, points), stamp)
         self._controller_output(fmt.PLAN_POSES, poses_in_frame(stamp, FRAME, points), stamp)
@@ -119,7 +120,7 @@ class RunLog:
 
     def compared(self, time: float, recorded: np.ndarray, figures: Mapping[str, float | None]) -> None:
         """A logged trial's plan against the log: the robot's recorded positions at the way-points' times."""
-        stamp = self._stamp(time)
+        stamp = self.stamp(time)
         points = np.asarray(recorded, dtype=float).reshape(-1, 2)
         self._controller_output(fmt.COMPARISON, fmt.comparison(time, points, jsonable(figures)), stamp)
         self._controller_output(fmt.RECORDED_POSES, poses_in_frame(stamp, FRAME, points), stamp)
@@ -141,7 +142,7 @@ class RunLog:
             self.withheld.setdefault(topic.name, []).append(message)
 
     def event(self, time: float, name: str, detail: str) -> None:
-        self.writer.write(*fmt.EVENTS, fmt.event(time, name, detail), self._stamp(time))
+        self.writer.write(*fmt.EVENTS, fmt.event(time, name, detail), self.stamp(time))
 
     def _robot(self, stamp: int, robot: RobotState) -> dict[str, Any]:
         size = {"x": 2.0 * self._limits.half_length, "y": 2.0 * self._limits.half_width, "z": 0.4}

@@ -36,6 +36,10 @@ MAX_TIMEOUT_S = 3600.0
 SHIPPED_WEIGHTS = "shipped"
 #: The perception recorded for a logged trial (played from a robot log, not simulated).
 LOGGED = "log"
+#: The perception recorded for a run driven live on a robot (`trials run --robot`).
+LIVE = "live"
+#: Runs that were not simulated, so no simulation setting applies to them.
+NOT_SIMULATED = (LOGGED, LIVE)
 
 
 @dataclass(frozen=True)
@@ -138,8 +142,8 @@ def setting_names() -> tuple[str, ...]:
 def differences(recorded: Mapping[str, str | None], settings: RunSettings) -> list[str]:
     """Where a simulated run's recorded settings (outcomes.csv cells; empty for a run recorded before
     the columns existed) differ from `settings`, as `name recorded -> new` phrases; a logged trial
-    (perception `log`) is played, not simulated, and differs from nothing."""
-    if recorded.get("perception") == LOGGED:
+    (perception `log`) or a live run (`live`) was not simulated, and differs from nothing."""
+    if recorded.get("perception") in NOT_SIMULATED:
         return []
     wanted = settings.recorded()
     return [f"{name} {recorded[name]} -> {wanted[name]}" for name in wanted
@@ -149,7 +153,7 @@ def differences(recorded: Mapping[str, str | None], settings: RunSettings) -> li
 def distinct(rows: Iterable[Mapping[str, str | None]]) -> dict[tuple[str, ...], int]:
     """How many rows were made with each combination of recorded settings (rows with none recorded left out)."""
     counts: dict[tuple[str, ...], int] = {}
-    for row in (r for r in rows if r.get("perception") != LOGGED):
+    for row in (r for r in rows if r.get("perception") not in NOT_SIMULATED):
         key = tuple(str(row.get(name) or "") for name in setting_names())
         if any(key[1:]):
             counts[key] = counts.get(key, 0) + 1

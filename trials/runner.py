@@ -42,13 +42,14 @@ from analysis.records import Outcome, RunMetrics
 from trials.atomic import no_space, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
-from trials.errors import USER_ERRORS, DiskFullError, StudyError
+from trials.errors import USER_ERRORS, DiskFullError, RunAborted, StudyError
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
 from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
+from trials.robot.settings import RobotSettings
 from trials.run_log import RunLog, jsonable
-from trials.run_settings import LOGGED, PERCEPTIONS, RunSettings, differences
+from trials.run_settings import LIVE, LOGGED, PERCEPTIONS, RunSettings, differences
 from trials.scenario import CONTROLLER, settings_from_row
 from trials.sealed_runs import SEALED_RUN_FORMAT, write_sealed
 from trials.sim.perception import PositionNoise
@@ -69,6 +70,8 @@ from trials.study import (
     utc_now,
 )
 
+#: Seconds a live run's worker has to stop the robot and keep its log after SIGTERM, before it is killed.
+LIVE_GRACE_S = 10.0
 #: Run seeds stay below 2^53, so that a spreadsheet, R or JMP (which read numbers as doubles) keeps them exact.
 SEED_BITS = 53
 
@@ -89,6 +92,8 @@ class RunOptions:
     settings_differ: bool = False
     #: Stamp logs with the wall-clock start (blinded runs: to the minute) instead of from 1970-01-01.
     wall_clock: bool = False
+    #: Drive every run live on this robot (`trials run --robot`) instead of simulating or playing logs.
+    robot: RobotSettings | None = None
 
     @property
     def noise(self) -> PositionNoise:
@@ -115,6 +120,12 @@ class RunDone:
     outcome: Outcome
     logged: bool = False
     replay: dict[str, str] = field(default_factory=dict)
+    live: bool = False
+
+    @property
+    def simulated(self) -> bool:
+        """Whether the run was simulated (neither played from a log nor driven live): only then is it judged by simulated participants."""
+        return not (self.logged or self.live)
 
     @property
     def row(self) -> dict[str, str]:
@@ -338,15 +349,18 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         summary.done = len(finished & set(study.codes))
         if not todo:
             return summary
-        simulates = any(log_of(study.task(c).row, folder.root, options.replay) is None for c in todo)
+        simulates = options.robot is None and any(log_of(study.task(c).row, folder.root, options.replay) is None for c in todo)
         if simulates and not options.settings_differ:
             _same_settings(outcomes, set(rerun), options.settings, folder.path(SPEC))
         recorded = {row.run_code: row.seed for row in outcomes.rows}
-        tasks = with_scenes([study.task(code, recorded.get(code) if code in rerun else None) for code in todo],
-                            folder.root, options.replay)
+        chosen = [study.task(code, recorded.get(code) if code in rerun else None) for code in todo]
+        tasks = chosen if options.robot is not None else with_scenes(chosen, folder.root, options.replay)
+        # One robot, one run at a time; a live worker is told to stop by SIGTERM and given time to stop the robot.
+        live = options.robot is not None
         try:
             setup = (str(folder.root), study.name, study.blind, study.levels, options)
-            with WorkerPool(min(workers, len(todo)), setup_worker, setup, USER_ERRORS) as pool:
+            with WorkerPool(1 if live else min(workers, len(todo)), setup_worker, setup, USER_ERRORS,
+                            graceful=LIVE_GRACE_S if live else None) as pool:
                 try:
                     pool.ready()
                 except PoolError as exc:
@@ -462,6 +476,11 @@ class TrialWorker:
         wanted = tuple(dict.fromkeys(self._arms.values())) if blind else levels
         built = registry.ControllerOptions(weights=options.settings.weights)
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
+        self._driver = None
+        if options.robot is not None:
+            from trials.robot.live_trial import LiveDriver
+
+            self._driver = LiveDriver(folder, options.robot)
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
         label = row.get(CONTROLLER)
@@ -475,8 +494,8 @@ class TrialWorker:
         try:
             with no_space(self.folder.run_log(task.code)):
                 return self._run(task)
-        except DiskFullError:
-            raise
+        except (DiskFullError, RunAborted):
+            raise  # their messages name no controller
         except Exception:
             if not self.blind:
                 raise
@@ -494,7 +513,10 @@ class TrialWorker:
         path = self.folder.run_log(task.code)
         replay: dict[str, str] = {}
         settings = self.options.settings
-        if task.scene is None:
+        if self.options.robot is not None:
+            status, metrics = self._live(task, level, arm, controller, path)
+            recorded = {"perception": LIVE, "timeout_s": self.options.robot.timeout}
+        elif task.scene is None:
             status, metrics = self._simulate(task, level, arm, controller, seeds, path)
             recorded: dict[str, Any] = {"perception": settings.perception, "noise_std_m": settings.noise_std_m,
                                         "dropout": settings.dropout, "timeout_s": settings.timeout_s}
@@ -512,7 +534,7 @@ class TrialWorker:
         outcome = Outcome(run_code=task.code, status=status, seed=task.seed, **recorded, **asdict(metrics),
                           controller=None if self.blind else level, finished_utc=utc_stamp(self.blind),
                           weights=settings.recorded()["weights"])
-        return RunDone(task.code, outcome, task.scene is not None, replay)
+        return RunDone(task.code, outcome, task.scene is not None, replay, live=self.options.robot is not None)
 
     def _start_ns(self, scene: LoggedScene | None = None) -> int:
         """The log time of a run's start: 0, or with --wall-clock the played log's own header stamp there (when
@@ -548,14 +570,62 @@ class TrialWorker:
                                       np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
                                       config.limits, config.pedestrian_radius_m)
 
-    def _seal(self, task: RunTask, level: str, arm: str | None, log: RunLog) -> None:
+    def _live(self, task: RunTask, level: str, arm: str | None, controller: Controller, path: Path) -> tuple[str, RunMetrics]:
+        """Drive a row live on the robot (`trials.robot.live_trial`), writing its log; returns how it ended and its
+        metrics. A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
+        in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker then exits."""
+        from trials.robot.live import ABORTED
+        from trials.robot.live_log import LiveLog
+        from trials.robot.live_trial import aborted_stamp
+
+        robot, driver = self.options.robot, self._driver
+        assert robot is not None and driver is not None
+        entries = {"perception": LIVE, "weights": self.options.settings.recorded()["weights"], **robot.recorded(), **self._factors(task)}
+        log = LiveLog(path, self._metadata(task, level, entries), self.blind, robot.limits)
+        try:
+            end = driver.drive(task.code, task.row, controller, log)
+        except RunAborted as exc:
+            _record_failure(self.folder, task.code, str(exc), self.blind)
+            if driver.terminated:
+                raise SystemExit(1) from None
+            raise
+        except BaseException:
+            if log.log is not None:  # whatever stopped the run, what it recorded is kept
+                self._keep_aborted(task, level, arm, log, aborted_stamp())
+            raise
+        if end.status == ABORTED:
+            stamp = aborted_stamp()
+            kept = self._keep_aborted(task, level, arm, log, stamp)
+            message = f"run {task.code} aborted: {end.detail}; its log is {kept}"
+            _record_failure(self.folder, task.code, message, self.blind)
+            if driver.terminated:
+                raise SystemExit(1)
+            raise RunAborted(message)
+        self._seal(task, level, arm, log.log)
+        log.close()
+        return end.status, end.metrics
+
+    def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: Any, stamp: str) -> Path | None:
+        """Close an aborted run's log and move it (and its sealed record) to where aborted runs are kept."""
+        from trials.robot.live_trial import move_aside
+
+        if log.log is None:
+            return None
+        self._seal(task, level, arm, log.log, self.folder.aborted_sealed_run(task.code, stamp))
+        log.close()
+        kept = move_aside(self.folder.run_log(task.code), self.folder.aborted_log(task.code, stamp))
+        if kept is not None and self.blind:
+            to_the_minute(kept, kept.parent)
+        return kept
+
+    def _seal(self, task: RunTask, level: str, arm: str | None, log: RunLog, path: Path | None = None) -> None:
         """Blinded studies: what the controller computed goes to sealed/runs/<code>.json.gz (before
         its log is renamed): its plans and own records by topic, a logged trial's plans against the log."""
         if self.blind:
             record = {"format": SEALED_RUN_FORMAT, "run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
                       **self._controllers[level].details(), "topics": log.withheld, "metadata": log.withheld_metadata,
                       "commands": log.withheld_commands}
-            write_sealed(self.folder, self.folder.sealed_run(task.code), (json.dumps(jsonable(record)) + "\n").encode())
+            write_sealed(self.folder, path or self.folder.sealed_run(task.code), (json.dumps(jsonable(record)) + "\n").encode())
 
     @staticmethod
     def _factors(task: RunTask) -> dict[str, str]:

@@ -64,6 +64,12 @@ RUN_LOG_SUFFIX = ".mcap"
 RUN_FIGURE_SUFFIXES = FORMATS
 #: Beside a run that failed, its one-line reason.
 RUN_FAILURE_SUFFIX = ".failed.txt"
+#: Live runs (`trials run --robot`): the state of the run on the robot now, for the console (public: no controller in it).
+LIVE_STATE = f"{RUNS}/live.json"
+#: Its appearance stops the live run at once: the console's e-stop.
+LIVE_ESTOP = f"{RUNS}/estop"
+#: Logs of live runs that were aborted (e-stop, stale sensors, a signal), kept with why; the run stays pending.
+ABORTED_RUNS = f"{RUNS}/aborted"
 OUTCOMES = "outcomes.csv"
 SCORES = "scores.csv"
 RESPONSES = "responses.csv"
@@ -155,6 +161,14 @@ class StudyFolder:
     def run_failure(self, code: str) -> Path:
         """runs/<code>.failed.txt, why the last attempt at a run failed (`trials.runner`; gone once it finishes)."""
         return self.run_log(code).with_suffix(RUN_FAILURE_SUFFIX)
+
+    def aborted_log(self, code: str, stamp: str) -> Path:
+        """runs/aborted/<code>-<stamp>.mcap, the log of a live run aborted at `stamp` (a UTC time without colons)."""
+        return self.path(ABORTED_RUNS) / f"{code}-{stamp}{RUN_LOG_SUFFIX}"
+
+    def aborted_sealed_run(self, code: str, stamp: str) -> Path:
+        """sealed/runs/aborted/<code>-<stamp>.json.gz, the sealed record of that aborted blinded run."""
+        return self.path(SEALED_RUNS) / "aborted" / f"{code}-{stamp}.json.gz"
 
     def sealed_run(self, code: str) -> Path:
         """sealed/runs/<code>.json.gz, a blinded run's controller output (`trials.sealed_runs`)."""

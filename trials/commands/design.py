@@ -54,6 +54,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--allocation-seed", type=types.seed, help="seed of the blind allocation (default: a fresh secret one, sealed)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--force", action="store_true", help="replace an existing plan; the old files move to superseded/")
+    parser.add_argument("--robot", metavar="URI",
+                        help="drive the runs live on this robot (ros1://HOST:PORT or ros2://DOMAIN): writes a [robot] table with "
+                        "the defaults (topics, frames, limits; docs/live_runs.md) into study.toml, for `trials run --robot` and the console")
     parser.add_argument("--figures", action="store_true",
                         help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG "
                              "(with --evaluate or --compare: each plan's, named PLAN.correlation_map.png and so on, in --study)")
@@ -121,6 +124,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from designs.spec import MAX_RUNS, read_spec
     from trials.design_files import write_design
     from trials.errors import StudyError
+    from trials.robot.settings import robot_table
     from trials.run_settings import run_table
     from trials.study import DESIGN, DESIGN_FIGURES, PLAN, SPEC
 
@@ -144,9 +148,9 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
     plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None,
                       threads=_threads(args))
-    run = run_table(folder.path(SPEC))  # the [run] table stays with the study
+    tables = {"run": run_table(folder.path(SPEC)), "robot": robot_table(folder.path(SPEC), args.robot)}  # they stay with the study
     copied = folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))
-    written = write_design(folder, plan, None, run, args.dpi if args.figures else None)
+    written = write_design(folder, plan, None, tables, args.dpi if args.figures else None)
     if not args.figures:
         for name in DESIGN_FIGURES:  # they show the old plan; their copies are in superseded/
             folder.path(name).unlink(missing_ok=True)
@@ -166,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.controllers import registry
     from trials.errors import StudyError
     from trials.progress import Progress
+    from trials.robot.settings import robot_table
     from trials.run_settings import run_table
     from trials.study import (
         ALLOCATION,
@@ -202,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
-    run = run_table(spec_path) if spec_path is not None else {}
+    tables = {"run": run_table(spec_path) if spec_path is not None else {}, "robot": robot_table(spec_path, args.robot)}
     quiet = args.quiet or args.json
     Progress("start", "design", quiet).loading(f"Searching for a {spec.criterion}-optimal design of {spec.runs} runs ({spec.starts} exchange starts)")
     follow = sys.stderr.isatty() and not quiet
@@ -215,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
     moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
-    written = write_design(folder, plan, original, run, args.dpi if args.figures else None)
+    written = write_design(folder, plan, original, tables, args.dpi if args.figures else None)
 
     if args.json:
         import json

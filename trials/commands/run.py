@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from trials.robot.settings import RobotSettings
     from trials.runner import RunDone
 
 from robot_logs.physical import STEP_S
@@ -64,6 +65,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
                         help="do not add simulated participant judgments to responses.csv after each run")
+    parser.add_argument("--robot", metavar="URI",
+                        help="drive the runs live on a robot through ROS: ros1://HOST:PORT (a ROS 1 master) or ros2://DOMAIN; "
+                        "topics, frames, goal and limits come from study.toml's [robot] table (docs/live_runs.md). "
+                        "One run at a time; Ctrl-C or kill stops the robot and keeps the run's log in runs/aborted/")
     logs = parser.add_argument_group("logged trials", "play robot logs (ROS1/ROS2 bags, MCAP) open loop instead of simulating")
     logs.add_argument("--from-log", type=Path, metavar="FILE",
                       help="play this log for every row run (pending rows, or --only / --rerun ones), "
@@ -91,22 +96,26 @@ def run(args: argparse.Namespace) -> int:
 
     from robot_logs.occupancy_map import read_map
     from robot_logs.topics import TopicNames
+    from trials.errors import StudyError
     from trials.log_trial import ReplayOptions
     from trials.outcomes import columns
     from trials.progress import Progress
     from trials.run_settings import override, read_run_settings
     from trials.runner import RunOptions, StudyRun, run_study
     from trials.simulated_participants import simulate_run
-    from trials.study import OUTCOMES, RESPONSES, RUN_LOCK, SPEC, StudyFolder, to_the_minute
+    from trials.study import LIVE_STATE, OUTCOMES, RESPONSES, RUN_LOCK, SPEC, StudyFolder, to_the_minute
 
-    study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None)
+    if args.robot is not None and args.from_log is not None:
+        raise StudyError("--robot drives the runs live and --from-log plays a recorded log: choose one")
+    study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None or args.robot is not None)
+    robot = live_settings(study.folder.path(SPEC), args.robot)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
                            TopicNames(scan=args.scan_topic, odometry=args.odom_topic), args.salvage,
                            read_map(args.map, args.map_frame) if args.map is not None else None)
     given = {"perception": args.perception, "noise_std_m": args.noise, "dropout": args.dropout,
              "timeout_s": args.timeout, "weights": args.weights}
     settings = override(read_run_settings(study.folder.path(SPEC)), given, "the command line")
-    options = RunOptions(settings, replay, args.settings_differ, wall_clock=args.wall_clock)
+    options = RunOptions(settings, replay, args.settings_differ, wall_clock=args.wall_clock, robot=robot)
 
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
@@ -131,13 +140,18 @@ def run(args: argparse.Namespace) -> int:
         if study.blind and not (args.quiet or args.json):
             print(f"Blinded study: {count} runs; each worker opens the sealed key itself, controller output goes to "
                   "sealed/runs/. Run times stay hidden: each run's line comes when all have ended.", flush=True)
+        if robot is not None and not (args.quiet or args.json):
+            print(f"Driving {count} run{'s' if count > 1 else ''} live on {robot.uri}, one at a time; each waits for scans, "
+                  f"odometry and the laser's transform. {study.folder.path(LIVE_STATE)} (and the console) shows the state; "
+                  "Ctrl-C stops the robot.", flush=True)
         progress.start(count)
 
     def done(run: RunDone) -> None:
         say(run.code, run_line(study.task(run.code).row, run.row) + _replayed(run))
-        if not args.no_responses and not run.logged:
+        if not args.no_responses and run.simulated:
             # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
-            # logged trial's robot drove as recorded, not as its controller planned, so it is not judged.
+            # logged trial's robot drove as recorded, not as its controller planned, and a live run is
+            # judged by real people, so neither gets simulated judgments.
             simulate_run(study.folder, run.code, int(run.row["seed"]), args.participants, run.row["finished_utc"])
             if study.blind:
                 to_the_minute(study.folder.path(RESPONSES), study.folder.root)
@@ -177,6 +191,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def live_settings(spec: Path, uri: str | None) -> RobotSettings | None:
+    """The `[robot]` table of study.toml (its defaults when the study has none) with `--robot URI`; None without --robot."""
+    from dataclasses import replace
+
+    from trials.robot.settings import RobotSettings, read_robot_settings
+    from trials.robot.transport import RobotUri
+
+    if uri is None:
+        return None
+    RobotUri.parse(uri)
+    return replace(read_robot_settings(spec) or RobotSettings(), uri=uri)
 
 
 def run_label(plan_row: dict[str, str]) -> str:

@@ -1,0 +1,507 @@
+"""One run driven live on a robot: sensors in, the controller's plans, velocity commands out, and the stop rules.
+
+The robot's LaserScans go through the same person tracker as `trials log track` (the learned detector,
+the static world), placed in the odometry frame by tf; every 0.4 s of the robot's clock the controller
+gets an `Observation` in that frame and answers with a `Plan` (on its own thread, so a slow plan never
+delays a command); at `command_rate` the path follower of the simulator turns the latest plan into a
+velocity command, held within the robot's speed and acceleration limits.
+
+Time is the robot's: header stamps, counted from the newest scan when the run starts (t = 0), so a
+robot whose clock differs from this computer's is driven alike. Staleness is judged two ways: by this
+computer's clock since a scan or odometry message last arrived (the `watchdog`), and by the robot's
+clock between the newest scan and the newest odometry (a stale odometry on time-stamped scans).
+
+The robot stops (a zero velocity is the last command sent) on the goal, a collision, the timeout, an
+e-stop (the console's stop file or `true` on the e-stop topic), SIGINT or SIGTERM (`StopRequest`),
+the middleware lost, stale sensors, and any exception; a run never starts before scans, odometry and
+the laser's transform to the base have all been seen. A killed process (SIGKILL) sends nothing: the
+robot's own command timeout must stop it (docs/live_runs.md).
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from analysis.records import RunMetrics
+from robot_logs.frames import FrameTree, Pose2D, frame_name
+from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
+from robot_logs.pipeline import PersonTracker
+from robot_logs.records import Odometry, Scan, Transform
+from robot_logs.tracks import TrackRow, TrackTable, history_at
+from trials.controllers.base import Controller, Observation, Plan
+from trials.metrics import measure
+from trials.robot.settings import MAP_FRAME, START_FRAME, RobotSettings
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, Transport, Velocity
+from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
+from trials.sim.follower import WaypointFollower
+from trials.sim.robot import RobotLimits, RobotState, footprint_gaps
+
+#: A run that stopped for any reason but its own ending (goal, collision, timeout).
+ABORTED = "aborted"
+#: The states a live run passes through, as the console shows them.
+WAITING, DRIVING = "waiting for sensors", "driving"
+#: Where a run announces its code (std_msgs/String, latched): a software robot sets up that row's scene.
+RUN_TOPIC = "/trials/run"
+#: Zero velocity commands sent when a run stops, 20 ms apart, so that one lost message does not leave the robot moving.
+STOP_REPEATS = 3
+#: Scans kept waiting for the loop; more means the loop has fallen behind and the oldest are dropped.
+SCAN_QUEUE = 64
+
+
+class StopRequest:
+    """The first reason anyone gave to stop the run (a signal handler, the e-stop topic, the loop itself); thread-safe."""
+
+    def __init__(self) -> None:
+        self._reason: str | None = None
+        self._lock = threading.Lock()
+
+    def request(self, reason: str) -> None:
+        with self._lock:
+            if self._reason is None:
+                self._reason = reason
+
+    @property
+    def reason(self) -> str | None:
+        return self._reason
+
+
+@dataclass(frozen=True)
+class People:
+    """The confirmed tracks at one moment, shaped as the run log expects a crowd."""
+
+    ids: tuple[int, ...] = ()
+    position: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+class Sensors:
+    """What the robot's middleware delivered, kept for the loop: queued scans, the frame tree (tf and odometry),
+    the newest odometry, and when each kind last arrived on this computer's monotonic clock."""
+
+    def __init__(self, settings: RobotSettings, stop: StopRequest) -> None:
+        self.settings = settings
+        self.stop = stop
+        self.scans: queue.Queue[tuple[Scan, float]] = queue.Queue(SCAN_QUEUE)
+        self.tree = FrameTree(max_gap_s=settings.watchdog)
+        self.odometry: Odometry | None = None
+        self.scan_seen: float | None = None
+        self.odometry_seen: float | None = None
+        self.newest_scan_ns: int | None = None
+        #: The robot's tf messages as they came, for the run log.
+        self.transforms: queue.Queue[list[Transform]] = queue.Queue()
+        self.dropped = 0
+        self._lock = threading.Lock()
+
+    def attach(self, transport: Transport) -> None:
+        s = self.settings
+        transport.subscribe(s.scan_topic, SCAN, self.on_scan)
+        if s.odometry_topic:
+            transport.subscribe(s.odometry_topic, ODOMETRY, self.on_odometry)
+        transport.subscribe("/tf", TF, self.on_transforms)
+        transport.subscribe("/tf_static", TF_STATIC, self.on_transforms)
+        transport.subscribe(s.estop_topic, FLAG, self.on_estop)
+
+    def on_scan(self, scan: Scan) -> None:
+        arrived = time.monotonic()
+        with self._lock:
+            self.scan_seen = arrived
+            self.newest_scan_ns = max(scan.stamp_ns, self.newest_scan_ns or scan.stamp_ns)
+        try:
+            self.scans.put_nowait((scan, arrived))
+        except queue.Full:
+            self.dropped += 1
+
+    def on_odometry(self, odometry: Odometry) -> None:
+        with self._lock:
+            self.tree.add(odometry.frame_id, odometry.child_frame_id, odometry.stamp_ns, odometry.pose)
+            if self.odometry is None or odometry.stamp_ns >= self.odometry.stamp_ns:
+                self.odometry = odometry
+            self.odometry_seen = time.monotonic()
+
+    def on_transforms(self, transforms: list[Transform]) -> None:
+        s = self.settings
+        self.transforms.put(transforms)
+        with self._lock:
+            for t in transforms:
+                self.tree.add(t.parent, t.child, t.stamp_ns, t.pose, t.static)
+                if not s.odometry_topic and frame_name(t.child) == frame_name(s.base_frame) and not t.static:
+                    # No odometry topic: the base's pose comes from tf (odometry frame -> base frame).
+                    self.odometry = Odometry(t.stamp_ns, s.odometry_frame, s.base_frame, t.pose, math.nan, math.nan)
+                    self.odometry_seen = time.monotonic()
+
+    def on_estop(self, pressed: bool) -> None:
+        if pressed:
+            self.stop.request(f"e-stop on {self.settings.estop_topic}")
+
+    def lookup(self, target: str, source: str, stamp_ns: int) -> Pose2D | None:
+        """Pose of `source` in `target` at a time, None when unknown or the frames are not connected."""
+        with self._lock:
+            try:
+                return self.tree.lookup(target, source, stamp_ns)
+            except ValueError:
+                return None
+
+    def missing(self, laser_frame: str | None) -> list[str]:
+        """What a run still waits for before it may start."""
+        s = self.settings
+        wanted = []
+        if self.scan_seen is None:
+            wanted.append(f"a scan on {s.scan_topic}")
+        if self.odometry is None:
+            wanted.append(f"odometry on {s.odometry_topic}" if s.odometry_topic else f"tf from {s.odometry_frame} to {s.base_frame}")
+        if laser_frame is not None and self.odometry is not None and self.newest_scan_ns is not None:
+            if self.lookup(s.base_frame, laser_frame, self.newest_scan_ns) is None:
+                wanted.append(f"the transform from {laser_frame} to {s.base_frame}")
+        elif self.scan_seen is not None and laser_frame is None:
+            wanted.append("the scan's frame")
+        return wanted
+
+    def staleness(self, now: float) -> str | None:
+        """Why the sensors cannot be trusted now, else None."""
+        s = self.settings
+        with self._lock:
+            scan_age = now - self.scan_seen if self.scan_seen is not None else math.inf
+            odometry_age = now - self.odometry_seen if self.odometry_seen is not None else math.inf
+            behind = (self.newest_scan_ns - self.odometry.stamp_ns) * 1e-9 if self.odometry and self.newest_scan_ns else 0.0
+        if scan_age > s.watchdog:
+            return f"stale scans: none on {s.scan_topic} for {scan_age:.2f} s (watchdog {s.watchdog:g} s)"
+        if odometry_age > s.watchdog:
+            return f"stale odometry: none for {odometry_age:.2f} s (watchdog {s.watchdog:g} s)"
+        if abs(behind) > s.watchdog:
+            return (f"stale odometry: its newest stamp is {behind:.2f} s behind the newest scan's "
+                    f"(watchdog {s.watchdog:g} s)" if behind > 0 else
+                    f"stale scans: the newest scan's stamp is {-behind:.2f} s behind the odometry's (watchdog {s.watchdog:g} s)")
+        return None
+
+
+@dataclass
+class Trace:
+    """The run at every command tick: run time, the robot's pose and velocity, the tracked people by id."""
+
+    time: list[float] = field(default_factory=list)
+    pose: list[np.ndarray] = field(default_factory=list)
+    velocity: list[tuple[float, float]] = field(default_factory=list)
+    people: list[dict[int, np.ndarray]] = field(default_factory=list)
+
+    def positions(self) -> np.ndarray:
+        """(K, N, 2) every tracked person's position at each tick, NaN while untracked."""
+        ids = sorted({i for seen in self.people for i in seen})
+        column = {i: n for n, i in enumerate(ids)}
+        out = np.full((len(self.time), len(ids), 2), np.nan)
+        for k, seen in enumerate(self.people):
+            for i, xy in seen.items():
+                out[k, column[i]] = xy
+        return out
+
+
+@dataclass(frozen=True)
+class LiveEnd:
+    """How a live run ended: `goal`, `collision`, `timeout` or `aborted`, in words, after how long, and its
+    metrics from the robot's real path and the tracked people."""
+
+    status: str
+    detail: str
+    duration_s: float
+    metrics: RunMetrics
+    #: Scan to velocity command on this computer (s), one per scan that a command followed: the tracking and follower path.
+    latencies: list[float] = field(default_factory=list)
+    #: Seconds each plan took.
+    plan_seconds: list[float] = field(default_factory=list)
+    #: Planning steps skipped because the controller was still busy with the previous one.
+    late_plans: int = 0
+
+
+class LiveSink:
+    """Where a live run reports (the MCAP run log through `trials.robot.live_log`, or nothing)."""
+
+    def started(self, start_ns: int, goal: np.ndarray) -> None: ...
+
+    def scan(self, time: float, scan: Scan, sensor: Pose2D) -> None: ...
+
+    def transforms(self, time: float, transforms: list[Transform]) -> None: ...
+
+    def state(self, time: float, robot: RobotState, command: tuple[float, float], people: People) -> None: ...
+
+    def perceived(self, time: float, ids: tuple[int, ...], history: np.ndarray) -> None: ...
+
+    def planned(self, time: float, plan: Plan) -> None: ...
+
+    def event(self, time: float, name: str, detail: str) -> None: ...
+
+
+class LiveRun:
+    """Drives one run: `wait` for the sensors, then `drive` until the run ends or stops.
+
+    Args:
+        transport: this process's node on the robot's middleware.
+        settings: the `[robot]` table.
+        stop: who may stop the run besides the loop itself.
+        on_state: told each state the console shows (waiting, driving, and the ending), with a detail.
+        estop_file: a file whose appearance is an e-stop (the console's button).
+    """
+
+    def __init__(self, transport: Transport, settings: RobotSettings, stop: StopRequest,
+                 on_state: Callable[[str, str], None] = lambda state, detail: None, estop_file: Path | None = None) -> None:
+        self.transport, self.settings, self.stop, self.on_state = transport, settings, stop, on_state
+        self.estop_file = estop_file
+        self.sensors = Sensors(settings, stop)
+        self._send_twist = transport.publisher(settings.cmd_vel_topic, TWIST)
+        self._announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
+        self.sensors.attach(transport)
+        self.command = (0.0, 0.0)
+        self.laser_frame: str | None = None
+
+    # --- safety --------------------------------------------------------------------------------------
+
+    def send(self, linear: float, angular: float) -> None:
+        self.command = (linear, angular)
+        self._send_twist(Velocity(linear, angular))
+
+    def halt(self) -> None:
+        """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop."""
+        for k in range(STOP_REPEATS):
+            if k:
+                time.sleep(0.02)
+            self.send(0.0, 0.0)
+
+    def _why_stop(self, now: float, check_sensors: bool) -> str | None:
+        reason = self.stop.reason or self.transport.lost()
+        if reason is None and self.estop_file is not None and self.estop_file.exists():
+            reason = "e-stop from the console"
+        if reason is None and check_sensors:
+            reason = self.sensors.staleness(now)
+        return reason
+
+    # --- waiting -------------------------------------------------------------------------------------
+
+    def wait(self, run_code: str) -> str | None:
+        """Announce the run and wait until scans, odometry and the laser's transform have all been seen.
+        Returns None when ready, else why the run cannot start (the robot was told to stand still)."""
+        self.on_state(WAITING, ", ".join(self.sensors.missing(None)))
+        self._announce(run_code)
+        self.send(0.0, 0.0)
+        deadline = time.monotonic() + self.settings.sensor_wait
+        while True:
+            now = time.monotonic()
+            if self.laser_frame is None and not self.sensors.scans.empty():
+                self.laser_frame = self.sensors.scans.queue[0][0].frame_id
+            missing = self.sensors.missing(self.laser_frame)
+            fresh = self.sensors.staleness(now) is None
+            if not missing and fresh:
+                return None
+            reason = self._why_stop(now, check_sensors=False)
+            if reason is None and now > deadline:
+                waited = ", ".join(missing) if missing else self.sensors.staleness(now) or ""
+                reason = f"no start after {self.settings.sensor_wait:g} s: still waiting for {waited}"
+            if reason is not None:
+                self.halt()
+                return reason
+            time.sleep(0.02)
+
+    # --- driving -------------------------------------------------------------------------------------
+
+    def drive(self, controller: Controller, goal_pose: tuple[float, ...], sink: LiveSink) -> LiveEnd:
+        """Drive the reset controller's plans toward the goal (given in the `goal_frame` of the settings) until
+        the run ends; the robot is stopped whatever happens, exceptions included (they are re-raised)."""
+        try:
+            return self._drive(controller, goal_pose, sink)
+        finally:
+            self.halt()
+
+    def _goal(self, goal_pose: tuple[float, ...], start: Pose2D, stamp_ns: int) -> np.ndarray:
+        s = self.settings
+        point = np.array(goal_pose[:2], dtype=float)
+        if s.goal_frame == START_FRAME:
+            return start.apply(point)[0]
+        if frame_name(s.goal_frame) == frame_name(s.odometry_frame):
+            return point
+        frame = MAP_FRAME if s.goal_frame == MAP_FRAME else s.goal_frame
+        placed = self.sensors.lookup(s.odometry_frame, frame, stamp_ns)
+        if placed is None:
+            raise GoalError(f"the goal's frame {frame!r} has no transform to {s.odometry_frame!r}")
+        return placed.apply(point)[0]
+
+    def _drive(self, controller: Controller, goal_pose: tuple[float, ...], sink: LiveSink) -> LiveEnd:
+        s, sensors = self.settings, self.sensors
+        limits = s.limits
+        odometry = sensors.odometry
+        assert odometry is not None and sensors.newest_scan_ns is not None and self.laser_frame is not None
+        start_ns = sensors.newest_scan_ns
+        goal = self._goal(goal_pose, odometry.pose, odometry.stamp_ns)
+        sink.started(start_ns, goal)
+        tracker = PersonTracker.learned()
+        follower = WaypointFollower(limits)
+        rows: deque[TrackRow] = deque()
+        robot_poses: deque[tuple[float, np.ndarray]] = deque()
+        trace = Trace()
+        people = People()
+        planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
+        pending: Future[tuple[float, np.ndarray, Plan, float]] | None = None
+        next_plan, planned = 0.0, False
+        latencies: list[float] = []
+        plan_seconds: list[float] = []
+        late = 0
+        waiting_scans: list[float] = []
+        scans = 0
+        period = 1.0 / s.command_rate
+        tick = time.monotonic()
+        t = 0.0
+        sink.event(0.0, START, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in frame {s.odometry_frame}")
+        self.on_state(DRIVING, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in {s.odometry_frame}")
+        ending: tuple[str, str] | None = None
+        try:
+            while ending is None:
+                now = time.monotonic()
+                reason = self._why_stop(now, check_sensors=True)
+                if reason is not None:
+                    ending = (ABORTED, reason)
+                    break
+                # Every scan that arrived: tracked in the odometry frame.
+                while True:
+                    try:
+                        scan, arrived = sensors.scans.get_nowait()
+                    except queue.Empty:
+                        break
+                    sensor = sensors.lookup(s.odometry_frame, scan.frame_id, scan.stamp_ns)
+                    if sensor is None or scan.stamp_ns < start_ns:
+                        continue
+                    result = tracker.process(scan, sensor_pose=sensor, frame=s.odometry_frame, scan_index=scans)
+                    scans += 1
+                    scan_t = (scan.stamp_ns - start_ns) * 1e-9
+                    sink.scan(scan_t, scan, sensor)
+                    rows.extend(TrackRow(scan.stamp_ns, result.scan_index, tr.track_id, tr.x, tr.y, tr.vx, tr.vy, s.odometry_frame)
+                                for tr in result.tracks)
+                    people = People(tuple(tr.track_id for tr in result.tracks),
+                                    np.array([[tr.x, tr.y] for tr in result.tracks], dtype=float).reshape(-1, 2),
+                                    np.array([[tr.vx, tr.vy] for tr in result.tracks], dtype=float).reshape(-1, 2))
+                    waiting_scans.append(arrived)
+                    oldest = scan.stamp_ns - int(STEP_S * (T_OBS + 1) * 1e9)
+                    while rows and rows[0].stamp_ns < oldest:
+                        rows.popleft()
+                while not sensors.transforms.empty():
+                    sent_tf = sensors.transforms.get_nowait()
+                    sink.transforms(max((sent_tf[0].stamp_ns - start_ns) * 1e-9, 0.0) if sent_tf else t, sent_tf)
+                odometry = sensors.odometry
+                assert odometry is not None
+                t = max((sensors.newest_scan_ns - start_ns) * 1e-9, (odometry.stamp_ns - start_ns) * 1e-9, t)
+                robot = RobotState(odometry.pose.x, odometry.pose.y, odometry.pose.yaw,
+                                   _finite(odometry.linear, self.command[0]), _finite(odometry.angular, self.command[1]))
+                robot_poses.append((t, robot.position))
+                while robot_poses and robot_poses[0][0] < t - STEP_S * (T_OBS + 1):
+                    robot_poses.popleft()
+                # A finished plan replaces the one followed; a new one is asked for every 0.4 s of robot time.
+                if pending is not None and pending.done():
+                    plan_t, position, plan, took = pending.result()
+                    pending = None
+                    plan_seconds.append(took)
+                    sink.planned(plan_t, plan)
+                    follower.follow(plan_t, position, plan)
+                    planned = True
+                if t >= next_plan - 1e-9:
+                    # The observation is logged every 0.4 s whether or not the controller is free to take it, so
+                    # the public log's messages never count a slow controller's plans.
+                    observation = self._observation(t, robot, goal, robot_poses, rows, start_ns)
+                    sink.perceived(t, observation.pedestrian_ids, observation.pedestrian_history)
+                    next_plan = max(next_plan + STEP_S, t)
+                    if pending is None:
+                        pending = planner.submit(_timed_plan, controller, observation)
+                    else:
+                        late += 1
+                command = follower.command(t, robot) if planned else (0.0, 0.0)
+                command = _limited(command, self.command, limits, period)
+                ending = _ending(t, robot, people, goal, limits, s.timeout)
+                if ending is not None:
+                    break
+                self.send(*command)
+                sent = time.monotonic()
+                latencies.extend(sent - arrived for arrived in waiting_scans)
+                waiting_scans.clear()
+                if not trace.time or t > trace.time[-1] + 1e-6:  # one sample per instant of the robot's clock
+                    sink.state(t, robot, command, people)
+                    trace.time.append(t)
+                    trace.pose.append(robot.pose)
+                    trace.velocity.append((robot.v, robot.w))
+                    trace.people.append(dict(zip(people.ids, people.position)))
+                tick += period
+                delay = tick - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+                else:
+                    tick = time.monotonic()  # fell behind: keep the rate from now, never catch up with a burst
+        except Exception as exc:
+            self.halt()
+            sink.event(t, ABORTED, f"an exception stopped the run: {type(exc).__name__}")
+            raise
+        finally:
+            planner.shutdown(wait=False, cancel_futures=True)
+        self.halt()
+        status, detail = ending
+        self.on_state(status, detail)
+        sink.event(t, status, detail)
+        if not trace.time:
+            trace.time.append(t)
+            trace.pose.append(np.array([odometry.pose.x, odometry.pose.y, odometry.pose.yaw]))
+            trace.velocity.append((0.0, 0.0))
+            trace.people.append({})
+        metrics = measure(status if status != ABORTED else TIMEOUT, np.array(trace.time), np.array(trace.pose),
+                          np.array(trace.velocity), trace.positions(), limits, PEDESTRIAN_RADIUS_M)
+        return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late)
+
+    @staticmethod
+    def _observation(t: float, robot: RobotState, goal: np.ndarray, poses: deque[tuple[float, np.ndarray]],
+                     rows: deque[TrackRow], start_ns: int) -> Observation:
+        times = np.array([p[0] for p in poses])
+        xy = np.array([p[1] for p in poses]).reshape(-1, 2)
+        instants = t - STEP_S * np.arange(T_OBS - 1, -1, -1)
+        history = np.column_stack([np.interp(instants, times, xy[:, k]) for k in (0, 1)])
+        ids, pedestrians = history_at(TrackTable(list(rows)), start_ns * 1e-9 + t) if rows else ((), np.zeros((0, T_OBS, 2)))
+        return Observation(time=t, robot_pose=robot.pose, robot_velocity=np.array([robot.v, robot.w]), goal=goal.copy(),
+                           robot_history=history, pedestrian_ids=ids, pedestrian_history=pedestrians)
+
+
+class GoalError(RuntimeError):
+    """The goal's frame cannot be placed in the odometry frame."""
+
+
+def _timed_plan(controller: Controller, observation: Observation) -> tuple[float, np.ndarray, Plan, float]:
+    began = time.perf_counter()
+    plan = controller.plan(observation)
+    return observation.time, observation.robot_pose[:2], plan, time.perf_counter() - began
+
+
+def _finite(value: float, fallback: float) -> float:
+    return value if math.isfinite(value) else fallback
+
+
+def _limited(command: tuple[float, float], last: tuple[float, float], limits: RobotLimits, dt: float) -> tuple[float, float]:
+    """The command within the robot's speed limits and no further from the last one than its accelerations allow in dt."""
+    v = float(np.clip(command[0], -limits.max_reverse_speed, limits.max_speed))
+    w = float(np.clip(command[1], -limits.max_turn_rate, limits.max_turn_rate))
+    v = last[0] + float(np.clip(v - last[0], -limits.max_acceleration * dt, limits.max_acceleration * dt))
+    w = last[1] + float(np.clip(w - last[1], -limits.max_angular_acceleration * dt, limits.max_angular_acceleration * dt))
+    return v, w
+
+
+def _ending(t: float, robot: RobotState, people: People, goal: np.ndarray, limits: RobotLimits, timeout: float) -> tuple[str, str] | None:
+    """The run's own ending now, as a simulated run ends: contact with a tracked person's disc, the goal, the timeout."""
+    if len(people.ids):
+        gaps = footprint_gaps(robot.pose, people.position, limits, PEDESTRIAN_RADIUS_M)
+        hit = int(np.argmin(gaps))
+        if gaps[hit] <= 0.0:
+            return COLLISION, f"tracked person {people.ids[hit]}"
+    distance = float(np.hypot(*(robot.position - goal)))
+    if distance <= GOAL_TOLERANCE_M:
+        return GOAL, f"{distance:.2f} m from the goal"
+    if t >= timeout - 1e-9:
+        return TIMEOUT, f"{distance:.2f} m from the goal after {timeout:g} s"
+    return None

@@ -1,0 +1,103 @@
+"""A `trials run` worker's side of live runs: one node on the robot's middleware, the signals that stop a run,
+the console's state file, and what becomes of a run that ended or was aborted.
+
+The worker that opened the sealed key drives the robot itself, so nobody on the field needs the key: the
+parent process, the console and the state file (`runs/live.json`) see the run code and its state only.
+SIGTERM (sent by `trials run` on Ctrl-C or `kill`, by the console's stop, and by Linux when the parent
+dies) stops the run in progress as an e-stop does; with no run in progress the worker simply exits.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+
+from trials.atomic import write_text
+from trials.controllers.base import Controller
+from trials.errors import RunAborted
+from trials.robot.live import ABORTED, DRIVING, WAITING, LiveEnd, LiveRun, StopRequest
+from trials.robot.live_log import LiveLog
+from trials.robot.settings import RobotSettings
+from trials.robot.transport import Transport, open_transport
+from trials.study import LIVE_ESTOP, LIVE_STATE, StudyFolder, utc_now
+
+#: The states the console shows, in the order a run passes them; the last three end it.
+STATES = (WAITING, DRIVING, "goal", "collision", "timeout", ABORTED)
+
+
+def write_state(folder: StudyFolder, code: str, state: str, detail: str) -> None:
+    """runs/live.json: the live run's code, state and detail, and when it entered that state (UTC, to the second)."""
+    write_text(folder.path(LIVE_STATE), json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": utc_now()}) + "\n")
+
+
+def read_state(folder: StudyFolder) -> dict[str, str] | None:
+    """The live run's state as the worker last wrote it, or None (no live run yet, or an unreadable file)."""
+    try:
+        data = json.loads(folder.path(LIVE_STATE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return {k: str(v) for k, v in data.items()} if isinstance(data, dict) else None
+
+
+class LiveDriver:
+    """One worker's node on the robot's middleware, reused for every run it drives.
+
+    Raises (on creation):
+        StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
+    """
+
+    def __init__(self, folder: StudyFolder, settings: RobotSettings, transport: Transport | None = None) -> None:
+        self.folder, self.settings = folder, settings
+        self.transport = transport if transport is not None else open_transport(settings.robot_uri, "navtrials_run")
+        self.stop: StopRequest | None = None
+        self.terminated = False
+        signal.signal(signal.SIGTERM, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self.terminated = True
+        if self.stop is None:
+            raise SystemExit(128 + signum)
+        self.stop.request(f"stopped by {signal.Signals(signum).name} (Ctrl-C or kill of trials run, or the console's stop)")
+
+    def drive(self, code: str, row: dict[str, str], controller: Controller, log: LiveLog) -> LiveEnd:
+        """Drive row `code` with its (reset) controller, writing `log`. The robot is stopped however the run ends.
+
+        Raises:
+            RunAborted: the run stopped before its own ending (e-stop, stale sensors, a signal, the middleware
+                lost, no sensors at the start); its log, if it started, is closed and moved to runs/aborted/.
+        """
+        estop = self.folder.path(LIVE_ESTOP)
+        estop.unlink(missing_ok=True)  # an e-stop stops one run, not the next
+        self.stop = StopRequest()
+        state: Callable[[str, str], None] = lambda name, detail: write_state(self.folder, code, name, detail)  # noqa: E731
+        live = LiveRun(self.transport, self.settings, self.stop, state, estop)
+        try:
+            reason = live.wait(code)
+            if reason is not None:
+                state(ABORTED, reason)
+                raise RunAborted(f"run {code} did not start: {reason}")
+            end = live.drive(controller, self.settings.goal_for(row), log)
+        finally:
+            self.stop = None
+        return end
+
+    def close(self) -> None:
+        self.transport.close()
+
+
+def aborted_stamp() -> str:
+    """The time in an aborted run's file names: UTC to the second, without colons."""
+    return utc_now().replace(":", "").replace("+0000", "Z")
+
+
+def move_aside(source: Path, target: Path) -> Path | None:
+    """Move a finished file to where aborted runs keep theirs (creating the folder); None when there was nothing."""
+    if not source.exists():
+        return None
+    target.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(source, target)
+    return target

@@ -1,0 +1,184 @@
+"""The `[robot]` table of study.toml: how a live run reaches and drives the robot, checked when read.
+
+Every key is optional; the defaults fit a Husky- or TurtleBot-class base running stock ROS drivers:
+
+    [robot]
+    uri = "ros1://127.0.0.1:11311"  # or "ros2://0" (a ROS 2 domain id); `--robot` overrides it
+    scan_topic = "/scan"            # sensor_msgs/LaserScan
+    odometry_topic = "/odom"        # nav_msgs/Odometry; "" reads the base's pose from tf instead
+    cmd_vel_topic = "/cmd_vel"      # geometry_msgs/Twist, the base's velocity command
+    estop_topic = "/e_stop"         # std_msgs/Bool: true stops the run at once
+    odometry_frame = "odom"
+    base_frame = "base_link"
+    goal = [10.0, 0.0]              # x, y (and optionally yaw) in goal_frame
+    goal_frame = "start"            # "start": the robot's pose when the run starts; or the odometry frame, or "map" (by tf)
+    max_speed = 1.0                 # m/s forward (backwards at most half of it)
+    max_turn_rate = 2.0             # rad/s
+    max_acceleration = 1.5          # m/s^2
+    max_angular_acceleration = 3.0  # rad/s^2
+    watchdog = 0.5                  # s: scans or odometry older than this stop the robot
+    sensor_wait = 20.0              # s to wait for scans, odometry and the laser's transform before giving up
+    timeout = 60.0                  # s of driving before the run ends as a timeout
+    command_rate = 20.0             # Hz of velocity commands
+
+    [robot.goals]                   # a goal per level of the plan's Direction factor, in goal_frame
+    Crossing = [10.0, 0.0]
+
+`designs.spec` leaves this table to this module, as it leaves `[run]` to `trials.run_settings`.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from robot_logs.physical import STEP_S
+from trials.errors import StudyError
+from trials.robot.transport import RobotUri
+from trials.scenario import DIRECTION, GOAL
+from trials.sim.robot import RobotLimits
+
+#: The study.toml table this module reads.
+TABLE = "robot"
+START_FRAME = "start"
+MAP_FRAME = "map"
+DEFAULT_URI = "ros1://127.0.0.1:11311"
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """How a live run reaches the robot, what it reads and commands, its limits and its safety timing."""
+
+    uri: str = DEFAULT_URI
+    scan_topic: str = "/scan"
+    odometry_topic: str = "/odom"
+    cmd_vel_topic: str = "/cmd_vel"
+    estop_topic: str = "/e_stop"
+    odometry_frame: str = "odom"
+    base_frame: str = "base_link"
+    goal: tuple[float, ...] = GOAL
+    goal_frame: str = START_FRAME
+    goals: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    max_speed: float = RobotLimits.max_speed
+    max_turn_rate: float = RobotLimits.max_turn_rate
+    max_acceleration: float = RobotLimits.max_acceleration
+    max_angular_acceleration: float = RobotLimits.max_angular_acceleration
+    watchdog: float = 0.5
+    sensor_wait: float = 20.0
+    timeout: float = 60.0
+    command_rate: float = 20.0
+
+    @property
+    def robot_uri(self) -> RobotUri:
+        return RobotUri.parse(self.uri)
+
+    @property
+    def limits(self) -> RobotLimits:
+        """The follower's limits: the table's speeds and accelerations, backwards at half speed, the footprint of the simulator."""
+        return RobotLimits(max_speed=self.max_speed, max_reverse_speed=0.5 * self.max_speed, max_turn_rate=self.max_turn_rate,
+                           max_acceleration=self.max_acceleration, max_angular_acceleration=self.max_angular_acceleration)
+
+    def goal_for(self, row: dict[str, str]) -> tuple[float, ...]:
+        """The goal of a plan row: its Direction level's, else the table's `goal`."""
+        return self.goals.get(row.get(DIRECTION, ""), self.goal)
+
+    def recorded(self) -> dict[str, str]:
+        """The settings as a run log's metadata records them (strings)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "goals"}
+        text = {name: (" ".join(f"{v:g}" for v in value) if isinstance(value, tuple) else
+                       f"{value:g}" if isinstance(value, float) else str(value)) for name, value in values.items()}
+        return {f"robot_{name}": value for name, value in text.items()}
+
+
+#: Numeric keys and their closed ranges.
+RANGES: dict[str, tuple[float, float]] = {
+    "max_speed": (0.01, 5.0), "max_turn_rate": (0.01, 10.0), "max_acceleration": (0.01, 20.0),
+    "max_angular_acceleration": (0.01, 50.0), "watchdog": (0.05, 5.0), "sensor_wait": (0.5, 600.0),
+    "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
+}
+TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "estop_topic", "odometry_frame", "base_frame", "goal_frame")
+KEYS = (*TEXTS, *RANGES, "goal", "goals")
+#: Furthest goal coordinate a table may give (m): beyond it a value is a typing slip.
+MAX_GOAL_M = 1e4
+
+
+def read_robot_settings(spec: Path) -> RobotSettings | None:
+    """The `[robot]` table of a study.toml, checked; None when the study has none (it is not driven live).
+
+    Raises:
+        StudyError: unreadable TOML, an unknown key, or a value of the wrong kind or out of range, naming the file and key.
+    """
+    try:
+        data = tomllib.loads(spec.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise StudyError(f"{spec}: cannot read its [{TABLE}] table ({exc})") from None
+    if TABLE not in data:
+        return None
+    table = data[TABLE]
+    if not isinstance(table, dict):
+        raise StudyError(f"{spec}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
+    return settings_from_table(table, f"{spec} [{TABLE}]")
+
+
+def robot_table(spec: Path | None, uri: str | None = None) -> dict[str, Any]:
+    """The `[robot]` table of a study.toml as written ({} without one), after checking it, with `uri` set when given
+    (`trials design --robot`), so that `trials design` can carry it into the study.toml it writes."""
+    settings = read_robot_settings(spec) if spec is not None else None
+    table = tomllib.loads(spec.read_text(encoding="utf-8")).get(TABLE, {}) if settings is not None and spec is not None else {}
+    if uri is not None:
+        RobotUri.parse(uri)
+        table = {**table, "uri": uri}
+    return table
+
+
+def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
+    """RobotSettings from a `[robot]` table, each key checked; StudyError names `where` and the key."""
+    unknown = sorted(set(table) - set(KEYS))
+    if unknown:
+        raise StudyError(f"{where}: unknown key {unknown[0]!r} (expected {', '.join(KEYS)})")
+    values: dict[str, Any] = {}
+    for key in TEXTS:
+        if key in table:
+            values[key] = _text(table[key], key, where, empty=key == "odometry_topic")
+    if "uri" in values:
+        try:
+            RobotUri.parse(values["uri"])
+        except StudyError as exc:
+            raise StudyError(f"{where}: uri: {exc}") from None
+    for key, (low, high) in RANGES.items():
+        if key in table:
+            value = table[key]
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and low <= value <= high):
+                raise StudyError(f"{where}: {key} must be a number in [{low:g}, {high:g}], got {value!r}")
+            values[key] = float(value)
+    if "goal" in table:
+        values["goal"] = _pose(table["goal"], "goal", where)
+    if "goals" in table:
+        goals = table["goals"]
+        if not isinstance(goals, dict):
+            raise StudyError(f"{where}: goals must be a table of Direction level = [x, y], got {goals!r}")
+        values["goals"] = {str(level): _pose(pose, f"goals.{level}", where) for level, pose in goals.items()}
+    settings = RobotSettings(**values)
+    if settings.watchdog * settings.command_rate < 2.0:
+        raise StudyError(f"{where}: watchdog {settings.watchdog:g} s is shorter than two commands at {settings.command_rate:g} Hz")
+    return settings
+
+
+def _text(value: Any, key: str, where: str, empty: bool) -> str:
+    if not isinstance(value, str) or (not value.strip() and not empty) or value != value.strip():
+        wanted = "a name (may be empty)" if empty else "a non-empty name without surrounding spaces"
+        raise StudyError(f"{where}: {key} must be {wanted}, got {value!r}")
+    return value
+
+
+def _pose(value: Any, key: str, where: str) -> tuple[float, ...]:
+    ok = (isinstance(value, list) and len(value) in (2, 3)
+          and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= MAX_GOAL_M for v in value))
+    if not ok:
+        raise StudyError(f"{where}: {key} must be [x, y] or [x, y, yaw] in metres and radians (|value| <= {MAX_GOAL_M:g}), got {value!r}")
+    return tuple(float(v) for v in value)
