@@ -478,8 +478,10 @@ class TrialWorker:
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
         self._driver = None
         if options.robot is not None:
+            from trials.robot.live import warm_up
             from trials.robot.live_trial import LiveDriver
 
+            warm_up(self._controllers.values())
             self._driver = LiveDriver(folder, options.robot)
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:

@@ -10,13 +10,13 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from analysis.records import Blinding, HumanScore, Response, StudyData, StudyRun
+from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED_RUN, Blinding, HumanScore, Outcome, Response, StudyData, StudyRun
 from designs.spec import read_spec
 from trials.controllers import registry
 from trials.errors import StudyError
 from trials.outcomes import outcome_cells, read_outcomes
 from trials.responses import read_responses
-from trials.run_settings import distinct, recorded_text
+from trials.run_settings import LIVE, LOGGED, distinct, recorded_text
 from trials.scores import read_scores
 from trials.study import (
     OUTCOMES,
@@ -71,7 +71,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         else:
             arm = (outcome.controller if outcome is not None and outcome.controller else None) or registry.DEFAULT
         values = {f.name: row[f.name] for f in spec.factors}
-        runs.append(StudyRun(int(row["order"]), code, values, arm, outcome, log if log.exists() else None))
+        runs.append(StudyRun(int(row["order"]), code, values, arm, outcome, log if log.exists() else None, run_origin(outcome)))
     for run in runs:
         if run.finished and run.log is None:
             notes.append(f"Run {run.code} has an outcome row but no log {folder.run_log(run.code).relative_to(folder.root)}; "
@@ -90,6 +90,13 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         diagnostics=design.get("diagnostics", {}),
         notes=notes,
     )
+
+
+def run_origin(outcome: Outcome | None) -> str:
+    """How a run was made, by its outcome row's perception: driven live (`live`), played from an external robot log
+    (`log`: the toolkit did not drive that robot), else simulated."""
+    perception = outcome.perception if outcome is not None else ""
+    return {LIVE: LIVE_RUN, LOGGED: EXTERNAL_LOG}.get(perception, SIMULATED_RUN)
 
 
 def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:

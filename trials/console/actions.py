@@ -2,6 +2,8 @@
 (`trials.run_events`), uploaded logs (`trials.attached_logs`), a logged run's MCAP and outcome row as
 `trials run --from-log` makes them (`trials.runner`), scores (`trials.scores`) and judgments
 (`trials.responses`). Each owner writes atomically, so a server killed mid-request leaves every file whole.
+A live run is written by the `trials run --robot` it starts (`trials.console.live`); the console records its
+start and how it ended.
 
 Errors are StudyError (or another user error) with one line saying what was wrong; nothing is written then.
 """
@@ -14,11 +16,12 @@ from pathlib import Path
 
 from analysis.records import HUMAN, HumanScore, Response
 from trials.attached_logs import save_upload
+from trials.console.live import LiveRuns, robot_uri
 from trials.console.sheet import RunSheet, SheetRow, run_sheet
 from trials.errors import StudyError
 from trials.log_trial import ReplayOptions
 from trials.responses import read_responses, record_response
-from trials.run_events import FINISHED, LOG, RunEvent, append_run_event, check_step
+from trials.run_events import ABORT, FINISH, FINISHED, LOG, MAX_DETAIL, RUNNING, START, RunEvent, append_run_event, check_step
 from trials.runner import RunDone, RunOptions, StudyRun, run_study, utc_stamp
 from trials.scores import read_scores, record_score
 from trials.study import PLAN, RESPONSES, RUN_EVENTS, SCORES, StudyFolder, to_the_minute
@@ -42,11 +45,13 @@ class LogRequest:
 
 
 class Console:
-    """The study folder behind `trials serve`; one lock serializes every write."""
+    """The study folder behind `trials serve`; one lock serializes every write. `robot` (`trials serve --robot`)
+    drives the runs live on that robot, as study.toml's [robot] table does."""
 
-    def __init__(self, folder: StudyFolder) -> None:
+    def __init__(self, folder: StudyFolder, robot: str | None = None) -> None:
         self.folder = folder
         self._lock = threading.Lock()
+        self.live = LiveRuns(folder, robot_uri(folder, robot), self._live_ended)
 
     def sheet(self) -> RunSheet:
         return run_sheet(self.folder)
@@ -60,14 +65,44 @@ class Console:
         return sheet, row
 
     def record_event(self, code: str, event: str, detail: str = "") -> RunEvent:
-        """Start, finish or abort run `code`, or add a note to it (times to the minute in a blinded study)."""
+        """Start, finish or abort run `code`, or add a note to it (times to the minute in a blinded study). In a study
+        driven live, Start is `start_live`, and a run being driven live ends by itself or by E-STOP."""
         with self._lock:
             sheet, row = self.run(code)
             check_step(code, event, row.status, detail)
-            record = RunEvent(code, event, detail.strip(), utc_stamp(sheet.blind))
-            append_run_event(self.folder, record)
-            self._minute(sheet)
-            return record
+            if event == START and self.live.uri is not None:
+                raise StudyError(f"this study's runs are driven live on {self.live.uri}: the run page's Start starts run {code} on the robot")
+            if event in (FINISH, ABORT) and self.live.running == code:
+                raise StudyError(f"run {code} is being driven live: it ends by itself, or press E-STOP to stop it now")
+            return self._append(sheet, RunEvent(code, event, detail.strip(), utc_stamp(sheet.blind)))
+
+    def start_live(self, code: str) -> RunEvent:
+        """Start driving run `code` live (`trials run --robot URI --only CODE` in the background) and record its start;
+        refused when the study is not driven live, the run cannot start, or another live run is going."""
+        with self._lock:
+            sheet, row = self.run(code)
+            uri = self.live.robot()
+            check_step(code, START, row.status, "")
+            self.live.start(code)
+            try:
+                return self._append(sheet, RunEvent(code, START, f"driven live on {uri}", utc_stamp(sheet.blind)))
+            except BaseException:
+                self.live.estop()
+                raise
+
+    def _live_ended(self, code: str, finished: bool, reason: str) -> None:
+        """Record how a live run ended: finished (its outcome row is there) or aborted, and why (one line)."""
+        with self._lock:
+            sheet, row = self.run(code)
+            if row.status == RUNNING:
+                detail = " ".join(reason.split())[:MAX_DETAIL] or "stopped"
+                self._append(sheet, RunEvent(code, FINISH, "", utc_stamp(sheet.blind)) if finished else
+                             RunEvent(code, ABORT, detail, utc_stamp(sheet.blind)))
+
+    def _append(self, sheet: RunSheet, record: RunEvent) -> RunEvent:
+        append_run_event(self.folder, record)
+        self._minute(sheet)
+        return record
 
     def attach_log(self, code: str, request: LogRequest) -> RunDone:
         """Play a finished run's robot log as `trials run --from-log LOG --only CODE` does: checked, tracked,
@@ -94,8 +129,7 @@ class Console:
             if failures or not summary.finished:
                 raise StudyError(f"run {code}: its log could not be played: {failures[0] if failures else 'no run was made'}")
             shown = path.relative_to(self.folder.root) if path.is_relative_to(self.folder.root) else path
-            append_run_event(self.folder, RunEvent(code, LOG, str(shown), utc_stamp(sheet.blind)))
-            self._minute(sheet)
+            self._append(sheet, RunEvent(code, LOG, str(shown), utc_stamp(sheet.blind)))
             return summary.finished[0]
 
     def score(self, code: str, score: str, scorer: str, note: str) -> HumanScore:

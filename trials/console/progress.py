@@ -1,5 +1,6 @@
 """The progress page's figures: runs finished per day (and per block when the plan has a Block column),
-judgments and scores collected, and Table II so far with the arms by label only (`analysis.ab_table`)."""
+judgments and scores collected, and Table II so far with the arms by label only (`analysis.ab_table`), from
+the runs the toolkit drove, as the report has it."""
 
 from __future__ import annotations
 
@@ -25,7 +26,8 @@ BLOCK = "Block"
 @dataclass(frozen=True)
 class Progress:
     """Runs finished per day and per block, the counts of judgments (human), participants and scores, the
-    arms in order and Table II from the judgments the report would use (`source`: human or simulated)."""
+    arms in order, Table II from the judgments the report would use (`source`: human or simulated) and the runs
+    it leaves out, those played from external robot logs."""
 
     per_day: dict[str, int]
     per_block: dict[str, tuple[int, int]]
@@ -35,6 +37,7 @@ class Progress:
     arms: list[str]
     source: str
     table: list[TableRow]
+    left_out: list[str]
 
 
 def progress(folder: StudyFolder, sheet: RunSheet) -> Progress:
@@ -47,13 +50,14 @@ def progress(folder: StudyFolder, sheet: RunSheet) -> Progress:
             done, total = per_block.get(row.settings[BLOCK], (0, 0))
             per_block[row.settings[BLOCK]] = (done + (row.code in outcomes), total + 1)
     responses = [r for r in read_responses(folder.path(RESPONSES)) if r.run_code in outcomes]
-    used, source = judgments_used(responses)
+    left_out = [row.code for row in sheet.rows if row.external]
+    used, source = judgments_used(r for r in responses if r.run_code not in left_out)
     human = [r for r in responses if r.source == "human"]
     arm_of = {row.code: row.settings.get(sheet.arm_factor, registry.DEFAULT) if sheet.arm_factor else registry.DEFAULT for row in sheet.rows}
     pedestrians = {row.code: _pedestrians(row.settings, folder.run_log(row.code)) for row in sheet.rows if row.code in outcomes}
     judged = count_judgments(used, arm_of, pedestrians)
     return Progress(dict(sorted(per_day.items())), per_block, len(human), len({r.participant for r in human}),
-                    len(read_scores(folder.path(SCORES))), sheet.arms, source, table_ii(judged, sheet.arms) if judged else [])
+                    len(read_scores(folder.path(SCORES))), sheet.arms, source, table_ii(judged, sheet.arms) if judged else [], left_out)
 
 
 def _pedestrians(settings: dict[str, str], log: Path) -> int:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from analysis.records import HUMAN
+from analysis.records import EXTERNAL_LOG, HUMAN
 from designs.questionnaire import LikertItem
 from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
@@ -17,12 +17,14 @@ from trials.run_events import ABORT, ABORTED, FINISH, LOG, NOTE, PENDING, RUNNIN
 from trials.scenario import CONTROLLER
 from trials.scores import read_scores
 from trials.study import OUTCOMES, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
+from trials.study_data import run_origin
 
 
 @dataclass(frozen=True)
 class SheetRow:
     """One run on the sheet: order, code, settings by factor, status, its outcome's status (empty until
-    its log is played), counts of human scores and judgments, and its events (start, finish, notes...)."""
+    its log is played or its live run ends) and how the run was made (`analysis.records`: simulated, driven
+    live, external log; empty without an outcome), counts of human scores and judgments, and its events."""
 
     order: int
     code: str
@@ -32,6 +34,12 @@ class SheetRow:
     scores: int
     judgments: int
     events: list[RunEvent] = field(default_factory=list)
+    origin: str = ""
+
+    @property
+    def external(self) -> bool:
+        """Whether the run was played from an external robot log: the toolkit did not drive it."""
+        return self.origin == EXTERNAL_LOG
 
     def latest(self, kind: str) -> RunEvent | None:
         """The run's latest event of a kind (start, finish, abort, log)."""
@@ -90,16 +98,19 @@ def run_sheet(folder: StudyFolder) -> RunSheet:
     plan = folder.read_plan()
     spec = read_spec(folder.path(SPEC))
     blinding = design.get("blinding") or {}
-    outcomes = {o.run_code: o.status for o in read_outcomes(folder.path(OUTCOMES))}
+    outcomes = {o.run_code: o for o in read_outcomes(folder.path(OUTCOMES))}
     events = read_run_events(folder.path(RUN_EVENTS))
     scores = Counter(s.run_code for s in read_scores(folder.path(SCORES)))
     judgments = Counter(r.run_code for r in read_responses(folder.path(RESPONSES)) if r.source == HUMAN)
     codes = [row["run_code"] for row in plan]
     status = statuses(codes, events, outcomes)
     factors = [name for name in plan[0] if name not in (*PLAN_COLUMNS, LOG_COLUMN)] if plan else []
-    rows = [SheetRow(int(row["order"]), row["run_code"], {name: row[name] for name in factors}, status[row["run_code"]],
-                     outcomes.get(row["run_code"], ""), scores[row["run_code"]], judgments[row["run_code"]],
-                     [e for e in events if e.run_code == row["run_code"]]) for row in plan]
+    rows = []
+    for row in plan:
+        code = row["run_code"]
+        outcome = outcomes.get(code)
+        rows.append(SheetRow(int(row["order"]), code, {name: row[name] for name in factors}, status[code], outcome.status if outcome else "",
+                             scores[code], judgments[code], [e for e in events if e.run_code == code], run_origin(outcome) if outcome else ""))
     arm_factor = blinding.get("factor") or (CONTROLLER if CONTROLLER in factors else None)
     arms = list(blinding.get("arms") or dict.fromkeys(row[arm_factor] for row in plan) if arm_factor else [registry.DEFAULT])
     return RunSheet(spec.name, bool(blinding), arm_factor, arms, factors, spec.questionnaire, rows)

@@ -3,8 +3,8 @@
 The robot's LaserScans go through the same person tracker as `trials log track` (the learned detector,
 the static world), placed in the odometry frame by tf; every 0.4 s of the robot's clock the controller
 gets an `Observation` in that frame and answers with a `Plan` (on its own thread, so a slow plan never
-delays a command); at `command_rate` the path follower of the simulator turns the latest plan into a
-velocity command, held within the robot's speed and acceleration limits.
+delays a command); after every tracked scan, and at least at `command_rate`, the path follower of the
+simulator turns the latest plan into a velocity command, held within the robot's speed and acceleration limits.
 
 Time is the robot's: header stamps, counted from the newest scan when the run starts (t = 0), so a
 robot whose clock differs from this computer's is driven alike. Staleness is judged two ways: by this
@@ -25,7 +25,7 @@ import queue
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +34,7 @@ import numpy as np
 
 from analysis.records import RunMetrics
 from robot_logs.frames import FrameTree, Pose2D, frame_name
+from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Scan, Transform
@@ -54,6 +55,8 @@ WAITING, DRIVING = "waiting for sensors", "driving"
 RUN_TOPIC = "/trials/run"
 #: Zero velocity commands sent when a run stops, 20 ms apart, so that one lost message does not leave the robot moving.
 STOP_REPEATS = 3
+#: Where `warm_up` puts the goal (m ahead).
+GOAL_AHEAD = (10.0, 0.0)
 #: Scans kept waiting for the loop; more means the loop has fallen behind and the oldest are dropped.
 SCAN_QUEUE = 64
 
@@ -354,7 +357,7 @@ class LiveRun:
         waiting_scans: list[float] = []
         scans = 0
         period = 1.0 / s.command_rate
-        tick = time.monotonic()
+        sent_at = time.monotonic()
         t = 0.0
         sink.event(0.0, START, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in frame {s.odometry_frame}")
         self.on_state(DRIVING, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in {s.odometry_frame}")
@@ -366,12 +369,8 @@ class LiveRun:
                 if reason is not None:
                     ending = (ABORTED, reason)
                     break
-                # Every scan that arrived: tracked in the odometry frame.
-                while True:
-                    try:
-                        scan, arrived = sensors.scans.get_nowait()
-                    except queue.Empty:
-                        break
+                # A command follows every scan as soon as it is tracked, and at least every `period` without scans.
+                for scan, arrived in _arrivals(sensors.scans, sent_at + period - now):
                     sensor = sensors.lookup(s.odometry_frame, scan.frame_id, scan.stamp_ns)
                     if sensor is None or scan.stamp_ns < start_ns:
                         continue
@@ -418,13 +417,13 @@ class LiveRun:
                     else:
                         late += 1
                 command = follower.command(t, robot) if planned else (0.0, 0.0)
-                command = _limited(command, self.command, limits, period)
+                command = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
                 ending = _ending(t, robot, people, goal, limits, s.timeout)
                 if ending is not None:
                     break
                 self.send(*command)
-                sent = time.monotonic()
-                latencies.extend(sent - arrived for arrived in waiting_scans)
+                sent_at = time.monotonic()
+                latencies.extend(sent_at - arrived for arrived in waiting_scans)
                 waiting_scans.clear()
                 if not trace.time or t > trace.time[-1] + 1e-6:  # one sample per instant of the robot's clock
                     sink.state(t, robot, command, people)
@@ -432,12 +431,6 @@ class LiveRun:
                     trace.pose.append(robot.pose)
                     trace.velocity.append((robot.v, robot.w))
                     trace.people.append(dict(zip(people.ids, people.position)))
-                tick += period
-                delay = tick - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                else:
-                    tick = time.monotonic()  # fell behind: keep the rate from now, never catch up with a burst
         except Exception as exc:
             self.halt()
             sink.event(t, ABORTED, f"an exception stopped the run: {type(exc).__name__}")
@@ -469,8 +462,32 @@ class LiveRun:
                            robot_history=history, pedestrian_ids=ids, pedestrian_history=pedestrians)
 
 
+def _arrivals(scans: queue.Queue[tuple[Scan, float]], wait: float) -> list[tuple[Scan, float]]:
+    """The scans that arrived: waits up to `wait` seconds for the first, then takes every one queued."""
+    arrived = []
+    try:
+        arrived.append(scans.get(timeout=wait) if wait > 0 else scans.get_nowait())
+        while True:
+            arrived.append(scans.get_nowait())
+    except queue.Empty:
+        pass
+    return arrived
+
+
 class GoalError(RuntimeError):
     """The goal's frame cannot be placed in the odometry frame."""
+
+
+def warm_up(controllers: Iterable[Controller]) -> None:
+    """Track a simulated scan of one person and plan once with each controller for a robot standing alone: the first
+    of each loads or compiles what it needs (the leg classifier's tree walk, PyTorch's kernels, the lattice's search),
+    which would stall the loop for a moment during a run. Reset the controllers afterwards."""
+    scan = LidarSimulator(seed=0).scan(0.0, Pose2D(), np.array([[2.0, 0.0]]), np.array([[0.0, 1.0]]))
+    PersonTracker.learned().process(scan)
+    still = np.zeros((T_OBS, 2))
+    for controller in controllers:
+        controller.plan(Observation(time=0.0, robot_pose=np.zeros(3), robot_velocity=np.zeros(2), goal=np.array(GOAL_AHEAD),
+                                    robot_history=still, pedestrian_ids=(), pedestrian_history=np.zeros((0, T_OBS, 2))))
 
 
 def _timed_plan(controller: Controller, observation: Observation) -> tuple[float, np.ndarray, Plan, float]:

@@ -1,0 +1,146 @@
+"""Benchmark of live runs (issue 37): scan-to-command latency and planning time against the software robot, over
+each transport and with each controller, and a whole blinded A/B study of 18 live runs over ROS 1.
+
+    python benchmarks/bench_live.py [--transports ros1 ros2] [--repeats 2] [--no-study]
+
+Latency: the software robot (`trials robot-sim`, its own process) publishes 40 Hz scans of the A/B plan's first row
+(6 walkers); this process drives it with `trials.robot.live.LiveRun` and each controller, and times every scan from
+its arrival to the velocity command sent after it was tracked (the tracking and follower path; goal: p99 under
+50 ms), and every plan (goal: within its 0.4 s step). Whole study: `trials design --ab --robot`, then `trials run
+--robot` over all 18 rows against the software robot (20 Hz scans), its wall time and how each run ended.
+A ROS 1 master (Debian's `rosmaster`) is started on a free port; ROS 2 stays on the loopback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np
+
+from trials.controllers import registry
+from trials.robot.live import LiveRun, LiveSink, StopRequest, warm_up
+from trials.robot.settings import RobotSettings
+from trials.robot.transport import RobotUri, open_transport
+from trials.study import OUTCOMES, StudyFolder
+
+TRIALS = (sys.executable, "-m", "trials.cli")
+#: The latency and planning goals (s).
+LATENCY_P99_GOAL, PLAN_GOAL = 0.050, 0.4
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+@contextmanager
+def middleware(kind: str, home: Path) -> Iterator[str]:
+    """A robot URI to use: a fresh ROS 1 master on a free port, or a ROS 2 domain on the loopback."""
+    if kind == "ros2":
+        os.environ["NAVTRIALS_DDS_LOOPBACK"] = "1"
+        yield f"ros2://{100 + os.getpid() % 100}"
+        return
+    port = free_port()
+    master = subprocess.Popen(["rosmaster", "--core", "-p", str(port)], env={**os.environ, "ROS_HOME": str(home)},
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        time.sleep(2.0)
+        yield f"ros1://127.0.0.1:{port}"
+    finally:
+        master.kill()
+        master.wait()
+
+
+@contextmanager
+def software_robot(uri: str, study: Path, scan_rate: float) -> Iterator[subprocess.Popen]:
+    robot = subprocess.Popen([*TRIALS, "robot-sim", "--ros", uri, "--study", str(study), "--scan-rate", f"{scan_rate:g}"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        yield robot
+    finally:
+        robot.kill()
+        robot.wait()
+
+
+def design(folder: Path, uri: str) -> StudyFolder:
+    subprocess.run([*TRIALS, "design", "--ab", "--robot", uri, "--seed", "5", "--study", str(folder)], check=True, capture_output=True)
+    return StudyFolder(folder)
+
+
+def latency(kind: str, repeats: int, home: Path) -> None:
+    """Drive the first row of the A/B plan `repeats` times with each controller; print latency and planning figures."""
+    with middleware(kind, home) as uri:
+        study = design(home / f"latency-{kind}", uri)
+        row = next(r for r in study.read_plan() if r["Pedestrians"] == "6")
+        settings = RobotSettings(uri=uri, sensor_wait=60.0)
+        transport = open_transport(RobotUri.parse(uri), "navtrials_bench")
+        with software_robot(uri, study.root, 40.0):
+            for name in registry.NAMES:
+                controller = registry.build(name)
+                warm_up([controller])
+                latencies, plans, ends = [], [], []
+                for k in range(repeats):
+                    controller.reset(k)
+                    live = LiveRun(transport, settings, StopRequest())
+                    reason = live.wait(row["run_code"])
+                    assert reason is None, reason
+                    end = live.drive(controller, settings.goal_for(row), LiveSink())
+                    latencies += end.latencies
+                    plans += end.plan_seconds
+                    ends.append(f"{end.status} {end.duration_s:.1f} s, {end.late_plans} late")
+                lat = np.array(latencies) * 1e3
+                plan = np.array(plans)
+                print(f"| {kind} | {name} | {len(lat)} | {np.percentile(lat, 50):.1f} | {np.percentile(lat, 99):.1f} | "
+                      f"{'met' if np.percentile(lat, 99) < LATENCY_P99_GOAL * 1e3 else 'NOT met'} | {np.percentile(plan, 50) * 1e3:.0f} | "
+                      f"{plan.max() * 1e3:.0f} | {'met' if plan.max() < PLAN_GOAL else 'NOT met'} | {'; '.join(ends)} |", flush=True)
+        transport.close()
+
+
+def whole_study(home: Path) -> None:
+    """All 18 rows of a blinded A/B study driven live over ROS 1 against the software robot."""
+    with middleware("ros1", home) as uri:
+        study = design(home / "study", uri)
+        with software_robot(uri, study.root, 20.0):
+            began = time.monotonic()
+            run = subprocess.run([*TRIALS, "run", "--robot", uri, "--study", str(study.root)], capture_output=True, text=True)
+            wall = time.monotonic() - began
+        finished = StudyFolder(study.root).path(OUTCOMES).read_text(encoding="utf-8").splitlines()[1:]
+        statuses = [line.split(",")[1] for line in finished]
+        failed = sorted(study.root.glob("runs/*.failed.txt"))
+        counts = ", ".join(f"{statuses.count(s)} {s}" for s in sorted(set(statuses)))
+        print(f"18-run blinded A/B study over ROS 1: {wall:.0f} s wall ({wall / 18:.1f} s a run); finished {len(finished)} ({counts}); "
+              f"aborted or failed {len(failed)}; trials run exit code {run.returncode}")
+        for path in failed:
+            print(f"  {path.name}: {path.read_text(encoding='utf-8').strip()}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--transports", nargs="+", choices=("ros1", "ros2"), default=["ros1", "ros2"])
+    parser.add_argument("--repeats", type=int, default=2, help="runs per controller and transport (default 2)")
+    parser.add_argument("--no-study", action="store_true", help="leave out the whole 18-run study")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        home = Path(folder)
+        print("| transport | controller | scans | latency p50 ms | p99 ms | goal p99 < 50 ms | plan p50 ms | plan max ms | goal < 400 ms | runs |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+        for kind in args.transports:
+            latency(kind, args.repeats, home)
+        if not args.no_study:
+            whole_study(home)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,83 @@
+"""The `[robot]` table and robot URIs: defaults that fit a Husky-class base, every key checked when read, one-line errors
+naming the file and key, and `trials design --robot` carrying the table with the study."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from trials.errors import StudyError
+from trials.robot.settings import RobotSettings, read_robot_settings
+from trials.robot.transport import ROS1, ROS2, RobotUri
+
+TRIALS = (sys.executable, "-m", "trials.cli")
+
+
+def write(tmp_path, table: str):
+    spec = tmp_path / "study.toml"
+    spec.write_text(f'[study]\nname = "x"\n\n[robot]\n{table}\n', encoding="utf-8")
+    return spec
+
+
+def test_uris_are_read_and_bad_ones_refused():
+    assert RobotUri.parse("ros1://127.0.0.1:11311") == RobotUri(ROS1, host="127.0.0.1", port=11311)
+    assert RobotUri.parse("ros1://husky.local:11311/").master_uri == "http://husky.local:11311/"
+    assert RobotUri.parse("ros2://42") == RobotUri(ROS2, domain=42)
+    assert str(RobotUri.parse("ros2://0")) == "ros2://0"
+    for bad in ("ros1://host", "ros1://host:0", "ros1://host:70000", "ros2://233", "ros2://-1", "http://x:1", "ros3://1", ""):
+        with pytest.raises(StudyError, match="expected ros1://HOST:PORT"):
+            RobotUri.parse(bad)
+
+
+def test_defaults_fit_a_husky_and_the_table_overrides_them(tmp_path):
+    assert read_robot_settings(tmp_path / "none.toml") is None
+    default = RobotSettings()
+    assert (default.scan_topic, default.odometry_topic, default.cmd_vel_topic, default.base_frame) == ("/scan", "/odom", "/cmd_vel", "base_link")
+    assert (default.limits.max_speed, default.limits.max_reverse_speed, default.watchdog, default.command_rate) == (1.0, 0.5, 0.5, 20.0)
+    spec = write(tmp_path, 'uri = "ros2://7"\nmax_speed = 0.6\ngoal = [8, 1]\nodometry_topic = ""\n[robot.goals]\nCrossing = [6.5, 0, 1.57]')
+    settings = read_robot_settings(spec)
+    assert settings is not None
+    assert (settings.robot_uri.domain, settings.limits.max_speed, settings.limits.max_reverse_speed) == (7, 0.6, 0.3)
+    assert settings.odometry_topic == ""
+    assert settings.goal_for({"Direction": "Crossing"}) == (6.5, 0.0, 1.57)
+    assert settings.goal_for({"Direction": "Parallel"}) == (8.0, 1.0)
+    assert settings.recorded()["robot_goal"] == "8 1" and settings.recorded()["robot_max_speed"] == "0.6"
+
+
+@pytest.mark.parametrize("table, message", [
+    ("speed = 1", "unknown key 'speed'"),
+    ("max_speed = 0", "max_speed must be a number in [0.01, 5]"),
+    ("max_speed = true", "max_speed must be a number"),
+    ("watchdog = nan", "watchdog must be a number in [0.05, 5]"),
+    ('uri = "ros1://robot"', "uri: robot URI 'ros1://robot'"),
+    ('scan_topic = ""', "scan_topic must be a non-empty name"),
+    ('base_frame = " base"', "base_frame must be a non-empty name without surrounding spaces"),
+    ("goal = [1]", "goal must be [x, y] or [x, y, yaw]"),
+    ('goal = [1, "2"]', "goal must be [x, y] or [x, y, yaw]"),
+    ("goals = 3", "goals must be a table"),
+    ("[robot.goals]\nCrossing = [1e9, 0]", "goals.Crossing must be [x, y]"),
+    ("watchdog = 0.05\ncommand_rate = 20", "watchdog 0.05 s is shorter than two commands at 20 Hz"),
+])
+def test_a_bad_table_is_one_line_naming_file_and_key(tmp_path, table, message):
+    spec = write(tmp_path, table)
+    with pytest.raises(StudyError) as error:
+        read_robot_settings(spec)
+    text = str(error.value)
+    assert message in text and str(spec) in text and "[robot]" in text and "\n" not in text
+
+
+def test_design_writes_the_robot_table_and_a_bad_one_exits_2(tmp_path):
+    study = tmp_path / "s"
+    made = subprocess.run([*TRIALS, "design", "--ab", "--robot", "ros2://3", "--seed", "1", "--study", str(study)], capture_output=True, text=True)
+    assert made.returncode == 0, made.stderr
+    settings = read_robot_settings(study / "study.toml")
+    assert settings is not None and settings.uri == "ros2://3"
+    spec = study / "study.toml"
+    spec.write_text(spec.read_text(encoding="utf-8") + "max_speed = -1\n", encoding="utf-8")
+    run = subprocess.run([*TRIALS, "run", "--robot", "ros2://3", "--study", str(study)], capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [f"error: {spec} [robot]: max_speed must be a number in [0.01, 5], got -1"]
+    bad_uri = subprocess.run([*TRIALS, "run", "--robot", "ros9://3", "--study", str(study)], capture_output=True, text=True)
+    assert bad_uri.returncode == 2 and "expected ros1://HOST:PORT" in bad_uri.stderr
