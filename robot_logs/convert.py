@@ -1,4 +1,4 @@
-"""ROS messages (rosbags objects, any ROS version) turned into robot_logs records.
+"""ROS messages (rosbags objects of any ROS version, or rospy's live ones) turned into robot_logs records.
 
 Time rule: a message is timed by its header stamp; one whose stamp is zero (never set by its
 publisher) takes its record time instead, the only place record time stands in for a stamp.
@@ -17,8 +17,12 @@ from robot_logs.records import Odometry, PointSet, Scan, Transform, beam_count
 
 
 def stamp_ns(header: Any, record_ns: int) -> int:
-    """Header stamp in ns, or the record time when the stamp was left at zero."""
-    value = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    """Header stamp in ns, or the record time when the stamp was left at zero.
+
+    rosbags names a stamp's fields sec/nanosec, rospy (genpy's Time) secs/nsecs."""
+    stamp = header.stamp
+    sec, nanosec = (stamp.sec, stamp.nanosec) if hasattr(stamp, "nanosec") else (stamp.secs, stamp.nsecs)
+    value = int(sec) * 1_000_000_000 + int(nanosec)
     return value if value else record_ns
 
 
