@@ -161,3 +161,16 @@ def test_the_estop_topic_stops_the_robot(tmp_path, master):
             press.wait()
         assert_stopped_and_kept(rig, study, code, "e-stop on /e_stop")
 
+
+
+def test_an_exception_in_the_loop_stops_the_robot(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+        failing = subprocess.run([TRIALS[0], "-m", "tests.support.failing_drive", str(uri), code], env=rig.env, capture_output=True,
+                                 text=True, timeout=300)
+        assert "raised: [Errno 28] No space left on device" in failing.stdout, failing.stderr[-2000:]
+        time.sleep(0.5)
+        assert rig.moving_commands() > 0
+        assert rig.last_heard() == (0.0, 0.0)

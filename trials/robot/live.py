@@ -41,7 +41,7 @@ from robot_logs.records import Odometry, Scan, Transform
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
 from trials.metrics import measure
-from trials.robot.settings import MAP_FRAME, START_FRAME, RobotSettings
+from trials.robot.settings import START_FRAME, RobotSettings
 from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, Transport, Velocity
 from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
 from trials.sim.follower import WaypointFollower
@@ -167,6 +167,10 @@ class Sensors:
                 wanted.append(f"the transform from {laser_frame} to {s.base_frame}")
         elif self.scan_seen is not None and laser_frame is None:
             wanted.append("the scan's frame")
+        goal_frame = frame_name(s.goal_frame)
+        if goal_frame not in (START_FRAME, frame_name(s.odometry_frame)) and self.newest_scan_ns is not None:
+            if self.lookup(s.odometry_frame, goal_frame, self.newest_scan_ns) is None:
+                wanted.append(f"the transform from {goal_frame} (the goal's frame) to {s.odometry_frame}")
         return wanted
 
     def staleness(self, now: float) -> str | None:
@@ -328,10 +332,8 @@ class LiveRun:
             return start.apply(point)[0]
         if frame_name(s.goal_frame) == frame_name(s.odometry_frame):
             return point
-        frame = MAP_FRAME if s.goal_frame == MAP_FRAME else s.goal_frame
-        placed = self.sensors.lookup(s.odometry_frame, frame, stamp_ns)
-        if placed is None:
-            raise GoalError(f"the goal's frame {frame!r} has no transform to {s.odometry_frame!r}")
+        placed = self.sensors.lookup(s.odometry_frame, s.goal_frame, stamp_ns)
+        assert placed is not None, "wait() saw the goal's frame placed"  # a failed assertion stops the robot like any exception
         return placed.apply(point)[0]
 
     def _drive(self, controller: Controller, goal_pose: tuple[float, ...], sink: LiveSink) -> LiveEnd:
@@ -340,7 +342,7 @@ class LiveRun:
         odometry = sensors.odometry
         assert odometry is not None and sensors.newest_scan_ns is not None and self.laser_frame is not None
         start_ns = sensors.newest_scan_ns
-        goal = self._goal(goal_pose, odometry.pose, odometry.stamp_ns)
+        goal = self._goal(goal_pose, odometry.pose, start_ns)
         sink.started(start_ns, goal)
         tracker = PersonTracker.learned()
         follower = WaypointFollower(limits)
@@ -472,10 +474,6 @@ def _arrivals(scans: queue.Queue[tuple[Scan, float]], wait: float) -> list[tuple
     except queue.Empty:
         pass
     return arrived
-
-
-class GoalError(RuntimeError):
-    """The goal's frame cannot be placed in the odometry frame."""
 
 
 def warm_up(controllers: Iterable[Controller]) -> None:

@@ -44,7 +44,6 @@ from trials.sim.robot import RobotLimits
 #: The study.toml table this module reads.
 TABLE = "robot"
 START_FRAME = "start"
-MAP_FRAME = "map"
 DEFAULT_URI = "ros1://127.0.0.1:11311"
 
 
