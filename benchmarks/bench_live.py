@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from trials.controllers import registry
-from trials.robot.live import LiveRun, LiveSink, StopRequest, warm_up
+from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest, warm_up
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import RobotUri, open_transport
 from trials.study import OUTCOMES, StudyFolder
@@ -85,7 +85,7 @@ def latency(kind: str, repeats: int, home: Path) -> None:
         study = design(home / f"latency-{kind}", uri)
         row = next(r for r in study.read_plan() if r["Pedestrians"] == "6")
         settings = RobotSettings(uri=uri, sensor_wait=60.0)
-        transport = open_transport(RobotUri.parse(uri), "navtrials_bench")
+        link = RobotLink(open_transport(RobotUri.parse(uri), "navtrials_bench"), settings)
         with software_robot(uri, study.root, 40.0):
             for name in registry.NAMES:
                 controller = registry.build(name)
@@ -93,7 +93,7 @@ def latency(kind: str, repeats: int, home: Path) -> None:
                 latencies, plans, ends = [], [], []
                 for k in range(repeats):
                     controller.reset(k)
-                    live = LiveRun(transport, settings, StopRequest())
+                    live = LiveRun(link, StopRequest())
                     reason = live.wait(row["run_code"])
                     assert reason is None, reason
                     end = live.drive(controller, settings.goal_for(row), LiveSink())
@@ -105,7 +105,7 @@ def latency(kind: str, repeats: int, home: Path) -> None:
                 print(f"| {kind} | {name} | {len(lat)} | {np.percentile(lat, 50):.1f} | {np.percentile(lat, 99):.1f} | "
                       f"{'met' if np.percentile(lat, 99) < LATENCY_P99_GOAL * 1e3 else 'NOT met'} | {np.percentile(plan, 50) * 1e3:.0f} | "
                       f"{plan.max() * 1e3:.0f} | {'met' if plan.max() < PLAN_GOAL else 'NOT met'} | {'; '.join(ends)} |", flush=True)
-        transport.close()
+        link.close()
 
 
 def whole_study(home: Path) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 
 from trials.controllers import registry
-from trials.robot.live import LiveRun, LiveSink, StopRequest
+from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import RobotUri, open_transport
 
@@ -28,7 +28,8 @@ class FailingLog(LiveSink):
 
 if __name__ == "__main__":
     uri, code = sys.argv[1:3]
-    live = LiveRun(open_transport(RobotUri.parse(uri), "navtrials_failing"), RobotSettings(uri=uri, sensor_wait=120.0), StopRequest())
+    settings = RobotSettings(uri=uri, sensor_wait=120.0)
+    live = LiveRun(RobotLink(open_transport(RobotUri.parse(uri), "navtrials_failing"), settings), StopRequest())
     assert live.wait(code) is None
     controller = registry.build(registry.LATTICE)
     controller.reset(0)
@@ -36,4 +37,4 @@ if __name__ == "__main__":
         live.drive(controller, (10.0, 0.0), FailingLog())
     except OSError as exc:
         print(f"raised: {exc}", flush=True)
-    live.transport.close()
+    live.link.close()

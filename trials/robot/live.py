@@ -91,17 +91,18 @@ class Sensors:
     """What the robot's middleware delivered, kept for the loop: queued scans, the frame tree (tf and odometry),
     the newest odometry, and when each kind last arrived on this computer's monotonic clock."""
 
-    def __init__(self, settings: RobotSettings, stop: StopRequest) -> None:
+    def __init__(self, settings: RobotSettings) -> None:
         self.settings = settings
-        self.stop = stop
+        self.stop: StopRequest | None = None
         self.scans: queue.Queue[tuple[Scan, float]] = queue.Queue(SCAN_QUEUE)
         self.tree = FrameTree(max_gap_s=settings.watchdog)
         self.odometry: Odometry | None = None
         self.scan_seen: float | None = None
         self.odometry_seen: float | None = None
         self.newest_scan_ns: int | None = None
-        #: The robot's tf messages as they came, for the run log.
+        #: The robot's tf messages as they came, for the run log; and its static transforms by child frame (sent once).
         self.transforms: queue.Queue[list[Transform]] = queue.Queue()
+        self.static: dict[str, Transform] = {}
         self.dropped = 0
         self._lock = threading.Lock()
 
@@ -113,6 +114,14 @@ class Sensors:
         transport.subscribe("/tf", TF, self.on_transforms)
         transport.subscribe("/tf_static", TF_STATIC, self.on_transforms)
         transport.subscribe(s.estop_topic, FLAG, self.on_estop)
+
+    def start_run(self, stop: StopRequest) -> None:
+        """Forget the scans and tf messages queued since the last run (the frame tree and the newest odometry stay: static
+        transforms come only once); an e-stop on the topic now stops this run."""
+        for waiting in (self.scans, self.transforms):
+            while not waiting.empty():
+                waiting.get_nowait()
+        self.stop = stop
 
     def on_scan(self, scan: Scan) -> None:
         arrived = time.monotonic()
@@ -135,6 +144,7 @@ class Sensors:
         s = self.settings
         self.transforms.put(transforms)
         with self._lock:
+            self.static.update((frame_name(t.child), t) for t in transforms if t.static)
             for t in transforms:
                 self.tree.add(t.parent, t.child, t.stamp_ns, t.pose, t.static)
                 if not s.odometry_topic and frame_name(t.child) == frame_name(s.base_frame) and not t.static:
@@ -143,7 +153,7 @@ class Sensors:
                     self.odometry_seen = time.monotonic()
 
     def on_estop(self, pressed: bool) -> None:
-        if pressed:
+        if pressed and self.stop is not None:
             self.stop.request(f"e-stop on {self.settings.estop_topic}")
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> Pose2D | None:
@@ -246,25 +256,37 @@ class LiveSink:
     def event(self, time: float, name: str, detail: str) -> None: ...
 
 
+class RobotLink:
+    """A process's lasting hold on the robot: the sensors' subscriptions and the command and announcement publishers, made
+    once (a middleware keeps a subscription until its node closes) and shared by every run driven through them."""
+
+    def __init__(self, transport: Transport, settings: RobotSettings) -> None:
+        self.transport, self.settings = transport, settings
+        self.sensors = Sensors(settings)
+        self.sensors.attach(transport)
+        self.twist = transport.publisher(settings.cmd_vel_topic, TWIST)
+        self.announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
+
+    def close(self) -> None:
+        self.transport.close()
+
+
 class LiveRun:
     """Drives one run: `wait` for the sensors, then `drive` until the run ends or stops.
 
     Args:
-        transport: this process's node on the robot's middleware.
-        settings: the `[robot]` table.
+        link: the process's hold on the robot.
         stop: who may stop the run besides the loop itself.
         on_state: told each state the console shows (waiting, driving, and the ending), with a detail.
         estop_file: a file whose appearance is an e-stop (the console's button).
     """
 
-    def __init__(self, transport: Transport, settings: RobotSettings, stop: StopRequest,
-                 on_state: Callable[[str, str], None] = lambda state, detail: None, estop_file: Path | None = None) -> None:
-        self.transport, self.settings, self.stop, self.on_state = transport, settings, stop, on_state
-        self.estop_file = estop_file
-        self.sensors = Sensors(settings, stop)
-        self._send_twist = transport.publisher(settings.cmd_vel_topic, TWIST)
-        self._announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
-        self.sensors.attach(transport)
+    def __init__(self, link: RobotLink, stop: StopRequest, on_state: Callable[[str, str], None] = lambda state, detail: None,
+                 estop_file: Path | None = None) -> None:
+        self.link, self.transport, self.settings = link, link.transport, link.settings
+        self.stop, self.on_state, self.estop_file = stop, on_state, estop_file
+        self.sensors = link.sensors
+        self.sensors.start_run(stop)
         self.command = (0.0, 0.0)
         self.laser_frame: str | None = None
 
@@ -272,7 +294,7 @@ class LiveRun:
 
     def send(self, linear: float, angular: float) -> None:
         self.command = (linear, angular)
-        self._send_twist(Velocity(linear, angular))
+        self.link.twist(Velocity(linear, angular))
 
     def halt(self) -> None:
         """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop."""
@@ -295,7 +317,7 @@ class LiveRun:
         """Announce the run and wait until scans, odometry and the laser's transform have all been seen.
         Returns None when ready, else why the run cannot start (the robot was told to stand still)."""
         self.on_state(WAITING, ", ".join(self.sensors.missing(None)))
-        self._announce(run_code)
+        self.link.announce(run_code)
         self.send(0.0, 0.0)
         deadline = time.monotonic() + self.settings.sensor_wait
         while True:
@@ -344,6 +366,7 @@ class LiveRun:
         start_ns = sensors.newest_scan_ns
         goal = self._goal(goal_pose, odometry.pose, start_ns)
         sink.started(start_ns, goal)
+        sink.transforms(0.0, list(sensors.static.values()))
         tracker = PersonTracker.learned()
         follower = WaypointFollower(limits)
         rows: deque[TrackRow] = deque()

@@ -19,10 +19,10 @@ from types import FrameType
 from trials.atomic import write_text
 from trials.controllers.base import Controller
 from trials.errors import RunAborted
-from trials.robot.live import ABORTED, DRIVING, WAITING, LiveEnd, LiveRun, StopRequest
+from trials.robot.live import ABORTED, DRIVING, WAITING, LiveEnd, LiveRun, RobotLink, StopRequest
 from trials.robot.live_log import LiveLog
 from trials.robot.settings import RobotSettings
-from trials.robot.transport import Transport, open_transport
+from trials.robot.transport import open_transport
 from trials.study import LIVE_ESTOP, LIVE_STATE, StudyFolder, utc_now
 
 #: The states the console shows, in the order a run passes them; the last three end it.
@@ -50,9 +50,9 @@ class LiveDriver:
         StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
     """
 
-    def __init__(self, folder: StudyFolder, settings: RobotSettings, transport: Transport | None = None) -> None:
+    def __init__(self, folder: StudyFolder, settings: RobotSettings) -> None:
         self.folder, self.settings = folder, settings
-        self.transport = transport if transport is not None else open_transport(settings.robot_uri, "navtrials_run")
+        self.link = RobotLink(open_transport(settings.robot_uri, "navtrials_run"), settings)
         self.stop: StopRequest | None = None
         self.terminated = False
         signal.signal(signal.SIGTERM, self._on_signal)
@@ -74,7 +74,7 @@ class LiveDriver:
         estop.unlink(missing_ok=True)  # an e-stop stops one run, not the next
         self.stop = StopRequest()
         state: Callable[[str, str], None] = lambda name, detail: write_state(self.folder, code, name, detail)  # noqa: E731
-        live = LiveRun(self.transport, self.settings, self.stop, state, estop)
+        live = LiveRun(self.link, self.stop, state, estop)
         try:
             reason = live.wait(code)
             if reason is not None:
@@ -86,7 +86,7 @@ class LiveDriver:
         return end
 
     def close(self) -> None:
-        self.transport.close()
+        self.link.close()
 
 
 def aborted_stamp() -> str:

@@ -114,8 +114,9 @@ class Ros1Transport:
 
         return publish
 
-    def subscribe(self, topic: str, kind: str, callback: Callable[[Any], None]) -> None:
-        """Call `callback(value)` from rospy's threads for every message of `kind` on `topic`.
+    def subscribe(self, topic: str, kind: str, callback: Callable[[Any], None], latched: bool = False) -> None:
+        """Call `callback(value)` from rospy's threads for every message of `kind` on `topic` (a latched publisher's last
+        value included, whatever `latched` says: ROS 1 latches on the publisher's side).
 
         A message that cannot be converted (or a callback that raises) is reported by `lost()` rather
         than only in rospy's log file."""

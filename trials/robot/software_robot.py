@@ -127,7 +127,7 @@ class SoftwareRobot:
         self._publish_tf = transport.publisher("/tf", TF)
         self._publish_static = transport.publisher("/tf_static", TF_STATIC, latched=True)
         transport.subscribe(settings.cmd_vel_topic, TWIST, self._on_command)
-        transport.subscribe(RUN_TOPIC, TEXT, self._on_run)
+        transport.subscribe(RUN_TOPIC, TEXT, self._on_run, latched=True)
 
     def _on_command(self, velocity: Velocity) -> None:
         now = time.monotonic()

@@ -91,8 +91,10 @@ class Transport(Protocol):
         last value (ROS 1 latching, ROS 2 transient-local durability)."""
         ...
 
-    def subscribe(self, topic: str, kind: str, callback: Callable[[Any], None]) -> None:
-        """Call `callback(value)` for every message of `kind` on `topic` (from the middleware's threads)."""
+    def subscribe(self, topic: str, kind: str, callback: Callable[[Any], None], latched: bool = False) -> None:
+        """Call `callback(value)` for every message of `kind` on `topic` (from the middleware's threads); `latched`: also
+        the last value a latched publisher sent before (ROS 2 asks for it with transient-local durability, and then hears
+        latched publishers only; ROS 1 delivers it anyway)."""
         ...
 
     def lost(self) -> str | None:
