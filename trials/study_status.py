@@ -14,6 +14,8 @@ from analysis.records import HUMAN, SIMULATED
 from robot_logs.foxglove_log import partial_path
 from trials.outcomes import STATUSES, outcome_cells, read_outcomes
 from trials.responses import read_responses
+from trials.robot.live_state import read_state
+from trials.robot.settings import read_robot_settings
 from trials.run_events import ABORTED, RUNNING, read_run_events, statuses
 from trials.run_settings import RunSettings, distinct, read_run_settings, setting_names
 from trials.runner import LockState, lock_state
@@ -59,6 +61,9 @@ class StudyStatus:
     settings: RunSettings
     #: How many finished simulated runs were made with each recorded combination of settings.
     recorded_settings: dict[tuple[str, ...], int]
+    #: The robot the study's runs are driven on (the [robot] table's URI), if it has one, and the last live run's state.
+    robot: str | None = None
+    live: dict[str, str] | None = None
 
     @property
     def finished(self) -> int:
@@ -121,6 +126,8 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         report=_report_state(folder), unblinded_utc=unblinded, lock=lock,
         settings=read_run_settings(folder.path(SPEC)),
         recorded_settings=distinct(outcome_cells(o) for o in outcomes.values()),
+        robot=robot.uri if (robot := read_robot_settings(folder.path(SPEC))) is not None else None,
+        live=read_state(folder),
     )
 
 

@@ -63,6 +63,12 @@ def status_lines(status: StudyStatus) -> list[str]:
     lines.append(f"judgments: {status.responses['human']} human, {status.responses['simulated']} simulated, "
                  f"of {status.judged_runs} runs; scores: {status.scores}, of {status.scored_runs} runs")
     lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
+    if status.robot is not None:
+        lines.append(f"robot ([robot] of {SPEC}): {status.robot}; `trials run --robot {status.robot}` drives the pending runs")
+    if status.live is not None:
+        live = status.live
+        lines.append(f"  last live run {live.get('run_code', '?')}: {live.get('state', '?')} since {live.get('since_utc', '?')}"
+                     + (f" ({live['detail']})" if live.get("detail") else ""))
     if len(status.recorded_settings) > 1:
         from trials.run_settings import recorded_text
 

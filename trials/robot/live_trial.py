@@ -1,5 +1,5 @@
-"""A `trials run` worker's side of live runs: one node on the robot's middleware, the signals that stop a run,
-the console's state file, and what becomes of a run that ended or was aborted.
+"""A `trials run` worker's side of live runs: one node on the robot's middleware, the signals that stop a run, the
+state it reports (`trials.robot.live_state`), and where an aborted run's files go.
 
 The worker that opened the sealed key drives the robot itself, so nobody on the field needs the key: the
 parent process, the console and the state file (`runs/live.json`) see the run code and its state only.
@@ -9,38 +9,20 @@ dies) stops the run in progress as an e-stop does; with no run in progress the w
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
 
-from trials.atomic import write_text
 from trials.controllers.base import Controller
 from trials.errors import RunAborted
-from trials.robot.live import ABORTED, DRIVING, WAITING, LiveEnd, LiveRun, RobotLink, StopRequest
+from trials.robot.live import ABORTED, LiveEnd, LiveRun, RobotLink, StopRequest
 from trials.robot.live_log import LiveLog
+from trials.robot.live_state import write_state
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import open_transport
-from trials.study import LIVE_ESTOP, LIVE_STATE, StudyFolder, utc_now
-
-#: The states the console shows, in the order a run passes them; the last three end it.
-STATES = (WAITING, DRIVING, "goal", "collision", "timeout", ABORTED)
-
-
-def write_state(folder: StudyFolder, code: str, state: str, detail: str) -> None:
-    """runs/live.json: the live run's code, state and detail, and when it entered that state (UTC, to the second)."""
-    write_text(folder.path(LIVE_STATE), json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": utc_now()}) + "\n")
-
-
-def read_state(folder: StudyFolder) -> dict[str, str] | None:
-    """The live run's state as the worker last wrote it, or None (no live run yet, or an unreadable file)."""
-    try:
-        data = json.loads(folder.path(LIVE_STATE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return {k: str(v) for k, v in data.items()} if isinstance(data, dict) else None
+from trials.study import LIVE_ESTOP, StudyFolder, utc_now
 
 
 class LiveDriver:
