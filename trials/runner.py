@@ -43,6 +43,7 @@ from trials.atomic import no_space, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, DiskFullError, RunAborted, StudyError
+from trials.field_study import refuse_simulation
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
 from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
@@ -94,6 +95,8 @@ class RunOptions:
     wall_clock: bool = False
     #: Drive every run live on this robot (`trials run --robot`) instead of simulating or playing logs.
     robot: RobotSettings | None = None
+    #: Simulate rows even in a field study (`trials.field_study`).
+    allow_simulated: bool = False
 
     @property
     def noise(self) -> PositionNoise:
@@ -349,8 +352,10 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         summary.done = len(finished & set(study.codes))
         if not todo:
             return summary
-        simulates = options.robot is None and any(log_of(study.task(c).row, folder.root, options.replay) is None for c in todo)
-        if simulates and not options.settings_differ:
+        simulated = [c for c in todo if options.robot is None and log_of(study.task(c).row, folder.root, options.replay) is None]
+        if simulated and not options.allow_simulated:
+            refuse_simulation(folder, study.blind, f"simulate run {simulated[0]}")
+        if simulated and not options.settings_differ:
             _same_settings(outcomes, set(rerun), options.settings, folder.path(SPEC))
         recorded = {row.run_code: row.seed for row in outcomes.rows}
         chosen = [study.task(code, recorded.get(code) if code in rerun else None) for code in todo]

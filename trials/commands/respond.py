@@ -34,12 +34,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="with --simulate: judgments per run (default: one per pedestrian of the run)")
     parser.add_argument("--seed", type=types.seed, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
+    parser.add_argument("--allow-simulated", action="store_true",
+                        help="with --simulate: judge even in a field study (runs driven live or played from robot logs)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from trials.errors import StudyError
+    from trials.field_study import refuse_simulation
     from trials.outcomes import finished_codes
     from trials.study import StudyFolder
 
@@ -47,11 +50,13 @@ def run(args: argparse.Namespace) -> int:
     positional = [args.run_code, args.participant, args.answer]
     if (args.import_file is not None or args.simulate) and any(positional):
         raise StudyError("give either CODE PARTICIPANT yes|no, or --import FILE, or --simulate; not several")
-    if (args.participants is not None or args.seed is not None) and not args.simulate:
-        raise StudyError("--participants and --seed go with --simulate")
+    if (args.participants is not None or args.seed is not None or args.allow_simulated) and not args.simulate:
+        raise StudyError("--participants, --seed and --allow-simulated go with --simulate")
     plan_codes = [row["run_code"] for row in folder.read_plan()]
     finished = finished_codes(folder)
     if args.simulate:
+        if not args.allow_simulated:
+            refuse_simulation(folder, bool(folder.read_design().get("blinding")), "simulate participants' judgments")
         return _simulate(folder, finished, args.participants, args.seed)
     if args.import_file is not None:
         return _import(folder, args.import_file, plan_codes, finished)

@@ -61,6 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--wall-clock", action="store_true",
                         help="stamp each run's MCAP log with the time it ran (blinded: to the minute; a logged trial: "
                         "when its log was recorded) instead of from 1970-01-01")
+    parser.add_argument("--allow-simulated", action="store_true",
+                        help="simulate runs (and their participants' judgments) even in a field study, one with a [robot] table "
+                        "or runs driven live or played from robot logs; the report says which runs were simulated")
     parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
@@ -115,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     given = {"perception": args.perception, "noise_std_m": args.noise, "dropout": args.dropout,
              "timeout_s": args.timeout, "weights": args.weights}
     settings = override(read_run_settings(study.folder.path(SPEC)), given, "the command line")
-    options = RunOptions(settings, replay, args.settings_differ, wall_clock=args.wall_clock, robot=robot)
+    options = RunOptions(settings, replay, args.settings_differ, wall_clock=args.wall_clock, robot=robot,
+                         allow_simulated=args.allow_simulated)
 
     def stop(signum: int, frame: object) -> None:
         raise KeyboardInterrupt

@@ -1,0 +1,52 @@
+"""A field study (a [robot] table, or a run driven live or played from a robot log) never gets simulated runs or
+simulated judgments unless asked for by name: `trials run` and `trials respond --simulate` refuse with one line and
+exit 2, and `--allow-simulated` lets them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from trials.cli import main
+from trials.outcomes import read_outcomes
+from trials.responses import read_responses
+from trials.study import OUTCOMES, RESPONSES, StudyFolder
+
+
+def codes(study: Path) -> list[str]:
+    return [row["run_code"] for row in StudyFolder(study).read_plan()]
+
+
+def test_a_study_with_a_robot_table_is_not_simulated_unless_asked(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--runs", "6", "--seed", "3", "--robot", "ros1://127.0.0.1:11311", "--study", str(study), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["run", "--study", str(study), "--only", codes(study)[0], "--quiet"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith(f"error: {study} is a field study ({study / 'study.toml'} has a [robot] table")
+    assert "refusing to simulate run" in error and "--allow-simulated" in error and "\n" not in error
+    assert not (study / OUTCOMES).exists()
+    assert main(["respond", "--simulate", "--study", str(study)]) == 2
+    assert "refusing to simulate participants' judgments" in capsys.readouterr().err
+    first = codes(study)[0]
+    assert main(["run", "--study", str(study), "--only", first, "--allow-simulated", "--quiet"]) == 0
+    (row,) = read_outcomes(study / OUTCOMES, False)
+    assert (row.run_code, row.perception) == (first, "positions")
+    assert {r.run_code for r in read_responses(study / RESPONSES)} == {first}
+
+
+@pytest.mark.slow
+def test_a_study_with_a_played_log_is_a_field_study(tmp_path, robot_logs_dir, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--runs", "6", "--seed", "3", "--study", str(study), "--quiet"]) == 0
+    first, second = codes(study)[:2]
+    assert main(["run", "--study", str(study), "--from-log", str(robot_logs_dir / "stationary_ros1.bag"), "--start", "15",
+                 "--duration", "6", "--only", first, "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["run", "--study", str(study), "--only", second, "--quiet"]) == 2
+    assert f"its run {first} was played from a robot log" in capsys.readouterr().err
+    assert main(["respond", "--simulate", "--study", str(study)]) == 2
+    assert not (study / RESPONSES).exists()
+    assert main(["respond", "--simulate", "--study", str(study), "--allow-simulated", "--seed", "1"]) == 0
+    assert {r.run_code for r in read_responses(study / RESPONSES)} == {first}
