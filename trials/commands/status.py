@@ -59,7 +59,8 @@ def status_lines(status: StudyStatus) -> list[str]:
     for code, reason in status.failed.items():
         lines.append(f"  failed {code}: {reason}")
     if status.aborted:
-        lines.append(f"  aborted (a partial log left; the next `trials run` redoes them): {', '.join(status.aborted)}")
+        again = f"trials run --robot {status.robot}" if status.robot else "trials run"
+        lines.append(f"  aborted (a partial log left; the next `{again}` redoes them): {', '.join(status.aborted)}")
     lines.append(f"judgments: {status.responses['human']} human, {status.responses['simulated']} simulated, "
                  f"of {status.judged_runs} runs; scores: {status.scores}, of {status.scored_runs} runs")
     lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
