@@ -289,7 +289,10 @@ def test_run_records_its_settings_refuses_a_mix_and_the_report_flags_it(study, c
     assert main(["status", "--study", str(study)]) == 0
     assert "report: up to date with the data" in capsys.readouterr().out
     later = (study / "report" / "report.json").stat().st_mtime + 60
-    os.utime(study / "outcomes.csv", (later, later))  # data newer than the report
+    os.utime(study / "outcomes.csv", (later, later))  # a newer time alone changes nothing: freshness is by content
+    assert main(["status", "--study", str(study)]) == 0
+    assert "report: up to date with the data" in capsys.readouterr().out
+    assert main(["score", second, "2", "--by", "E1", "--study", str(study)]) == 0
     assert main(["status", "--study", str(study)]) == 0
     assert "report: older than the data: run `trials report` again" in capsys.readouterr().out
 

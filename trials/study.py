@@ -240,6 +240,18 @@ class StudyFolder:
             raise StudyError(f"{self.path(DESIGN)}: blinding.commitment lacks its algorithm or digest") from None
         return sealed, check
 
+    def report_inputs(self) -> str:
+        """A digest of every file a report is made from (the design, plan, results and rubric; absent ones count as
+        absent): `trials report` records it, and `trials status` compares it, so freshness never depends on clocks
+        (a blinded study's files are stamped to the minute)."""
+        digest = hashlib.sha256()
+        for name in (SPEC, PLAN, DESIGN, OUTCOMES, SCORES, RESPONSES, RUBRIC):
+            path = self.path(name)
+            content = path.read_bytes() if path.is_file() else None
+            digest.update(f"{name}:{-1 if content is None else len(content)}:".encode())
+            digest.update(content or b"")
+        return digest.hexdigest()
+
     def keep_blinded_report(self) -> Path | None:
         """Move the blinded report (report.md, .html, .json, figures/, tables/) to report/blinded/ before an
         unblinded one is written; an earlier report/blinded/ moves to superseded/<UTC time>/.

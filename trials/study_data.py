@@ -31,6 +31,9 @@ from trials.study import (
 UNBLINDING_FORMAT = "navtrials.unblinding/1"
 CONTROLLER_FACTOR = "Controller"
 
+#: report.json's key for the digest of the files the report was made from (`StudyFolder.report_inputs`).
+INPUTS_KEY = "inputs_sha256"
+
 
 def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | None = None) -> StudyData:
     """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked,

@@ -7,6 +7,7 @@ counts by arm label and can be shown to anyone who may see the study folder.
 
 from __future__ import annotations
 
+import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -21,7 +22,7 @@ from trials.run_settings import RunSettings, distinct, read_run_settings, settin
 from trials.runner import LockState, lock_state
 from trials.scores import read_scores
 from trials.study import OUTCOMES, REPORT_RECORD, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
-from trials.study_data import CONTROLLER_FACTOR, read_unblinding
+from trials.study_data import CONTROLLER_FACTOR, INPUTS_KEY, read_unblinding
 
 #: The group of runs of a study that compares no controllers.
 ALL_RUNS = "all"
@@ -132,9 +133,12 @@ def study_status(folder: StudyFolder) -> StudyStatus:
 
 
 def _report_state(folder: StudyFolder) -> str:
-    """`none`, `current`, or `older than the data` (report.json older than outcomes, scores or responses)."""
-    report = folder.path(REPORT_RECORD)
-    if not report.exists():
+    """`none`, `current`, or `older than the data`: the digest of the report's inputs recorded in report.json against
+    the files now (`StudyFolder.report_inputs`); a report.json without one is older than this rule."""
+    try:
+        recorded = json.loads(folder.path(REPORT_RECORD).read_text(encoding="utf-8")).get(INPUTS_KEY)
+    except FileNotFoundError:
         return "none"
-    data = [folder.path(name).stat().st_mtime_ns for name in (OUTCOMES, SCORES, RESPONSES) if folder.path(name).exists()]
-    return "older than the data" if data and max(data) > report.stat().st_mtime_ns else "current"
+    except (OSError, ValueError, AttributeError):
+        recorded = None
+    return "current" if recorded == folder.report_inputs() else "older than the data"

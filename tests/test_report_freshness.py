@@ -1,0 +1,35 @@
+"""`trials status` judges a report's freshness by the content of the files it was made from, in blinded and open
+studies alike: a blinded study's files are stamped to the minute, so times cannot tell."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from trials.cli import main
+from trials.study import REPORT_RECORD, StudyFolder
+from trials.study_data import INPUTS_KEY
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("blinded", [True, False], ids=["blinded", "open"])
+def test_a_report_goes_stale_when_runs_are_added_within_the_minute(tmp_path, capsys, blinded):
+    study = tmp_path / "s"
+    assert main(["design", *(["--ab"] if blinded else ["--runs", "6"]), "--seed", "4", "--study", str(study), "--quiet"]) == 0
+    codes = [row["run_code"] for row in StudyFolder(study).read_plan()]
+    assert main(["run", "--study", str(study), "--only", *codes[:2], "--quiet"]) == 0
+    assert main(["report", "--study", str(study), "--quiet"]) == 0
+    record = json.loads((study / REPORT_RECORD).read_text(encoding="utf-8"))
+    assert record[INPUTS_KEY] == StudyFolder(study).report_inputs()
+    capsys.readouterr()
+    assert main(["status", "--study", str(study)]) == 0
+    assert "report: up to date with the data" in capsys.readouterr().out
+    assert main(["run", "--study", str(study), "--only", *codes[2:4], "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["status", "--study", str(study), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["report"] == "older than the data"
+    assert main(["report", "--study", str(study), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["status", "--study", str(study), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["report"] == "current"
