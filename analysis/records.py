@@ -16,6 +16,9 @@ from designs.spec import StudySpec
 #: Sources of a participant's judgment.
 HUMAN = "human"
 SIMULATED = "simulated"
+#: How a finished run was made (`StudyRun.origin`): simulated or driven live by the toolkit, or played from the log
+#: of a robot the toolkit did not drive, whose judgments and scores are therefore not its arm's.
+SIMULATED_RUN, LIVE_RUN, EXTERNAL_LOG = "simulated", "driven live", "external log"
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,7 @@ class Response:
 
 @dataclass(frozen=True)
 class StudyRun:
-    """A planned run: its plan row, the arm it belongs to as the report may name it, its results."""
+    """A planned run: its plan row, the arm it belongs to as the report may name it, its results and how it was made."""
 
     order: int
     code: str
@@ -97,6 +100,7 @@ class StudyRun:
     arm: str
     outcome: Outcome | None
     log: Path | None
+    origin: str = SIMULATED_RUN
 
     @property
     def finished(self) -> bool:
@@ -121,6 +125,9 @@ class Blinding:
     commitment: str | None = None
     unblinded_utc: tuple[str, ...] = ()
     check: str = ""
+    #: This opening: how complete the study was (e.g. "18 of 18 runs finished") and, for an interim look, why.
+    completeness: str = ""
+    interim: str | None = None
 
     @property
     def open(self) -> bool:
@@ -152,6 +159,11 @@ class StudyData:
     @property
     def finished(self) -> list[StudyRun]:
         return [run for run in self.runs if run.finished]
+
+    @property
+    def compared(self) -> list[StudyRun]:
+        """The finished runs that the toolkit drove: those whose results count for their arm in comparisons and fits."""
+        return [run for run in self.finished if run.origin != EXTERNAL_LOG]
 
     @property
     def unfinished(self) -> list[StudyRun]:

@@ -27,7 +27,7 @@ from analysis.figures import (
 from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
-from analysis.records import SIMULATED, Response, StudyData
+from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, Response, StudyData
 from analysis.run_log import RunLog
 from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
 from analysis.scoring import Rubric
@@ -114,6 +114,8 @@ class _Analysis:
     judgment_fits: list[Fit]
     metric_fits: list[Fit]
     notes: list[str]
+    #: Finished runs played from external robot logs: left out of every comparison of arms and factors.
+    left_out: list[str]
 
 
 def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_utc: str, participants: ParticipantModel = ParticipantModel()) -> Report:
@@ -153,8 +155,12 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     if waiting:
         notes.append(f"Judgments of runs not finished yet are left out: {', '.join(waiting)}.")
     notes += _stale_results(data)
-    judgments, source = judgments_used(r for r in data.responses if r.run_code in finished)
-    skipped = [r for r in data.responses if r.source == SIMULATED and r.run_code in finished] if source == "human" else []
+    compared = {run.code for run in data.compared}
+    left_out = [run.code for run in data.finished if run.code not in compared]
+    if left_out:
+        notes.append(_left_out_note(data, left_out))
+    judgments, source = judgments_used(r for r in data.responses if r.run_code in compared)
+    skipped = [r for r in data.responses if r.source == SIMULATED and r.run_code in compared] if source == "human" else []
     if skipped:
         notes.append(f"Human judgments are used; {len(skipped)} simulated judgments are left out of the analysis.")
     pedestrians = {run.code: _pedestrian_count(run.values, logs.get(run.code)) for run in data.finished}
@@ -163,8 +169,28 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     judged = count_judgments(judgments, arm_of, pedestrians)
     table = table_ii(judged, arms) if judged else []
     judgment_fits = [fit(data, judged) for fit in (fit_judgments_by_run, fit_run_shares, fit_judgments)] if judged else []
-    metric_fits = fit_metrics(data) if data.finished else []
-    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes)
+    metric_fits = fit_metrics(data) if data.compared else []
+    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes, left_out)
+
+
+def _left_out_note(data: StudyData, codes: list[str]) -> str:
+    """Why the runs played from external robot logs are left out of the comparisons, with what they hold."""
+    judgments = sum(r.run_code in codes for r in data.responses)
+    scores = sum(s.run_code in codes for s in data.scores)
+    one = len(codes) == 1
+    return (f"{len(codes)} run{'' if one else 's'} ({', '.join(codes)}) {'was' if one else 'were'} played from an external robot log: the "
+            f"toolkit did not drive {'that robot' if one else 'those robots'}, so {'its' if one else 'their'} {judgments} judgment(s) and "
+            f"{scores} human score(s) are not credited to a {data.blinding.arm_word.lower()}: {'it is' if one else 'they are'} left out of "
+            "Table II, the scores by arm and factor, and the model fits.")
+
+
+def _origins(data: StudyData) -> str | None:
+    """How the finished runs were made, in one line, when any was not simulated."""
+    made = [run.origin for run in data.finished]
+    if all(origin == SIMULATED_RUN for origin in made):
+        return None
+    words = {LIVE_RUN: "driven live on the robot", SIMULATED_RUN: "simulated", EXTERNAL_LOG: "played from an external robot log"}
+    return "How the finished runs were made: " + ", ".join(f"{made.count(o)} {word}" for o, word in words.items() if o in made) + "."
 
 
 def _stale_results(data: StudyData) -> list[str]:
@@ -213,8 +239,14 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
         items.append(
             f"**Unblinded** at {blinding.unblinded_utc[-1]}. {blinding.check} Arms: {mapping}. First unblinded at {blinding.unblinded_utc[0]}."
         )
+        if blinding.completeness:
+            items.append(f"**Interim unblinding** with {blinding.completeness}, for this reason: {blinding.interim}" if blinding.interim
+                         else f"The key was opened with {blinding.completeness}.")
     else:
         items.append("Not blinded.")
+    origins = _origins(data)
+    if origins:
+        items.append(origins)
     human = {s.run_code for s in data.scores if s.run_code in a.scores}
     items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
     items.append(_judgment_line(a))
@@ -245,7 +277,10 @@ def _judgment_line(a: _Analysis) -> str:
 def _scores_section(a: _Analysis) -> list[Block]:
     if not a.scores:
         return [Heading("Scores"), Paragraph("No finished runs to score.")]
-    final = {code: s.final for code, s in a.scores.items()}
+    if not a.data.compared:
+        return [Heading("Scores"), Paragraph("No finished run the toolkit drove: the runs played from an external robot log are left out of the "
+                                             "score shares (see the notes)."), Heading("Every run", 3), _runs_table(a)]
+    final = {code: s.final for code, s in a.scores.items() if code not in a.left_out}
     total = counts(final.values())
     n = sum(total)
     paper = paper_score_shares(a.data.spec)
@@ -253,18 +288,19 @@ def _scores_section(a: _Analysis) -> list[Block]:
     for score, count in zip(SCORES, total):
         interval = wilson(count, n)
         rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", *([f"{paper[score]:.1f} %"] if paper else [])])
-    rubric_only = counts(s.auto.score for s in a.scores.values())
+    rubric_only = counts(s.auto.score for code, s in a.scores.items() if code in final)
     blocks: list[Block] = [
         Heading("Scores"),
         Paragraph("1 = collision, 2 = no collision but unnatural (turning in place, backing up, stopping or hesitating, passing within intimate distance), 3 = natural and comfortable."),
         Table(
             ["Score", "Runs", "Share", "Wilson 95 %", *(["Paper (Tsai & Oh)"] if paper else [])],
             rows + [["all", str(n), "", "", *([""] if paper else [])]],
-            f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3.",
+            f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3."
+            + (f" Runs played from an external robot log ({len(a.left_out)}) are left out." if a.left_out else ""),
             {1, 2},
         ),
     ]
-    arm_runs = {arm: [final[r.code] for r in a.data.finished if r.arm == arm] for arm in a.arms}
+    arm_runs = {arm: [final[r.code] for r in a.data.compared if r.arm == arm] for arm in a.arms}
     if len(a.arms) > 1:
         word = a.data.blinding.arm_word
         blocks.append(
@@ -275,7 +311,7 @@ def _scores_section(a: _Analysis) -> list[Block]:
                 {1, 2, 3, 4, 5},
             )
         )
-    level_rows = by_factor(a.data.spec, a.data.finished, final, a.data.blinding.factor)
+    level_rows = by_factor(a.data.spec, a.data.compared, final, a.data.blinding.factor)
     blocks.append(Heading("Scores against each factor", 3))
     blocks.append(
         Table(
@@ -302,8 +338,10 @@ def _runs_table(a: _Analysis) -> Table:
         rubric = f"{scored.auto.score}" + (f" ({'; '.join(scored.auto.reasons)})" if scored.auto.reasons else "")
         human = "; ".join(f"{s.score} by {s.scorer or 'unnamed'}" + (f" ({s.note})" if s.note else "") for s in scored.human)
         gap = run.outcome.min_distance_m
-        rows.append(cells + [run.outcome.status, NOT_AVAILABLE if gap is None else f"{gap:.2f}", rubric, human, f"**{scored.final}**"])
-    return Table(header, rows, "In run order. Score: the latest human score, else the rubric's.", {0, len(shown) + 4})
+        status = run.outcome.status if run.origin == SIMULATED_RUN else f"{run.outcome.status} ({run.origin})"
+        rows.append(cells + [status, NOT_AVAILABLE if gap is None else f"{gap:.2f}", rubric, human, f"**{scored.final}**"])
+    return Table(header, rows, "In run order. Score: the latest human score, else the rubric's. A run played from an external robot log "
+                 "is listed here and left out of every comparison.", {0, len(shown) + 4})
 
 
 def _ab_section(a: _Analysis) -> list[Block]:
@@ -312,6 +350,8 @@ def _ab_section(a: _Analysis) -> list[Block]:
         return []
     heading = "A/B comparison (Table II)" if len(a.arms) > 1 else "Judgments (share judged socially compliant)"
     blocks: list[Block] = [Heading(heading)]
+    if not a.table and a.left_out:
+        return blocks + [Paragraph("No judgments of runs the toolkit drove yet; those of runs played from an external robot log are left out (see the notes).")]
     if not a.table:
         return blocks + [Paragraph("No judgments of finished runs yet: record them with `trials respond` (or `trials respond --simulate` for simulated runs).")]
     primary = _primary_result(a)
@@ -464,9 +504,9 @@ def _figures_section(a: _Analysis) -> list[Block]:
     word = data.blinding.arm_word.lower()
     colours = arm_colours(a.arms)
     blocks: list[Block] = [Heading("Figures")]
-    if a.scores:
-        groups = {arm: counts(a.scores[r.code].final for r in data.finished if r.arm == arm) for arm in a.arms}
-        groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(s.final for s in a.scores.values())}
+    if data.compared:
+        groups = {arm: counts(a.scores[r.code].final for r in data.compared if r.arm == arm) for arm in a.arms}
+        groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(a.scores[r.code].final for r in data.compared)}
         paper_shares = paper_score_shares(data.spec)
         caption = f"Share of runs scored 1, 2 and 3 by {word} (bars with Wilson 95 % intervals, counts under them)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
         blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption))
@@ -475,7 +515,8 @@ def _figures_section(a: _Analysis) -> list[Block]:
         log = a.logs.get(run.code)
         if log is None:
             continue
-        title = f"{run.order}. {run.code} | {run.arm}\n{a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
+        arm = run.arm if run.origin != EXTERNAL_LOG else f"{run.arm}, {EXTERNAL_LOG}"
+        title = f"{run.order}. {run.code} | {arm}\n{a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
         panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
     if panels:
         blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
@@ -485,7 +526,7 @@ def _figures_section(a: _Analysis) -> list[Block]:
         blocks.append(Figure("ab_shares" if len(a.arms) > 1 else "judged_shares", shares_figure(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
     points = [
         (run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m)
-        for run in data.finished
+        for run in data.compared
         if run.outcome is not None and run.outcome.min_distance_m is not None
     ]
     if points:
@@ -604,14 +645,19 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             "unblinded_utc": list(blinding.unblinded_utc) if blinding.revealed else [],
             "arms": dict(blinding.labels) if blinding.revealed else None,
             "key_check": blinding.check if blinding.revealed else None,
+            "completeness": blinding.completeness if blinding.revealed else None,
+            "interim": blinding.interim if blinding.revealed else None,
         },
-        "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished]},
+        "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished],
+                 "made": {origin: sum(r.origin == origin for r in data.finished) for origin in (SIMULATED_RUN, LIVE_RUN, EXTERNAL_LOG)},
+                 "left_out_of_comparisons": a.left_out},
         "rubric": {"source": rubric_source, "thresholds": asdict(a.rubric)},
         "scores": {
-            code: {"arm": next(r.arm for r in data.runs if r.code == code), "rubric": s.auto.score, "reasons": list(s.auto.reasons), "human": [h.score for h in s.human], "final": s.final}
+            code: {"arm": next(r.arm for r in data.runs if r.code == code), "made": next(r.origin for r in data.runs if r.code == code),
+                   "rubric": s.auto.score, "reasons": list(s.auto.reasons), "human": [h.score for h in s.human], "final": s.final}
             for code, s in a.scores.items()
         },
-        "score_counts": dict(zip(map(str, SCORES), counts(s.final for s in a.scores.values()))),
+        "score_counts": dict(zip(map(str, SCORES), counts(s.final for code, s in a.scores.items() if code not in a.left_out))),
         "judgments": {"source": a.judgment_source, "count": len(a.judgments)},
         "table_ii": [
             {
@@ -659,8 +705,11 @@ def _summary(a: _Analysis) -> list[str]:
     lines = [f"Study {data.spec.name!r}: {len(data.finished)} of {len(data.runs)} runs finished"]
     if data.unfinished:
         lines.append(f"  not finished yet: {', '.join(r.code for r in data.unfinished)}")
-    if a.scores:
-        total = counts(s.final for s in a.scores.values())
+    origins = _origins(data)
+    if origins:
+        lines.append(origins)
+    if data.compared:
+        total = counts(a.scores[r.code].final for r in data.compared)
         n = sum(total)
         shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
         paper = paper_score_shares(data.spec)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
 from pathlib import Path
 
@@ -87,7 +88,7 @@ def test_respond_rejects_bad_input(study: Path, capsys: pytest.CaptureFixture[st
     _fails(["respond", unfinished[0], "P1", "no"], study, capsys, f"not finished yet: {unfinished[0]}")
     _fails(["respond", finished[0], "P1", "yes", "--simulate"], study, capsys, "not several")
     _fails(["respond", "--simulate", "--participants", "0"], study, capsys, "argument --participants: expected a whole number from 1 to 1000, got '0'")
-    _fails(["respond", "--seed", "3"], study, capsys, "--participants and --seed go with --simulate")
+    _fails(["respond", "--seed", "3"], study, capsys, "--participants, --seed and --allow-simulated go with --simulate")
     sheet = study.parent / "judgments.csv"
     sheet.write_text(f"run_code,participant,compliant\n{finished[0]},P1,yes\nZZZZZ,P1,no\n")
     _fails(["respond", "--import", str(sheet)], study, capsys, "unknown run code(s) ZZZZZ")
@@ -143,7 +144,26 @@ def test_report_refuses_broken_results(study: Path, capsys: pytest.CaptureFixtur
     _fails(["report"], study, capsys, "line 2 of outcomes.csv: status must be one of goal, collision, timeout")
     outcomes.write_text(text.splitlines()[0] + "\n")
     _fails(["report"], study, capsys, "no finished runs")
-    (study / "sealed" / "allocation.json").unlink()
     outcomes.write_text(text)
-    _fails(["report", "--unblind"], study, capsys, "the sealed key", "is missing")
+    digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    _fails(["report", "--unblind"], study, capsys, "--unblind needs --commitment HEX")
+    _fails(["report", "--unblind", "--commitment", digest], study, capsys, f"only {len(finished)} of 18 runs finished",
+           "interim look", "--interim REASON")
+    _fails(["report", "--unblind", "--commitment", digest, "--interim", " "], study, capsys, "--interim needs a reason")
+    _fails(["report", "--interim", "why"], study, capsys, "give it with --unblind")
+    (study / "sealed" / "allocation.json").unlink()
+    _fails(["report", "--unblind", "--commitment", digest, "--interim", "a look"], study, capsys, "the sealed key", "is missing")
     assert not (study / "report").exists()
+
+
+def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    finished, _ = _codes(study)
+    digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    reason = "safety review after a collision"
+    assert main(["report", "--study", str(study), "--unblind", "--commitment", digest, "--interim", reason]) == 0
+    record = json.loads((study / "report" / "unblinding.json").read_text())
+    (opening,) = record["openings"]
+    assert opening == {"utc": record["unblinded_utc"][0], "completeness": f"{len(finished)} of 18 runs finished", "interim": reason}
+    blinding = json.loads((study / "report" / "report.json").read_text())["blinding"]
+    assert (blinding["completeness"], blinding["interim"]) == (opening["completeness"], reason)
+    assert f"**Interim unblinding** with {len(finished)} of 18 runs finished, for this reason: {reason}" in (study / "report" / "report.md").read_text()

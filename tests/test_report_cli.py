@@ -41,6 +41,11 @@ def ab_study(ab_template: Path, tmp_path: Path) -> Path:
     return Path(shutil.copytree(ab_template, tmp_path / "study"))
 
 
+def unblind(study: Path) -> list[str]:
+    """`--unblind --commitment HEX` with the commitment `trials design` printed (design.json holds it too)."""
+    return ["--unblind", "--commitment", json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]]
+
+
 def _report_text(root: Path) -> str:
     """Every file under report/ as text, embedded images left out."""
     return "\n".join(DATA_URI.sub("", p.read_bytes().decode("latin-1")) for p in sorted((root / "report").rglob("*")) if p.is_file())
@@ -54,7 +59,8 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
         assert name not in text.lower(), name
         assert name not in (console.out + console.err).lower(), name
     record = json.loads((ab_study / "report" / "report.json").read_text())
-    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None}
+    assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None,
+                                  "completeness": None, "interim": None}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
     markdown = (ab_study / "report" / "report.md").read_text()
     assert "| Runs with | A: runs | A: yes / judged |" in markdown
@@ -86,13 +92,13 @@ def test_dpi_sets_the_png_resolution_and_the_html_keeps_its_own(ab_study: Path) 
     assert stamp.sub("", (ab_study / "report" / "report.html").read_text(encoding="utf-8")) == stamp.sub("", page)
 
 
-def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
-    """Table II counted independently: plan, sealed key and responses.csv."""
+def _expected_table(root: Path, left_out: tuple[str, ...] = ()) -> dict[int, dict[str, tuple[int, int]]]:
+    """Table II counted independently: plan, sealed key and responses.csv, without the judgments of runs `left_out`."""
     arms = json.loads((root / "sealed" / "allocation.json").read_text())["arms"]
     with (root / "plan.csv").open() as handle:
         plan = {row["run_code"]: row for row in csv.DictReader(handle)}
     with (root / "responses.csv").open() as handle:
-        responses = list(csv.DictReader(handle))
+        responses = [r for r in csv.DictReader(handle) if r["run_code"] not in left_out]
     table: dict[int, dict[str, tuple[int, int]]] = {}
     for k in (2, 4, 6):
         for controller in arms.values():
@@ -102,7 +108,7 @@ def _expected_table(root: Path) -> dict[int, dict[str, tuple[int, int]]]:
 
 
 def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     out = capsys.readouterr().out
     record = json.loads((ab_study / "report" / "report.json").read_text())
     key = json.loads((ab_study / "sealed" / "allocation.json").read_text())["arms"]
@@ -131,7 +137,7 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
     first = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
     assert len(first) == 1
     # Unblinding again keeps the first time; a blinded report afterwards still names no controller.
-    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     times = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
     assert times[0] == first[0] and len(times) == 2
     capsys.readouterr()
@@ -140,6 +146,54 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
     text = _report_text(ab_study)
     assert not any(name in text.lower() or name in console.lower() for name in CONTROLLER_NAMES)
     assert f"The key was opened before (first at {first[0]})" in (ab_study / "report" / "report.md").read_text()
+
+
+def _made(root: Path, made: dict[str, str]) -> None:
+    """Rewrite outcomes.csv's perception of some runs, as a run played from a robot log (`log`) or driven live (`live`) records it."""
+    with (root / "outcomes.csv").open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    for row in rows:
+        if row["run_code"] in made:
+            row.update(perception=made[row["run_code"]], noise_std_m="", dropout="")
+    with (root / "outcomes.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    codes = [row["run_code"] for row in csv.DictReader((ab_study / "plan.csv").open())]
+    external, driven = codes[0], codes[1]
+    _made(ab_study, {external: "log", driven: "live"})
+    with (ab_study / "responses.csv").open() as handle:
+        judgments = sum(row["run_code"] == external for row in csv.DictReader(handle))
+    assert main(["score", external, "3", "--by", "ana", "--study", str(ab_study)]) == 0
+    capsys.readouterr()
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
+    out = capsys.readouterr().out
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    assert record["runs"]["made"] == {"simulated": 16, "driven live": 1, "external log": 1}
+    assert record["runs"]["left_out_of_comparisons"] == [external]
+    # Table II: every arm figure counted without the external run's judgments; 17 runs in the first row.
+    expected = _expected_table(ab_study, left_out=(external,))
+    assert {row["min_pedestrians"]: {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} for row in record["table_ii"]} == expected
+    assert sum(v["runs"] for v in record["table_ii"][0]["arms"].values()) == 17
+    # The external run is a 2-pedestrian NaviGAN-R run whose 2 judgments are both yes: that arm's first row drops from
+    # 32 / 38 to 30 / 36, the other arm's stays 19 / 36 (docs/reports.md quotes these).
+    assert judgments == 2 and _expected_table(ab_study)[2] == {"Lattice": (19, 36), "NaviGAN-R": (32, 38)}
+    assert expected[2] == {"Lattice": (19, 36), "NaviGAN-R": (30, 36)}
+    # The model fits: 17 runs each (the GEE's 72 judgments); the score counts: 17 runs, without the external run's human 3.
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "logistic GEE clustered by run (exchangeable working correlation, bias-reduced sandwich errors): 17 runs, 72 observations." in markdown
+    squares = [line for line in markdown.splitlines() if line.startswith("least squares:")]  # run shares and the four metrics
+    assert len(squares) == 5 and all(line.startswith("least squares: 17 runs, 17 observations;") for line in squares)
+    assert sum(record["score_counts"].values()) == 17 and record["scores"][external]["made"] == "external log"
+    note = (f"1 run ({external}) was played from an external robot log: the toolkit did not drive that robot, so its {judgments} judgment(s) "
+            "and 1 human score(s) are not credited to a controller: it is left out of Table II, the scores by arm and factor, and the model fits.")
+    assert note in markdown and f"Note: {note}" in out
+    line = "How the finished runs were made: 1 driven live on the robot, 16 simulated, 1 played from an external robot log."
+    assert line in markdown and line in out
+    assert re.search(rf"\| {external} \|.*\| \w+ \(external log\) \|", markdown) and re.search(rf"\| {driven} \|.*\| \w+ \(driven live\) \|", markdown)
 
 
 def test_tampered_key_is_refused_and_changes_nothing(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -151,7 +205,7 @@ def test_tampered_key_is_refused_and_changes_nothing(ab_study: Path, capsys: pyt
     key_path.write_text(json.dumps(key))
     before[key_path] = key_path.read_bytes()
     capsys.readouterr()
-    assert main(["report", "--study", str(ab_study), "--unblind"]) == 2
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "does not match the commitment" in err
     assert {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()} == before
@@ -177,11 +231,12 @@ def test_unblinding_checks_the_recorded_commitment_and_keeps_the_blinded_report(
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"]["controllers_named"] and "recorded outside the study" in record["blinding"]["key_check"]
     assert "matched the commitment recorded outside the study" in (ab_study / "report" / "report.md").read_text()
+    assert "The key was opened with 18 of 18 runs finished." in (ab_study / "report" / "report.md").read_text()
     kept = {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()}
     assert kept == blinded
     # Unblinding again replaces the unblinded report only; the blinded one stays as it was.
-    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
-    assert "no independently recorded commitment was given" in capsys.readouterr().out
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
+    assert "matched the commitment recorded outside the study" in capsys.readouterr().out
     assert {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()} == kept
     assert not (ab_study / "superseded").exists()
 
@@ -204,7 +259,7 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     out = capsys.readouterr().out
     record = json.loads((folder.root / "report" / "report.json").read_text())
     scores = record["scores"]
-    assert scores[collided["run_code"]] == {"arm": "NaviGAN-R", "rubric": 1, "reasons": ["collision"], "human": [3, 2], "final": 2}
+    assert scores[collided["run_code"]] == {"arm": "NaviGAN-R", "made": "simulated", "rubric": 1, "reasons": ["collision"], "human": [3, 2], "final": 2}
     assert scores[backed["run_code"]]["rubric"] == 2 and "backed up 1.0 s" in scores[backed["run_code"]]["reasons"]
     assert scores[backed["run_code"]]["human"] == [2]
     finals = [s["final"] for s in scores.values()]
@@ -228,7 +283,9 @@ def test_unfinished_runs_are_reported(tmp_path: Path, capsys: pytest.CaptureFixt
     out = capsys.readouterr().out
     assert f"not finished yet: {', '.join(missing)}" in out
     record = json.loads((folder.root / "report" / "report.json").read_text())
-    assert record["runs"] == {"planned": 18, "finished": 10, "not_finished": missing}
+    assert record["runs"] == {"planned": 18, "finished": 10, "not_finished": missing,
+                              "made": {"simulated": 10, "driven live": 0, "external log": 0}, "left_out_of_comparisons": []}
+    assert "How the finished runs were made" not in (folder.root / "report" / "report.md").read_text()  # all simulated: nothing to say
     markdown = (folder.root / "report" / "report.md").read_text()
     assert f"**Not finished yet (8):** {', '.join(missing)}" in markdown
     assert "No judgments of finished runs yet" in markdown
@@ -253,7 +310,7 @@ class _Sources(HTMLParser):
 
 
 def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
-    assert main(["report", "--study", str(ab_study), "--unblind"]) == 0
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     page = (ab_study / "report" / "report.html").read_text(encoding="utf-8")
     parser = _Sources()
     parser.feed(page)

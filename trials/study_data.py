@@ -8,6 +8,7 @@ verified unblinding is kept in report/unblinding.json (the report's metadata), f
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from typing import Any
 
 from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED_RUN, Blinding, HumanScore, Outcome, Response, StudyData, StudyRun
@@ -35,9 +36,11 @@ CONTROLLER_FACTOR = "Controller"
 INPUTS_KEY = "inputs_sha256"
 
 
-def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | None = None) -> StudyData:
+def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | None = None,
+               opening: Opening | None = None) -> StudyData:
     """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked,
-    checked against design.json's commitment and the recorded `commitment` when given."""
+    checked against design.json's commitment and the recorded `commitment` when given (`opening`: how complete the
+    study is as it is opened, `unblinding_opening`)."""
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
     design = folder.read_design()
@@ -63,7 +66,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
     responses: list[Response] = read_responses(folder.path(RESPONSES))
     _no_unknown_codes([r.run_code for r in responses], codes, f"{RESPONSES} has judgments")
 
-    blinding = _blinding(folder, design, [f.name for f in spec.factors], unblind, now, notes, commitment)
+    blinding = _blinding(folder, design, [f.name for f in spec.factors], unblind, now, notes, commitment, opening)
     runs = []
     for row in plan:
         code = row["run_code"]
@@ -109,7 +112,7 @@ def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:
 
 
 def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: list[str], unblind: bool, now: str, notes: list[str],
-              commitment: str | None) -> Blinding:
+              commitment: str | None, opening: Opening | None) -> Blinding:
     record = design.get("blinding")
     if not record:
         if unblind:
@@ -122,24 +125,65 @@ def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: li
     if not unblind:
         return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history)
     sealed, check = folder.open_sealed(commitment)
-    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check)
+    completeness, interim = (opening.completeness, opening.interim) if opening is not None else ("", None)
+    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check, completeness, interim)
 
 
-def read_unblinding(folder: StudyFolder, commitment: str) -> tuple[str, ...]:
-    """Earlier verified unblindings of this design (by its commitment), oldest first."""
+def _unblinding_file(folder: StudyFolder, commitment: str) -> dict[str, Any]:
+    """report/unblinding.json of this design (by its commitment), or {} when there is none (or it is of another design)."""
     path = folder.path(UNBLINDING)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        return ()
+        return {}
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise StudyError(f"{path} is damaged: {exc}") from None
-    if data.get("commitment") != commitment:
-        return ()
-    return tuple(str(t) for t in data.get("unblinded_utc", []))
+    return data if isinstance(data, dict) and data.get("commitment") == commitment else {}
 
 
-def unblinding_record(blinding: Blinding) -> bytes:
-    """report/unblinding.json: when the key of this design was opened, every time."""
-    data = {"format": UNBLINDING_FORMAT, "commitment": blinding.commitment, "unblinded_utc": list(blinding.unblinded_utc)}
+def read_unblinding(folder: StudyFolder, commitment: str) -> tuple[str, ...]:
+    """Earlier verified unblindings of this design (by its commitment), oldest first."""
+    return tuple(str(t) for t in _unblinding_file(folder, commitment).get("unblinded_utc", []))
+
+
+@dataclass(frozen=True)
+class Opening:
+    """How complete a blinded study is as its key is opened, and why it is opened early (None: it is complete)."""
+
+    completeness: str
+    interim: str | None
+
+
+def unblinding_opening(folder: StudyFolder, commitment: str | None, interim: str | None) -> Opening | None:
+    """Check that opening the key now is deliberate: the commitment recorded outside the study is given, and every run
+    has finished unless an interim reason is given. None for a study that is not blinded (nothing to open).
+
+    Raises:
+        StudyError: no `--commitment`, or runs pending or failed without `--interim REASON`, or an empty reason.
+    """
+    blinding = folder.read_design().get("blinding")
+    if not blinding:
+        return None
+    if commitment is None:
+        raise StudyError("--unblind needs --commitment HEX, the commitment `trials design` printed and you recorded outside "
+                         "the study folder: the key is opened only against it")
+    codes = [row["run_code"] for row in folder.read_plan()]
+    finished = {row.run_code for row in read_outcomes(folder.path(OUTCOMES), True)} & set(codes)
+    failed = [c for c in codes if c not in finished and folder.run_failure(c).exists()]
+    completeness = f"{len(finished)} of {len(codes)} runs finished" + (f", {len(failed)} failed" if failed else "")
+    if interim is not None and not interim.strip():
+        raise StudyError("--interim needs a reason, e.g. --interim \"safety review after a collision\"")
+    if len(finished) < len(codes) and interim is None:
+        raise StudyError(f"only {completeness}: opening the key now would be an interim look that the analysis did not plan; "
+                         "finish the runs, or give --interim REASON to open it anyway (the reason is recorded and printed in the report)")
+    return Opening(completeness, interim.strip() if interim is not None else None)
+
+
+def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
+    """report/unblinding.json: when the key of this design was opened, every time, and how complete the study was then
+    (`openings`: time, completeness and any interim reason, one per opening recorded with them)."""
+    earlier = _unblinding_file(folder, blinding.commitment or "").get("openings", [])
+    opening = {"utc": blinding.unblinded_utc[-1], "completeness": blinding.completeness, "interim": blinding.interim}
+    data = {"format": UNBLINDING_FORMAT, "commitment": blinding.commitment, "unblinded_utc": list(blinding.unblinded_utc),
+            "openings": [*earlier, opening]}
     return (json.dumps(data, indent=1) + "\n").encode()

@@ -31,8 +31,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--commitment",
         metavar="HEX",
-        help="with --unblind: the commitment `trials design` printed, as recorded outside the study folder; a "
-        "key that does not match it is refused",
+        help="with --unblind (required to unblind a blinded study): the commitment `trials design` printed, as recorded "
+        "outside the study folder; a key that does not match it is refused",
+    )
+    parser.add_argument(
+        "--interim",
+        metavar="REASON",
+        help="with --unblind: open the key although runs are pending or failed (an interim look), for this reason; the "
+        "reason, the time and how many runs had finished are recorded in report/unblinding.json and printed in the report",
     )
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")
@@ -63,16 +69,19 @@ def run(args: argparse.Namespace) -> int:
         StudyFolder,
         utc_now,
     )
-    from trials.study_data import INPUTS_KEY, load_study, unblinding_record
+    from trials.study_data import INPUTS_KEY, load_study, unblinding_opening, unblinding_record
 
     folder = StudyFolder(args.study)
     if args.commitment is not None and not args.unblind:
         raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
+    if args.interim is not None and not args.unblind:
+        raise StudyError("--interim gives the reason for opening the key early: give it with --unblind")
+    opening = unblinding_opening(folder, args.commitment, args.interim) if args.unblind else None
     now = utc_now()
     Progress("figure", "report", args.quiet or args.json).loading(
         f"Reading the study in {folder.root} and fitting its model{' (opening the sealed key)' if args.unblind else ''}")
     inputs = folder.report_inputs()  # before reading, so a change made while the report is built shows as stale
-    data = load_study(folder, args.unblind, now, args.commitment)
+    data = load_study(folder, args.unblind, now, args.commitment, opening)
     if not data.finished:
         raise StudyError(f"no finished runs in {folder.path(OUTCOMES)} yet: nothing to report (run `trials run` first)")
     rubric_file = args.rubric or (folder.path(RUBRIC) if folder.path(RUBRIC).exists() else None)
@@ -90,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     }
     kept = None
     if data.blinding.revealed:
-        files[folder.path(UNBLINDING)] = unblinding_record(data.blinding)
+        files[folder.path(UNBLINDING)] = unblinding_record(folder, data.blinding)
         if not _unblinded(folder.path(REPORT_RECORD)):
             kept = folder.keep_blinded_report()
     write_files(files)
