@@ -27,6 +27,7 @@ class LidarSpec:
     """Beam geometry, range limits (m) and noise of the simulated sensor.
 
     Defaults: a 270-degree scanner at 0.25-degree resolution, 0.05-10 m, 1 cm range noise.
+    `fitted()` is the lidar of the labelled sample bags, the one the shipped leg detector learned from.
     """
 
     angle_min: float = -0.75 * math.pi
@@ -37,6 +38,14 @@ class LidarSpec:
     range_noise_std: float = 0.01
     dropout: float = 0.0
     frame_id: str = "laser"
+
+    @classmethod
+    def fitted(cls) -> LidarSpec:
+        """The labelled sample bags' lidar, as `robot_logs.leg_fit` measures it (docs/robot_logs.md): 768
+        beams from -135 degrees at 360/1024 degrees, 0.03-11 m, 3 mm range noise."""
+        increment = 2.0 * math.pi / 1024
+        return cls(angle_min=-0.75 * math.pi, angle_max=-0.75 * math.pi + 767 * increment, angle_increment=increment,
+                   range_min=0.03, range_max=11.0, range_noise_std=0.003)
 
     @property
     def beams(self) -> int:
@@ -60,6 +69,8 @@ class BodyModel:
         walking_speed: speed at which the full stride is reached; slower means shorter swing.
         cadence_hz: gait cycles per second.
         disc_radius: radius of the body disc.
+
+    `fitted()` gives the legs of the labelled sample bags' walkers.
     """
 
     shape: Literal["legs", "disc"] = "legs"
@@ -69,6 +80,13 @@ class BodyModel:
     walking_speed: float = 1.3
     cadence_hz: float = 0.9
     disc_radius: float = 0.25
+
+    @classmethod
+    def fitted(cls) -> BodyModel:
+        """Legs like those of the labelled sample bags' walkers, as `robot_logs.leg_fit` measures them
+        (docs/robot_logs.md): 6.7 cm in radius, 17 cm apart sideways, each swinging 15 cm fore and aft
+        (the full swing from 1 m/s) at 0.77 strides a second."""
+        return cls(leg_radius=0.067, leg_spread=0.17, stride=0.15, walking_speed=1.0, cadence_hz=0.77)
 
 
 def body_circles(
@@ -124,6 +142,10 @@ def cast_rays(
 
 class LidarSimulator:
     """Seeded scans of pedestrians (and optional walls) seen from a moving sensor.
+
+    Scans meant for the shipped leg detector (`PersonTracker.learned()`, as on a real robot) take
+    `LidarSpec.fitted()` and `BodyModel.fitted()`: its trees learned the sample bags' legs and lidar,
+    and it calls few of the default legs legs (docs/robot_logs.md has the figures).
 
     Args:
         spec: beam geometry, limits and noise.

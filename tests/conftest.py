@@ -11,7 +11,7 @@ from navigan.data import SHIPPED_DATA
 DATA = Path(__file__).resolve().parent / "data"
 
 #: Fixtures shared by several test files: the lattice controller in its trial scene (`controller`, `fresh`).
-pytest_plugins = ["tests.support.lattice_scene"]
+pytest_plugins = ["tests.support.lattice_scene", "tests.support.ros1_master"]
 
 
 @pytest.fixture(scope="session")

@@ -165,7 +165,7 @@ CASES = [
          "spec.toml: every factor is fixed; a design needs at least one varying factor",
          spec(SPEC_HEAD + '[[factors]]\nname = "A"\ntype = "fixed"\nvalue = 1\n')),
     Case("unknown table", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
-         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]] and [run])",
+         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run] and [robot])",
          spec(SPEC_HEAD + "[extra]\n" + SPEED)),
     Case("arms without blind", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "factors[0] (A): arms are only for a blind factor; use levels",
@@ -389,7 +389,7 @@ def test_a_full_disk_stops_trials_run_at_once(template: Path, tmp_path: Path, mo
 class _FullDiskPool:
     """Stands in for the worker pool: every worker answers that the disk is full."""
 
-    def __init__(self, *args: object) -> None:
+    def __init__(self, *args: object, **options: object) -> None:
         return None
 
     def __enter__(self) -> _FullDiskPool:

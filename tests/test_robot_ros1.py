@@ -27,8 +27,6 @@ from tests.support.ros1_echo import PATIENCE_S, SAMPLES, environment
 from trials.robot import ros1
 from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri
 
-pytest_plugins = ["tests.support.ros1_master"]
-
 REPO = Path(__file__).resolve().parents[1]
 
 

@@ -60,10 +60,11 @@ def design_study(folder: Path, spec: str = SPEC) -> Path:
     return folder
 
 
-def add_outcome(folder: Path, code: str) -> None:
-    """An outcome row for run `code` through outcomes.csv's owner, as if its log had been played."""
+def add_outcome(folder: Path, code: str, perception: str = "log") -> None:
+    """An outcome row for run `code` through outcomes.csv's owner, as if its log had been played (or, with perception
+    `live`, as if it had been driven live)."""
     outcomes = Outcomes(StudyFolder(folder), blind=True)
-    outcomes.append(Outcome(run_code=code, status="goal", seed=7, perception="log", duration_s=12.0, time_to_goal_s=12.0,
+    outcomes.append(Outcome(run_code=code, status="goal", seed=7, perception=perception, duration_s=12.0, time_to_goal_s=12.0,
                             path_length_m=9.5, min_distance_m=0.8, time_within_0_5m_s=0.0, time_within_1_2m_s=1.2, collisions=0,
                             max_deceleration_mps2=0.4, max_jerk_mps3=1.0, path_irregularity_rad_per_m=0.1, turn_in_place_s=0.0,
                             backing_up_s=0.0, stopped_s=0.0, finished_utc="2026-05-01T10:00:00+00:00"))
@@ -95,18 +96,35 @@ def browser(size: tuple[int, int] = (1280, 900)) -> Iterator:
 
 
 @contextmanager
-def served(study: Path) -> Iterator[str]:
-    """`trials serve` on the study at a free loopback port; yields the experimenter's URL it prints first."""
-    process = subprocess.Popen([sys.executable, "-m", "trials.cli", "serve", "--study", str(study), "--port", "0"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def served(study: Path, *options: str, env: dict[str, str] | None = None) -> Iterator[str]:
+    """`trials serve` on the study at a free loopback port (with more `options`, in `env`); yields the experimenter's URL it prints first."""
+    process = subprocess.Popen([sys.executable, "-m", "trials.cli", "serve", "--study", str(study), "--port", "0", *options],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert process.stdout is not None
         first = process.stdout.readline().strip()
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[\w-]{32}", first), first + (process.stderr.read() if process.poll() is not None else "")
         yield first
     finally:
-        process.terminate()
-        process.wait(timeout=30)
+        process.terminate()  # a live run going is stopped first, which takes its own time
+        try:
+            process.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def go(driver, by: str, value: str) -> None:
+    """Click what opens or submits a page, and wait until the next page has replaced this one: a mark set
+    on this page's window is gone once a new document has loaded. (Waiting for an old element to go
+    stale races Chromium's inspector, which may answer that its node left the document.)"""
+    from selenium.common.exceptions import WebDriverException
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    driver.execute_script("window.leavingThisPage = true")
+    driver.find_element(by, value).click()
+    WebDriverWait(driver, 120, ignored_exceptions=(WebDriverException,)).until(
+        lambda d: d.execute_script("return window.leavingThisPage === undefined && document.readyState === 'complete'"))
 
 
 def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None = None) -> list[str]:
@@ -115,20 +133,9 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
     participants, each in their own browser, answer both runs' questionnaires (P01 and P02 say yes to
     the first run, P03 no; all no to the second). Returns the source of every page seen; with `shots`,
     saves screenshots of the main pages there."""
-    from selenium.common.exceptions import WebDriverException
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.support.ui import WebDriverWait
 
     pages: list[str] = []
-
-    def go(driver, by: str, value: str) -> None:
-        """Click what opens or submits a page, and wait until the next page has replaced this one: a mark set
-        on this page's window is gone once a new document has loaded. (Waiting for an old element to go
-        stale races Chromium's inspector, which may answer that its node left the document.)"""
-        driver.execute_script("window.leavingThisPage = true")
-        driver.find_element(by, value).click()
-        WebDriverWait(driver, 120, ignored_exceptions=(WebDriverException,)).until(
-            lambda d: d.execute_script("return window.leavingThisPage === undefined && document.readyState === 'complete'"))
 
     def seen(driver, name: str | None = None) -> None:
         pages.append(driver.title + "\n" + driver.current_url + "\n" + driver.page_source)

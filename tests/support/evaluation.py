@@ -4,6 +4,8 @@
   (Hungarian), giving recall, precision and the mean position error.
 - Tracking against true trajectories: CLEAR-MOT (MOTA, MOTP, id switches) through
   `motmetrics`, a development dependency (which is why this lives with the tests).
+- Features of labelled legs, real or simulated: the segments the training protocol calls legs,
+  for a leg detector to score.
 """
 
 from __future__ import annotations
@@ -14,10 +16,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from robot_logs.detection import DetectorConfig
+from robot_logs.frames import Pose2D
 from robot_logs.labels import labelled_scans
+from robot_logs.leg_training import TrainingSettings, candidates, match_labels
+from robot_logs.lidar_sim import LidarSimulator, body_circles
+from robot_logs.records import Scan
+from robot_logs.segment_features import FEATURE_NAMES, segment_features
 from robot_logs.tracking import TrackState
+from tests.support.crowd import Crowd
 
-__all__ = ["DetectionScore", "clear_mot", "labelled_scans", "match", "score_detections"]
+__all__ = ["DetectionScore", "clear_mot", "labelled_scans", "leg_features", "match", "score_detections", "simulated_legs"]
 
 
 def match(detected: np.ndarray, truth: np.ndarray, max_distance: float) -> np.ndarray:
@@ -85,3 +94,24 @@ def clear_mot(
              "num_misses": "misses", "num_objects": "objects"}
     row = motmetrics.metrics.create().compute(accumulator, metrics=list(names), name="run").iloc[0]
     return {names[key]: float(row[key]) for key in names}
+
+
+def simulated_legs(lidar: LidarSimulator, crowd: Crowd) -> list[tuple[Scan, np.ndarray]]:
+    """Each scan of `crowd` seen by `lidar` standing at the origin, with the centres of every walker's
+    legs as its labels, like the labelled bags' scans."""
+    return [(lidar.scan(when, Pose2D(), people, velocities), body_circles(people, velocities, when, lidar.body)[0])
+            for when, people, velocities in zip(crowd.times, crowd.positions, crowd.velocities)]
+
+
+def leg_features(pairs: Iterable[tuple[Scan, np.ndarray]]) -> np.ndarray:
+    """(L, len(FEATURE_NAMES)) features of the labelled legs' segments: the candidate segments matched
+    one to one to a label within 0.1 m, the training protocol's positives (a leg hidden or too small to
+    make a candidate segment is not among them)."""
+    config, settings = DetectorConfig(), TrainingSettings()
+    features = [np.zeros((0, len(FEATURE_NAMES)))]
+    for scan, labels in pairs:
+        segments, mask = candidates(scan, config)
+        leg, _ = match_labels(segments.centroids[mask], labels, settings)
+        if leg.any():
+            features.append(segment_features(segments.points, segments.starts, mask)[leg])
+    return np.concatenate(features)

@@ -24,7 +24,7 @@ from typing import TextIO
 import numpy as np
 
 from robot_logs.frames import Pose2D
-from robot_logs.lidar_sim import LidarSimulator, LidarSpec
+from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.records import Odometry, Transform
 from trials.errors import StudyError
 from trials.robot.live import RUN_TOPIC
@@ -113,7 +113,8 @@ class SoftwareRobot:
         self.transport, self.settings, self.config, self.study = transport, settings, config, study
         self.limits = settings.limits
         self.robot = RobotState(0.0, 0.0, 0.0)
-        self.lidar = LidarSimulator(replace(LidarSpec(), frame_id=config.laser_frame), seed=config.seed)
+        # The lidar and legs fitted to the labelled real bags, so the robot's own leg detector sees the walkers.
+        self.lidar = LidarSimulator(replace(LidarSpec.fitted(), frame_id=config.laser_frame), BodyModel.fitted(), seed=config.seed)
         self.scene = self._scene("", time.monotonic())
         self._command = Velocity(0.0, 0.0)
         self._command_at = -math.inf
