@@ -80,11 +80,12 @@ TIMEOUT = "timeout"
 
 
 def fit_metrics(data: StudyData) -> list[Fit]:
-    """Least squares of each outcome metric on the plan's terms, over the finished runs that have a value;
-    durations of runs that timed out are flagged as censored."""
+    """Least squares of each outcome metric on the plan's terms, over the finished runs the toolkit drove that have
+    a value (a run played from an external robot log measures a robot no arm drove); durations of runs that timed
+    out are flagged as censored."""
     fits = []
     for column, name in METRICS:
-        runs = [run for run in data.finished if getattr(run.outcome, column) is not None]
+        runs = [run for run in data.compared if getattr(run.outcome, column) is not None]
         if not runs:  # no finished run has this metric (time to goal when none arrived): nothing to fit
             continue
         dm = DesignMatrix.from_model(data.model, settings(data, runs))

@@ -127,12 +127,18 @@ def run_figures(rows: list[dict[str, str]], scores: dict[str, dict]) -> list[str
             f"{statistics.mean(times):.1f}", f"{statistics.median(gaps):.2f}", f"{min(gaps):.2f}"]
 
 
+#: Stands in a command for the commitment the study's design printed (read from its design.json).
+COMMITMENT = "HEX"
+
+
 def simulated_study(design: list[str], run: list[str], report: list[str]) -> tuple[list[dict[str, str]], dict]:
     """Design, run and report a study in a fresh folder; its outcome rows and report.json."""
     with tempfile.TemporaryDirectory() as folder:
         where = Path(folder)
-        for command in (design, run, report):
-            trials(command, where)
+        trials(design, where)
+        trials(run, where)
+        blinding = json.loads((where / "design.json").read_text(encoding="utf-8")).get("blinding") or {}
+        trials([blinding["commitment"]["digest"] if word == COMMITMENT else word for word in report], where)
         with (where / "outcomes.csv").open(newline="", encoding="utf-8") as handle:
             rows = list(csv.DictReader(handle))
         return rows, json.loads((where / "report" / "report.json").read_text(encoding="utf-8"))
@@ -163,7 +169,7 @@ def qualitative() -> str:
 def ab_study() -> str:
     """The blinded 18-run A/B study, unblinded: outcomes per controller and Table II."""
     design = ["design", "--ab", "--seed", str(AB_SEED), "--allocation-seed", str(AB_ALLOCATION_SEED)]
-    rows, report = simulated_study(design, ["run", "--blind"], ["report", "--unblind"])
+    rows, report = simulated_study(design, ["run", "--blind"], ["report", "--unblind", "--commitment", COMMITMENT])
     scores = report["scores"]
     arms = sorted({s["arm"] for s in scores.values()})
     outcome_rows = [[arm, *run_figures([r for r in rows if scores[r["run_code"]]["arm"] == arm], scores)] for arm in arms]
@@ -173,9 +179,10 @@ def ab_study() -> str:
         "## The A/B study (NaviGAN-R against the lattice planner, 18 runs)",
         "",
         "```bash",
-        f"trials {' '.join(design)} && trials run --blind && trials report --unblind",
+        f"trials {' '.join(design)} && trials run --blind && trials report --unblind --commitment {COMMITMENT}",
         "```",
         "",
+        f"{COMMITMENT} is the commitment `trials design` printed (design.json holds it too).",
         "`--allocation-seed` fixes which arm is which controller, so the study can be made again; a real",
         "study leaves it out and keeps the key secret. The lattice bounds each search by a number of",
         "expansions, so both controllers' runs reproduce from their seeds; this section takes minutes",

@@ -166,7 +166,8 @@ def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_stu
     external, driven = codes[0], codes[1]
     _made(ab_study, {external: "log", driven: "live"})
     with (ab_study / "responses.csv").open() as handle:
-        judgments = sum(row["run_code"] == external for row in csv.DictReader(handle))
+        answers = [row["compliant"] for row in csv.DictReader(handle) if row["run_code"] == external]
+    judgments, yes = len(answers), answers.count("yes")
     assert main(["score", external, "3", "--by", "ana", "--study", str(ab_study)]) == 0
     capsys.readouterr()
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
@@ -178,13 +179,15 @@ def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_stu
     expected = _expected_table(ab_study, left_out=(external,))
     assert {row["min_pedestrians"]: {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} for row in record["table_ii"]} == expected
     assert sum(v["runs"] for v in record["table_ii"][0]["arms"].values()) == 17
-    # The external run is a 2-pedestrian NaviGAN-R run whose 2 judgments are both yes: that arm's first row drops from
-    # 32 / 38 to 30 / 36, the other arm's stays 19 / 36 (docs/reports.md quotes these).
-    assert judgments == 2 and _expected_table(ab_study)[2] == {"Lattice": (19, 36), "NaviGAN-R": (32, 38)}
-    assert expected[2] == {"Lattice": (19, 36), "NaviGAN-R": (30, 36)}
+    # The external run has 2 pedestrians and so 2 simulated judgments (one per pedestrian), of 74: its arm's first row
+    # loses exactly those (its yes among them), the other arm's keeps all of its own.
+    arm, with_it = record["scores"][external]["arm"], _expected_table(ab_study)
+    assert judgments == 2 and sum(n for _, n in with_it[2].values()) == 74
+    assert expected[2] == {**with_it[2], arm: (with_it[2][arm][0] - yes, with_it[2][arm][1] - 2)}
+    assert {name: v["runs"] for name, v in record["table_ii"][0]["arms"].items()} == {name: 8 if name == arm else 9 for name in with_it[2]}
     # The model fits: 17 runs each (the GEE's 72 judgments); the score counts: 17 runs, without the external run's human 3.
     markdown = (ab_study / "report" / "report.md").read_text()
-    assert "logistic GEE clustered by run (exchangeable working correlation, bias-reduced sandwich errors): 17 runs, 72 observations." in markdown
+    assert "logistic GEE clustered by run (exchangeable working correlation, bias-reduced sandwich errors): 17 runs, 72 observations" in markdown
     squares = [line for line in markdown.splitlines() if line.startswith("least squares:")]  # run shares and the four metrics
     assert len(squares) == 5 and all(line.startswith("least squares: 17 runs, 17 observations;") for line in squares)
     assert sum(record["score_counts"].values()) == 17 and record["scores"][external]["made"] == "external log"

@@ -580,7 +580,7 @@ class TrialWorker:
     def _live(self, task: RunTask, level: str, arm: str | None, controller: Controller, path: Path) -> tuple[str, RunMetrics]:
         """Drive a row live on the robot (`trials.robot.live_trial`), writing its log; returns how it ended and its
         metrics. A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
-        in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker then exits."""
+        in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker exits once the run's files are kept."""
         from trials.robot.live import ABORTED
         from trials.robot.live_log import LiveLog
         from trials.robot.live_trial import aborted_stamp
@@ -589,27 +589,24 @@ class TrialWorker:
         assert robot is not None and driver is not None
         entries = {"perception": LIVE, "weights": self.options.settings.recorded()["weights"], **robot.recorded(), **self._factors(task)}
         log = LiveLog(path, self._metadata(task, level, entries), self.blind, robot.limits)
-        try:
-            end = driver.drive(task.code, task.row, controller, log)
-        except RunAborted as exc:
-            _record_failure(self.folder, task.code, str(exc), self.blind)
-            if driver.terminated:
-                raise SystemExit(1) from None
-            raise
-        except BaseException:
-            if log.log is not None:  # whatever stopped the run, what it recorded is kept
-                self._keep_aborted(task, level, arm, log, aborted_stamp())
-            raise
-        if end.status == ABORTED:
-            stamp = aborted_stamp()
-            kept = self._keep_aborted(task, level, arm, log, stamp)
-            message = f"run {task.code} aborted: {end.detail}; its log is {kept}"
-            _record_failure(self.folder, task.code, message, self.blind)
-            if driver.terminated:
-                raise SystemExit(1)
-            raise RunAborted(message)
-        self._seal(task, level, arm, log.log)
-        log.close()
+        with driver.task():
+            try:
+                end = driver.drive(task.code, task.row, controller, log)
+            except RunAborted as exc:
+                _record_failure(self.folder, task.code, str(exc), self.blind)
+                raise
+            except BaseException:
+                if log.log is not None:  # whatever stopped the run, what it recorded is kept
+                    self._keep_aborted(task, level, arm, log, aborted_stamp())
+                raise
+            if end.status == ABORTED or driver.terminated:
+                # A run stopped as it ended cannot hand its row to a parent that is stopping: it is kept aside, pending.
+                why = end.detail if end.status == ABORTED else f"stopped by SIGTERM as it ended ({end.status})"
+                message = f"run {task.code} aborted: {why}; its log is {self._keep_aborted(task, level, arm, log, aborted_stamp())}"
+                _record_failure(self.folder, task.code, message, self.blind)
+                raise RunAborted(message)
+            self._seal(task, level, arm, log.log)
+            log.close()
         return end.status, end.metrics
 
     def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: Any, stamp: str) -> Path | None:

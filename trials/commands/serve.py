@@ -18,19 +18,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Serve the study's web console: the run sheet, each run's page (start, finish, abort, notes, attach the "
             "robot's log, played as `trials run --from-log` plays it), the evaluator's score form, the participants' "
-            "questionnaire (a link and QR code per run) and the progress so far. The first line printed is the "
-            "experimenter's link, with its token; it opens the run sheet. Everything is written into the study "
-            "folder as the other commands write it. Ctrl-C stops it."
+            "questionnaire (a link and QR code per run) and the progress so far. In a study driven live (a [robot] "
+            "table in study.toml, or --robot), a run page's Start drives the run on the robot as `trials run --robot` "
+            "does, shows its state and offers E-STOP. The first line printed is the experimenter's link, with its "
+            "token; it opens the run sheet. Everything is written into the study folder as the other commands write "
+            "it. Ctrl-C stops it (and a live run first)."
         ),
     )
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
                         help="address to listen on (default 127.0.0.1, this machine only; 0.0.0.0 lets phones on the network in)")
     parser.add_argument("--port", type=types.whole(0, 65535), default=DEFAULT_PORT, metavar="N", help=f"port (default {DEFAULT_PORT}; 0: any free one)")
+    parser.add_argument("--robot", metavar="URI",
+                        help="drive the runs live on this robot (ros1://HOST:PORT or ros2://DOMAIN), with the [robot] table's topics "
+                        "and limits if study.toml has one (default: that table's uri; without one, runs are not driven live)")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import signal
+
     from waitress import create_server
 
     from trials.console.access import console_access
@@ -40,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.study import StudyFolder
 
     folder = StudyFolder(args.study)
-    console = Console(folder)
+    console = Console(folder, args.robot)
     console.sheet()  # a study the console cannot show is refused before it listens
     access = console_access(folder)
     try:
@@ -50,8 +57,19 @@ def run(args: argparse.Namespace) -> int:
     shown = f"[{args.host}]" if ":" in args.host else args.host
     print(f"http://{shown}:{server.effective_port}/?token={access.experimenter_token}", flush=True)
     print("The link above opens the run sheet (keep it to yourself: it lets its holder record runs). Ctrl-C stops the console.", flush=True)
+    if console.live.uri is not None:
+        print(f"Runs are driven live on {console.live.uri}: a run page's Start starts one; E-STOP or Ctrl-C here stops it.", flush=True)
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)  # `kill` stops the console as Ctrl-C does, and a live run with it
     try:
         server.run()
     finally:
         server.close()
+        stopped = console.live.close()
+        signal.signal(signal.SIGTERM, previous)
+        if stopped is not None:
+            print(f"Stopped the live run {stopped} (E-STOP); it is recorded as aborted.", flush=True)
     return 0

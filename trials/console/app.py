@@ -5,6 +5,10 @@ Experimenter pages (run sheet, run page, score form, progress) need the experime
 (`/?token=...`, kept in the signed session cookie); a participant's questionnaire link opens only its
 run's form, and the participant's code, entered once, stays in their cookie. Every form carries a
 CSRF token (Flask-WTF). Nothing from the study folder is served: pages are rendered from it.
+
+In a study driven live, a run page's Start starts the live run, a small script of the console's own
+(static/live.js) follows its state through `/runs/<code>/live`, and every experimenter page shows
+E-STOP while a run is live.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ import math
 from typing import Any
 
 import segno
-from flask import Flask, abort, flash, redirect, render_template, request, session, url_for
+from flask import Flask, abort, flash, jsonify, redirect, render_template, request, session, url_for
 from flask_wtf.csrf import CSRFError, CSRFProtect
 from markupsafe import Markup
 from werkzeug.exceptions import HTTPException
@@ -22,10 +26,14 @@ from werkzeug.wrappers import Response as HttpResponse
 from trials.attached_logs import MAX_UPLOAD_BYTES
 from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
+from trials.console.live import GOING
 from trials.console.progress import progress
+from trials.console.sheet import SheetRow
 from trials.errors import USER_ERRORS
 from trials.numbers import finite_number
-from trials.run_events import EVENTS
+from trials.robot.live_state import read_state
+from trials.run_events import ABORT, ABORTED, EVENTS
+from trials.study import LIVE_ESTOP
 
 #: Field names of the participant's code and compliance answer.
 PARTICIPANT, COMPLIANT = "participant", "compliant"
@@ -61,6 +69,16 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def unknown_run(error: UnknownRun) -> tuple[str, int]:
         return fail(str(error), 404)
 
+    @app.context_processor
+    def live_now() -> dict[str, Any]:
+        """The run E-STOP stops: this console's live run, else one live.json says is under way (started elsewhere)."""
+        if not session.get("experimenter"):
+            return {}
+        running = console.live.running
+        written = read_state(console.folder) if running is None else None
+        elsewhere = written.get("run_code") if written is not None and written.get("state") in GOING else None
+        return {"live_now": running, "estop_run": running or elsewhere}
+
     @app.get("/")
     def sheet() -> str | HttpResponse:
         token = request.args.get("token")
@@ -81,7 +99,36 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
         sheet, row = console.run(code)
         link = url_for("questionnaire", token=access.participant_token(code), _external=True)
         qr = Markup(segno.make(link, error="m").svg_inline(scale=4))
-        return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}"), status
+        live = console.live.state(code)
+        return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}",
+                               live_uri=console.live.uri, live=live, shown=_shown(row, live)), status
+
+    @app.post("/runs/<code>/live")
+    def live_start(code: str) -> tuple[str, int] | HttpResponse:
+        experimenter()
+        try:
+            console.start_live(code)
+        except USER_ERRORS as exc:
+            return _run_page(code, 400, str(exc))
+        flash(f"Run {code}: started live on {console.live.uri}.")
+        return redirect(url_for("run_page", code=code))
+
+    @app.get("/runs/<code>/live")
+    def live_state(code: str) -> HttpResponse:
+        experimenter()
+        console.run(code)
+        return jsonify(console.live.state(code))
+
+    @app.post("/estop")
+    def estop() -> HttpResponse:
+        experimenter()
+        stopped = console.live.estop()
+        if stopped is not None:
+            flash(f"E-STOP: run {stopped} was told to stop the robot now ({LIVE_ESTOP} created, `trials run` sent SIGTERM).")
+        else:
+            flash(f"E-STOP: {LIVE_ESTOP} created, which stops a live run of this study started elsewhere; none was going from this console.")
+        code = stopped or request.form.get("code", "")
+        return redirect(url_for("run_page", code=code) if code in console.sheet().codes else url_for("sheet"))
 
     @app.post("/runs/<code>/event")
     def run_event(code: str) -> tuple[str, int] | HttpResponse:
@@ -161,6 +208,15 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
         return redirect(url_for("questionnaire", token=token))
 
     return app
+
+
+def _shown(row: SheetRow, live: dict[str, Any]) -> tuple[str, str]:
+    """The state and detail a run page shows: its live state, else (runs/live.json has moved on to another run) its
+    outcome, or that it was aborted and why, or that it has not started."""
+    if "state" in live:
+        return str(live["state"]), str(live.get("detail", ""))
+    aborted = row.latest(ABORT) if row.status == ABORTED else None
+    return (row.outcome, "") if row.outcome else (ABORTED, aborted.detail) if aborted else ("not started", "")
 
 
 def _number(form: Any, name: str) -> float | None:

@@ -15,12 +15,13 @@ import tempfile
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import IO, Any
 
 from trials.errors import StudyError
 from trials.outcomes import read_outcomes
 from trials.robot.live import ABORTED, DRIVING, WAITING
-from trials.robot.live_trial import read_state
+from trials.robot.live_state import read_state
 from trials.robot.settings import read_robot_settings
 from trials.robot.transport import RobotUri
 from trials.runner import LIVE_GRACE_S, lock_state
@@ -32,6 +33,11 @@ STARTING = "starting"
 GOING = (STARTING, WAITING, DRIVING)
 #: Seconds the console waits for a stopped live run to end before killing it: `trials run`'s own grace, and margin.
 STOP_WAIT_S = LIVE_GRACE_S + 20.0
+
+
+def run_command(uri: str, code: str, root: Path) -> list[str]:
+    """The command line of a live run: `trials run --robot URI --only CODE --study DIR`, quiet (its errors still print)."""
+    return [sys.executable, "-m", "trials.cli", "run", "--robot", uri, "--only", code, "--study", str(root), "--quiet"]
 
 
 def robot_uri(folder: StudyFolder, given: str | None) -> str | None:
@@ -96,9 +102,9 @@ class LiveRuns:
                 raise StudyError(f"another `trials run` is running on this study (pid {lock.pid}); wait for it to end")
             before = read_state(self.folder), _failure(self.folder, code)
             errors = tempfile.TemporaryFile()
-            command = [sys.executable, "-m", "trials.cli", "run", "--robot", uri, "--only", code, "--study", str(self.folder.root), "--quiet"]
             # Its own session: a Ctrl-C meant for the console reaches the live run only as the console's stop (`close`).
-            process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=errors, start_new_session=True)
+            process = subprocess.Popen(run_command(uri, code, self.folder.root), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       stderr=errors, start_new_session=True)
             live = LiveProcess(code, process, errors, *before)
             live.watcher = threading.Thread(target=self._watch, args=(live,), name=f"live-run-{code}", daemon=True)
             self._current = live

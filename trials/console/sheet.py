@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from analysis.records import EXTERNAL_LOG, HUMAN
+from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN
 from designs.questionnaire import LikertItem
 from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
@@ -35,6 +35,11 @@ class SheetRow:
     judgments: int
     events: list[RunEvent] = field(default_factory=list)
     origin: str = ""
+
+    @property
+    def made(self) -> str:
+        """How the run was made, as the sheet marks it: `driven live` or `external log` (nothing for a simulated run)."""
+        return "" if self.origin == SIMULATED_RUN else self.origin
 
     @property
     def external(self) -> bool:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import os
 import signal
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
 
@@ -37,13 +38,27 @@ class LiveDriver:
         self.link = RobotLink(open_transport(settings.robot_uri, "navtrials_run"), settings)
         self.stop: StopRequest | None = None
         self.terminated = False
+        self._working = False
         signal.signal(signal.SIGTERM, self._on_signal)
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self.terminated = True
-        if self.stop is None:
+        if self.stop is not None:
+            self.stop.request(f"stopped by {signal.Signals(signum).name} (Ctrl-C or kill of trials run, or the console's stop)")
+        elif not self._working:
             raise SystemExit(128 + signum)
-        self.stop.request(f"stopped by {signal.Signals(signum).name} (Ctrl-C or kill of trials run, or the console's stop)")
+
+    @contextmanager
+    def task(self) -> Iterator[None]:
+        """A run's whole task: a SIGTERM during it stops the robot and is obeyed (the worker exits) only once the run's
+        files are kept, never halfway through writing them."""
+        self._working = True
+        try:
+            yield
+        finally:
+            self._working = False
+            if self.terminated:
+                raise SystemExit(1)
 
     def drive(self, code: str, row: dict[str, str], controller: Controller, log: LiveLog) -> LiveEnd:
         """Drive row `code` with its (reset) controller, writing `log`. The robot is stopped however the run ends.
