@@ -18,14 +18,14 @@ def test_a_report_goes_stale_when_runs_are_added_within_the_minute(tmp_path, cap
     study = tmp_path / "s"
     assert main(["design", *(["--ab"] if blinded else ["--runs", "6"]), "--seed", "4", "--study", str(study), "--quiet"]) == 0
     codes = [row["run_code"] for row in StudyFolder(study).read_plan()]
-    assert main(["run", "--study", str(study), "--only", *codes[:2], "--quiet"]) == 0
+    assert main(["run", "--study", str(study), "--only", codes[0], "--quiet"]) == 0
     assert main(["report", "--study", str(study), "--quiet"]) == 0
     record = json.loads((study / REPORT_RECORD).read_text(encoding="utf-8"))
     assert record[INPUTS_KEY] == StudyFolder(study).report_inputs()
     capsys.readouterr()
     assert main(["status", "--study", str(study)]) == 0
     assert "report: up to date with the data" in capsys.readouterr().out
-    assert main(["run", "--study", str(study), "--only", *codes[2:4], "--quiet"]) == 0
+    assert main(["run", "--study", str(study), "--only", codes[1], "--quiet"]) == 0
     capsys.readouterr()
     assert main(["status", "--study", str(study), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["report"] == "older than the data"

@@ -147,14 +147,16 @@ def untimed(log: FoxgloveReader) -> list[tuple[str, int, dict]]:
     return found
 
 
-def test_wall_clock_stamps_a_logged_trial_when_its_log_was_recorded(template, robot_logs_dir, tmp_path):
+@pytest.mark.parametrize("flags", [(), ("--wall-clock",)], ids=["by default", "with --wall-clock"])
+def test_a_logged_trial_keeps_the_real_times_its_log_was_recorded_at(template, robot_logs_dir, tmp_path, flags):
     study = Path(shutil.copytree(template, tmp_path / "study"))
     first = table(study / "plan.csv")[0]["run_code"]
     assert main(["run", "--study", str(study), "--from-log", str(robot_logs_dir / "stationary_ros1.bag"), *WINDOW,
-                 "--only", first, "--wall-clock"]) == 0
+                 "--only", first, *flags]) == 0
     log = FoxgloveReader(study / "runs" / f"{first}.mcap")
     start = int(log.metadata["clock"]["start_ns"])
     assert start == int(Decimal(log.metadata["run"]["log_start_stamp"]) * 10**9)
+    assert log.metadata["clock"]["start_utc"].startswith("2014-")  # the sample bag's recording, not 1970
     state = next(log.messages(["/robot/state"]))
     assert state.data["t"] == 0.0 and state.stamp_ns == start
 

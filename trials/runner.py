@@ -73,6 +73,8 @@ from trials.study import (
 
 #: Seconds a live run's worker has to stop the robot and keep its log after SIGTERM, before it is killed.
 LIVE_GRACE_S = 10.0
+#: Header stamps from 2000-01-01 on are real times (a log's recording), kept in its run's log; earlier ones count from 0.
+REAL_TIME_NS = 946_684_800 * 1_000_000_000
 #: Run seeds stay below 2^53, so that a spreadsheet, R or JMP (which read numbers as doubles) keeps them exact.
 SEED_BITS = 53
 
@@ -544,13 +546,13 @@ class TrialWorker:
         return RunDone(task.code, outcome, task.scene is not None, replay, live=self.options.robot is not None)
 
     def _start_ns(self, scene: LoggedScene | None = None) -> int:
-        """The log time of a run's start: 0, or with --wall-clock the played log's own header stamp there (when
-        it was recorded), else now (to the minute when blind, as every time a blinded study records, so run
-        times cannot tell the arms apart)."""
+        """The log time of a run's start: a played log's own header stamp there (when it was recorded) when its stamps
+        are real times (from 2000 on) or with --wall-clock; a simulated run's 0, or with --wall-clock now (to the minute
+        when blind, as every time a blinded study records, so run times cannot tell the arms apart)."""
+        if scene is not None and (self.options.wall_clock or scene.scan_ns[0] >= REAL_TIME_NS):
+            return int(scene.scan_ns[0])
         if not self.options.wall_clock:
             return 0
-        if scene is not None:
-            return int(scene.scan_ns[0])
         now = time.time_ns()
         return now - now % 60_000_000_000 if self.blind else now
 

@@ -59,8 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     settings.add_argument("--settings-differ", action="store_true",
                           help="run even though finished runs were made with other settings (the report flags the mix)")
     parser.add_argument("--wall-clock", action="store_true",
-                        help="stamp each run's MCAP log with the time it ran (blinded: to the minute; a logged trial: "
-                        "when its log was recorded) instead of from 1970-01-01")
+                        help="stamp each simulated run's MCAP log with the time it ran (blinded: to the minute) instead of from "
+                        "1970-01-01; a logged trial keeps its log's own times when they are real (from 2000 on), and with this "
+                        "flag always")
     parser.add_argument("--allow-simulated", action="store_true",
                         help="simulate runs (and their participants' judgments) even in a field study, one with a [robot] table "
                         "or runs driven live or played from robot logs; the report says which runs were simulated")

@@ -27,6 +27,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -456,9 +457,14 @@ class LiveRun:
                     trace.pose.append(robot.pose)
                     trace.velocity.append((robot.v, robot.w))
                     trace.people.append(dict(zip(people.ids, people.position)))
-        except Exception as exc:
+        except Exception:
             self.halt()
-            sink.event(t, ABORTED, f"an exception stopped the run: {type(exc).__name__}")
+            # Public words only: which exception it was could tell the controllers apart (the traceback is sealed).
+            detail = "an exception stopped the run"
+            with suppress(Exception):
+                self.on_state(ABORTED, detail)
+            with suppress(Exception):
+                sink.event(t, ABORTED, detail)
             raise
         finally:
             planner.shutdown(wait=False, cancel_futures=True)
