@@ -1,13 +1,14 @@
 """Benchmark of live runs (issue 37): scan-to-command latency and planning time against the software robot, over
-each transport and with each controller, and a whole blinded A/B study of 18 live runs over ROS 1.
+each transport and with each controller, and a whole blinded A/B study of 18 live runs over ROS 1 (or each transport named), unblinded.
 
-    python benchmarks/bench_live.py [--transports ros1 ros2] [--repeats 2] [--no-study]
+    python benchmarks/bench_live.py [--transports ros1 ros2] [--repeats 2] [--studies ros1 ros2]
 
 Latency: the software robot (`trials robot-sim`, its own process) publishes 40 Hz scans of the A/B plan's first row
 (6 walkers); this process drives it with `trials.robot.live.LiveRun` and each controller, and times every scan from
 its arrival to the velocity command sent after it was tracked (the tracking and follower path; goal: p99 under
 50 ms), and every plan (goal: within its 0.4 s step). Whole study: `trials design --ab --robot`, then `trials run
---robot` over all 18 rows against the software robot (20 Hz scans), its wall time and how each run ended.
+--robot` over all 18 rows against the software robot (20 Hz scans), its wall time and how each run ended, then
+`trials report --unblind` and how many runs' sealed records name the controller the key gives their arm.
 A ROS 1 master (Debian's `rosmaster`) is started on a free port; ROS 2 stays on the loopback.
 """
 
@@ -32,6 +33,7 @@ from trials.controllers import registry
 from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest, warm_up
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import RobotUri, open_transport
+from trials.sealed_runs import read_sealed_run
 from trials.study import OUTCOMES, StudyFolder
 
 TRIALS = (sys.executable, "-m", "trials.cli")
@@ -108,10 +110,10 @@ def latency(kind: str, repeats: int, home: Path) -> None:
         link.close()
 
 
-def whole_study(home: Path) -> None:
-    """All 18 rows of a blinded A/B study driven live over ROS 1 against the software robot."""
-    with middleware("ros1", home) as uri:
-        study = design(home / "study", uri)
+def whole_study(kind: str, home: Path) -> None:
+    """All 18 rows of a blinded A/B study driven live over `kind` against the software robot, then unblinded."""
+    with middleware(kind, home) as uri:
+        study = design(home / f"study-{kind}", uri)
         with software_robot(uri, study.root, 20.0):
             began = time.monotonic()
             run = subprocess.run([*TRIALS, "run", "--robot", uri, "--study", str(study.root)], capture_output=True, text=True)
@@ -120,17 +122,27 @@ def whole_study(home: Path) -> None:
         statuses = [line.split(",")[1] for line in finished]
         failed = sorted(study.root.glob("runs/*.failed.txt"))
         counts = ", ".join(f"{statuses.count(s)} {s}" for s in sorted(set(statuses)))
-        print(f"18-run blinded A/B study over ROS 1: {wall:.0f} s wall ({wall / 18:.1f} s a run); finished {len(finished)} ({counts}); "
+        print(f"18-run blinded A/B study over {kind}: {wall:.0f} s wall ({wall / 18:.1f} s a run); finished {len(finished)} ({counts}); "
               f"aborted or failed {len(failed)}; trials run exit code {run.returncode}")
         for path in failed:
             print(f"  {path.name}: {path.read_text(encoding='utf-8').strip()}")
+        digest = study.read_design()["blinding"]["commitment"]["digest"]
+        report = subprocess.run([*TRIALS, "report", "--study", str(study.root), "--unblind", "--commitment", digest, "--quiet"],
+                                capture_output=True, text=True)
+        drove = {row["run_code"]: row["Controller"] for row in study.read_plan()}
+        sealed = {code: read_sealed_run(study, code)["controller"] for code in drove if study.sealed_run(code).exists()}
+        arms = study.read_sealed().arms
+        print(f"  trials report --unblind exit code {report.returncode}; runs whose sealed record names the key's controller for "
+              f"their arm: {sum(sealed[c] == arms[a] for c, a in drove.items() if c in sealed)} of {len(drove)}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--transports", nargs="+", choices=("ros1", "ros2"), default=["ros1", "ros2"])
+    parser.add_argument("--transports", nargs="*", choices=("ros1", "ros2"), default=["ros1", "ros2"],
+                        help="transports to measure the latency over (default both; none: leave it out)")
     parser.add_argument("--repeats", type=int, default=2, help="runs per controller and transport (default 2)")
-    parser.add_argument("--no-study", action="store_true", help="leave out the whole 18-run study")
+    parser.add_argument("--studies", nargs="*", choices=("ros1", "ros2"), default=["ros1"],
+                        help="transports to drive the whole 18-run study over (default ros1; none: leave it out)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         home = Path(folder)
@@ -138,8 +150,8 @@ def main() -> None:
         print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
         for kind in args.transports:
             latency(kind, args.repeats, home)
-        if not args.no_study:
-            whole_study(home)
+        for kind in args.studies:
+            whole_study(kind, home)
 
 
 if __name__ == "__main__":
