@@ -150,7 +150,7 @@ def test_participants_answer_by_link_with_their_code_kept(app, study, codes):
     assert len(set(links)) == 2 and all(len(link) == len("/q/") + 24 for link in links)
     phone = app.test_client()
     assert phone.get("/q/" + "0" * 24).status_code == 404
-    assert "opens once the experimenter has recorded the run" in phone.get(links[0]).text
+    assert "The robot has not finished this run yet." in phone.get(links[0]).text
     for code in codes:
         add_outcome(study, code)
     page = phone.get(links[0]).text

@@ -3,6 +3,11 @@ blinded study, two runs worked through by the experimenter with the sample bag a
 by path), scored, and judged by three participants from their own browsers; then `trials report
 --unblind` with no other command in between. The files left are those the command line leaves.
 
+A blinded field day that cannot quietly go wrong: served on every address, the questionnaire reached from the
+QR code's link as soon as the run is finished, the logs played in the background, a corrected log, and the
+commands an experimenter might try on the way (an early unblinding, a plain `trials run`, a stale report), with
+no arm compared on any page until the study is unblinded.
+
 And live runs on a real ROS 1 master with the software robot (`trials robot-sim`): Start drives a run to
 its end while the page follows its state, and E-STOP stops one while it drives."""
 
@@ -15,13 +20,13 @@ import re
 import shutil
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
 from tests.support.blinding import NAMES
-from tests.support.console import WINDOW, browser, chromium_ready, design_study, field_day, go, served
+from tests.support.console import PHONE, WINDOW, browser, chromium_ready, design_study, field_day, go, served
 from tests.support.live_rig import Rig
 from trials.cli import main
 
@@ -241,3 +246,265 @@ def test_estop_stops_the_robot_and_keeps_the_aborted_runs_log(robot):
           "zero as the robot's last command", 30)
     until(lambda: robot.rig.last_heard() == (0.0, 0.0), "zero as the last command the witness heard", 30)
     assert not NAMES.search(page.encode())
+
+
+# --- a blinded field day that cannot quietly go wrong (issue 38) -----------------------------------------------------
+
+#: Central European time, without the zone database, for the console's local times.
+CENTRAL_EUROPE = "CET-1CEST,M3.5.0,M10.5.0/3"
+#: What no page may show of a blinded study before it is unblinded: an arm comparison (Table II, shares, differences, p-values).
+COMPARISONS = re.compile(r'id="table-ii"|Table II|\d+%|Holm|points|Share of|−')
+
+
+@dataclass
+class Walk:
+    """What a blinded field day through the console left: the study, what `trials serve` printed after its link, the
+    pages seen (title, URL, source) before and after its unblinding, the participant's link and QR code, the commands
+    tried on the way (name -> exit code, stdout, stderr) and the files as they were at each step that matters."""
+
+    study: Path
+    codes: list[str]
+    printed: list[str] = field(default_factory=list)
+    pages: list[str] = field(default_factory=list)
+    unblinded_pages: list[str] = field(default_factory=list)
+    link: str = ""
+    qr: str = ""
+    commands: dict[str, tuple[int, str, str]] = field(default_factory=dict)
+    saw_playing: list[str] = field(default_factory=list)
+    questionnaire_before_log: str = ""
+    outcomes_after_refused_run: list[dict[str, str]] = field(default_factory=list)
+    runs_after_refused_run: list[str] = field(default_factory=list)
+    figures: list[str] = field(default_factory=list)
+
+
+def command(walk: Walk, name: str, *argv: str) -> int:
+    """Run `trials ARGV` in this process, as from a terminal, keeping what it printed under `name`."""
+    import contextlib
+    import io
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([*argv, "--study", str(walk.study)])
+    walk.commands[name] = (code, out.getvalue(), err.getvalue())
+    return code
+
+
+def modules(svg: str) -> str:
+    """A QR code's modules, the outline of its one SVG path (the browser writes the element back its own way)."""
+    return re.search(r'\sd="([^"]+)"', svg).group(1)
+
+
+def own_address(host: str) -> bool:
+    """Whether `host` is loopback or an address of this machine (it binds; nothing is sent), so a browser here may open it."""
+    import socket
+
+    from trials.console.address import is_loopback
+
+    if is_loopback(host):
+        return True
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as own:
+            own.bind((host, 0))
+        return True
+    except OSError:
+        return False
+
+
+def opened(link: str) -> str:
+    """The URL a phone here opens for a participant's link: the link itself when it points at this machine (the test
+    sends nothing elsewhere), else the same page through loopback."""
+    host = link.split("/")[2].rsplit(":", 1)[0]
+    return link if own_address(host) else link.replace(host, "127.0.0.1", 1)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory, robot_logs_dir) -> Walk:
+    """A blinded two-run field day in the console served on every address (--host 0.0.0.0), with the commands an
+    experimenter might try on the way: run 1 finished, its questionnaire answered from its QR code's link before its
+    log is attached, its log attached (upload) and played; `trials report --unblind` too early (refused); plain `trials
+    run` (refused: a field study simulates nothing); a blinded report; run 2 finished and its log attached by path (the
+    report is now older than the data); run 1's log corrected; the other answers; then the unblinding, after which
+    the pages are seen again."""
+    import os
+
+    import segno
+    from selenium.webdriver.common.by import By
+
+    from tests.support.console import played
+
+    study = design_study(tmp_path_factory.mktemp("field-day-38") / "study")
+    log = robot_logs_dir / "stationary_ros1.bag"
+    codes = [r["run_code"] for r in rows(study / "plan.csv")]
+    walk = Walk(study, codes)
+    commitment = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+
+    with served(study, "--host", "0.0.0.0", env={**os.environ, "TZ": CENTRAL_EUROPE}, printed=walk.printed) as url, browser() as experimenter:
+        base = url.split("?")[0]
+
+        def seen(driver, into: list[str] | None = None) -> str:
+            page = driver.title + "\n" + driver.current_url + "\n" + driver.page_source
+            (walk.pages if into is None else into).append(page)
+            return page
+
+        def attach(code: str, by: str, value: str, start: str, duration: str, correction: bool = False) -> None:
+            kind = "fix" if correction else "log"
+            experimenter.find_element(By.ID, f"{kind}-{by}").send_keys(value)
+            experimenter.find_element(By.ID, f"{kind}-start").send_keys(start)
+            experimenter.find_element(By.ID, f"{kind}-duration").send_keys(duration)
+            go(experimenter, By.ID, "replace-log" if correction else "attach")
+            page = seen(experimenter)
+            if 'id="playing"' in page:
+                walk.saw_playing.append(code)
+            played(experimenter)
+            seen(experimenter)
+
+        experimenter.get(url)
+        seen(experimenter)
+        first, second = codes
+        experimenter.get(base + f"runs/{first}")
+        go(experimenter, By.ID, "start")
+        go(experimenter, By.ID, "finish")
+        seen(experimenter)
+        walk.link = experimenter.find_element(By.ID, "participant-link").get_attribute("href")
+        walk.qr = experimenter.find_element(By.CSS_SELECTOR, "div.qr").get_attribute("innerHTML").strip()
+        # The code encodes the link shown: its modules (the path's outline) are those segno draws for that link.
+        assert modules(walk.qr) == modules(segno.make(walk.link, error="m").svg_inline(scale=4))
+        with browser(PHONE) as phone:
+            phone.get(opened(walk.link))
+            walk.questionnaire_before_log = phone.page_source
+            phone.find_element(By.ID, "participant").send_keys("P01")
+            phone.find_element(By.ID, "compliant-yes").click()
+            go(phone, By.ID, "send")
+            seen(phone)
+
+            attach(first, "file", str(log), "15", "6")
+            walk.figures = [row.text for row in experimenter.find_elements(By.CSS_SELECTOR, "table.figures tr")]
+
+            command(walk, "early unblinding", "report", "--unblind", "--commitment", commitment)
+            experimenter.refresh()
+            seen(experimenter)
+            command(walk, "plain run", "run")
+            walk.outcomes_after_refused_run = rows(study / "outcomes.csv")
+            walk.runs_after_refused_run = sorted(p.name for p in (study / "runs").iterdir())
+            command(walk, "blinded report", "report")
+            command(walk, "status when current", "status")
+
+            experimenter.get(base + f"runs/{second}")
+            go(experimenter, By.ID, "start")
+            experimenter.find_element(By.ID, "note").send_keys("two people walked past")
+            go(experimenter, By.ID, "add-note")
+            go(experimenter, By.ID, "finish")
+            attach(second, "path", str(log), "15", "6")
+            command(walk, "status when stale", "status")
+
+            experimenter.get(base + f"runs/{first}")
+            experimenter.find_element(By.CSS_SELECTOR, "#correct summary").click()
+            attach(first, "file", str(log), "10", "5", correction=True)
+
+            experimenter.get(base + f"runs/{second}")
+            phone.get(opened(experimenter.find_element(By.ID, "participant-link").get_attribute("href")))
+            phone.find_element(By.ID, "compliant-no").click()
+            go(phone, By.ID, "send")
+            seen(phone)
+        for path in ("", "progress", f"runs/{first}", f"runs/{second}", f"runs/{first}/score"):
+            experimenter.get(base + path)
+            seen(experimenter)
+
+        command(walk, "unblinding", "report", "--unblind", "--commitment", commitment)
+        for path in ("", "progress", f"runs/{first}", f"runs/{first}/score"):
+            experimenter.get(base + path)
+            seen(experimenter, walk.unblinded_pages)
+    return walk
+
+
+def header(page: str) -> str:
+    found = re.search(r'id="blinding">(.*?)</span>', page, re.S)
+    return found.group(1) if found else ""
+
+
+def test_the_questionnaire_opens_from_its_qr_code_at_the_network_address_as_the_run_finishes(walk):
+    from trials.console.address import network_address
+
+    own = network_address()
+    host = walk.link.split("/")[2].rsplit(":", 1)[0]
+    assert host == (own if own is not None else "127.0.0.1")  # none found: the address the experimenter's browser used
+    assert re.fullmatch(rf"http://{re.escape(host)}:\d+/q/[0-9a-f]{{24}}", walk.link)
+    origin = walk.link.rsplit("/q/", 1)[0]
+    assert walk.printed[1] == (f"Participants' links and QR codes carry {origin}, this machine's address on the network." if own is not None else
+                               "No network address of this machine was found: participants' links carry the address the experimenter's browser opened.")
+    assert "The robot has finished this run." in walk.questionnaire_before_log and 'id="send"' in walk.questionnaire_before_log
+    first, second = walk.codes
+    answers = [(r["run_code"], r["participant"], r["compliant"]) for r in rows(walk.study / "responses.csv")]
+    assert answers == [(first, "P01", "yes"), (second, "P01", "no")]
+    if own is not None:
+        assert any(f"at this laptop's address {own}" in page for page in walk.pages)
+
+
+def test_an_early_unblinding_is_refused_and_the_console_stays_blinded(walk):
+    code, _, err = walk.commands["early unblinding"]
+    assert code == 2 and "only 1 of 2 runs finished: opening the key now would be an interim look" in err
+    experimenter_pages = [page for page in walk.pages if 'id="blinding"' in page]
+    assert len(experimenter_pages) > 10 and {header(page) for page in experimenter_pages} == {"field-day · blinded"}
+    [opening] = json.loads((walk.study / "report" / "unblinding.json").read_text())["openings"]  # the final one only
+    assert (opening["completeness"], opening["interim"]) == ("2 of 2 runs finished", None)
+
+
+def test_plain_trials_run_in_the_field_study_is_refused_and_simulates_nothing(walk):
+    first, second = walk.codes
+    code, _, err = walk.commands["plain run"]
+    assert code == 2 and "is a field study" in err and f"refusing to simulate run {second}" in err
+    assert [(r["run_code"], r["perception"]) for r in walk.outcomes_after_refused_run] == [(first, "log")]
+    assert walk.runs_after_refused_run == [f"{first}.mcap"]
+
+
+def test_trials_status_says_when_the_report_is_older_than_the_data(walk):
+    assert walk.commands["blinded report"][0] == 0
+    code, out, _ = walk.commands["status when current"]
+    assert code == 0 and "report: up to date with the data" in out
+    code, out, _ = walk.commands["status when stale"]
+    assert code == 0 and "report: older than the data: run `trials report` again" in out
+
+
+def test_logs_are_played_in_the_background_and_the_run_page_shows_the_run(walk):
+    first, second = walk.codes
+    assert walk.saw_playing == [first, second, first]
+    assert any("Checking and playing the log..." in page for page in walk.pages)
+    old = rows(next((walk.study / "superseded").iterdir()) / "outcomes.csv")[0]
+    assert walk.figures == ["Status " + old["status"], f"Duration {float(old['duration_s']):.1f} s", "Time to goal -",
+                            f"Path length {float(old['path_length_m']):.2f} m", f"Closest gap {float(old['min_distance_m']):.2f} m",
+                            f"Within 0.5 m {float(old['time_within_0_5m_s']):.1f} s", f"Within 1.2 m {float(old['time_within_1_2m_s']):.1f} s",
+                            "Collisions 0", walk.figures[-1]]
+    assert re.fullmatch(r"Finished \d{4}-\d\d-\d\d \d\d:\d\d CES?T", walk.figures[-1])  # the laptop's zone, not UTC
+
+
+def test_a_corrected_log_replaces_the_run_and_the_earlier_is_kept_aside(walk):
+    first, second = walk.codes
+    [kept] = (walk.study / "superseded").iterdir()
+    [old] = rows(kept / "outcomes.csv")
+    new = next(r for r in rows(walk.study / "outcomes.csv") if r["run_code"] == first)
+    assert old["run_code"] == first and float(new["duration_s"]) < float(old["duration_s"]) - 0.5  # 6 s of the bag, then 5 s
+    assert (kept / "runs" / f"{first}.mcap").stat().st_size > 10_000 and (kept / "logs" / f"{first}.bag").exists()
+    assert (walk.study / "sealed" / "superseded" / kept.name / "runs" / f"{first}.json.gz").exists()
+    assert [(e["event"], e["detail"]) for e in rows(walk.study / "run_events.csv") if e["run_code"] == first] == [
+        ("start", ""), ("finish", ""), ("log", f"logs/{first}.bag"),
+        ("note", f"log corrected: the earlier run log, outcome row and upload are kept in superseded/{kept.name}/"), ("log", f"logs/{first}.bag")]
+
+
+def test_no_page_compared_the_arms_or_named_a_controller_before_unblinding(walk):
+    compared = [page.splitlines()[:2] for page in walk.pages if COMPARISONS.search(page)]
+    named = [page.splitlines()[:2] for page in walk.pages if NAMES.search(page.encode())]
+    assert compared == [] and named == []
+    progress = [page for page in walk.pages if "<h1>Progress</h1>" in page]
+    assert progress and all("compares no arms" in page for page in progress)
+
+
+def test_after_unblinding_every_page_says_since_when(walk):
+    from datetime import datetime
+    from zoneinfo import ZoneInfo
+
+    assert walk.commands["unblinding"][0] == 0
+    [opened] = json.loads((walk.study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    local = datetime.fromisoformat(opened).astimezone(ZoneInfo("Europe/Berlin"))
+    assert {header(page) for page in walk.unblinded_pages} == {f"field-day · unblinded on {local:%Y-%m-%d %H:%M %Z}"}
+    [progress] = [page for page in walk.unblinded_pages if "<h1>Progress</h1>" in page]
+    assert "Table II so far" in progress and "compares no arms" not in progress

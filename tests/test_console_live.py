@@ -16,10 +16,11 @@ import pytest
 
 import trials.console.live as live
 from tests.support.blinding import NAMES
-from tests.support.console import CSRF, add_outcome, design_study
+from tests.support.console import CSRF, add_outcome, design_study, unblind
 from trials.console.access import console_access
 from trials.console.actions import Console
 from trials.console.app import create_app
+from trials.console.times import local_time
 from trials.responses import record_response
 from trials.robot.live_state import read_state, write_state
 from trials.study import LIVE_ESTOP, RUN_EVENTS, StudyFolder
@@ -157,11 +158,12 @@ def test_start_runs_trials_run_robot_one_live_run_at_a_time(study, started, serv
     # The worker reports through runs/live.json; the run ends at the goal with its outcome row.
     folder = StudyFolder(study)
     write_state(folder, first, "driving", "goal (10.00, 0.00) in odom")
-    assert client.get(f"/runs/{first}/live").json == {**read_state(folder), "running": True}
+    written = read_state(folder)
+    assert client.get(f"/runs/{first}/live").json == {**written, "since": local_time(written["since_utc"]), "running": True}
     write_state(folder, first, "goal", "0.45 m from the goal")
     add_outcome(study, first, perception="live")
     (study.parent / f"end-{first}").touch()
-    assert ended(client, first) == {**read_state(folder), "running": False}
+    assert ended(client, first) == {**read_state(folder), "since": local_time(read_state(folder)["since_utc"]), "running": False}
     assert events(study) == [(first, "start", f"driven live on {ROBOT}"), (first, "finish", "")]
     page = client.get(f"/runs/{first}").text
     assert 'id="live-state">goal<' in page and "Driven live by the toolkit." in page and 'id="estop"' not in page
@@ -222,7 +224,7 @@ def test_state_of_a_live_run_started_elsewhere_comes_from_live_json(study, start
     first, second = codes_of(study)
     folder = StudyFolder(study)
     write_state(folder, first, "waiting for sensors", "a scan on /scan")
-    assert client.get(f"/runs/{first}/live").json == {**read_state(folder), "running": False}
+    assert client.get(f"/runs/{first}/live").json == {**read_state(folder), "since": local_time(read_state(folder)["since_utc"]), "running": False}
     assert client.get(f"/runs/{second}/live").json == {"run_code": second, "running": False}
     page = client.get(f"/runs/{second}").text
     assert 'id="estop"' in page and f'<a href="/runs/{first}">{first}</a> is live on the robot' in page
@@ -243,6 +245,8 @@ def test_a_run_played_from_an_external_log_is_marked_and_left_out_of_table_ii(pl
     assert "External log: the toolkit did not drive this run." in client.get(f"/runs/{external}").text
     assert "External log" not in client.get(f"/runs/{simulated}").text
     assert re.search(rf'id="run-{external}">.*?<td>goal <span class="origin">\(external log\)</span>', client.get("/").text, re.S)
+    assert 'id="table-ii"' not in client.get("/progress").text  # blinded: no comparison of arms until the key is opened
+    unblind(plain)
     progress = client.get("/progress").text
     assert f"Left out: 1 run(s) played from an external robot log ({external})." in progress
     # Table II counts the simulated run's two judgments only: one yes of two, in its arm's column; none in the other arm's.

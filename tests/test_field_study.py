@@ -29,6 +29,12 @@ def test_a_study_with_a_robot_table_is_not_simulated_unless_asked(tmp_path, caps
     assert not (study / OUTCOMES).exists()
     assert main(["respond", "--simulate", "--study", str(study)]) == 2
     assert "refusing to simulate participants' judgments" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_allow_simulated_simulates_a_run_and_its_judgments_in_a_field_study(tmp_path):
+    study = tmp_path / "s"
+    assert main(["design", "--runs", "6", "--seed", "3", "--robot", "ros1://127.0.0.1:11311", "--study", str(study), "--quiet"]) == 0
     first = codes(study)[0]
     assert main(["run", "--study", str(study), "--only", first, "--allow-simulated", "--quiet"]) == 0
     (row,) = read_outcomes(study / OUTCOMES, False)

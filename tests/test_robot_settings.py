@@ -3,16 +3,12 @@ naming the file and key, and `trials design --robot` carrying the table with the
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import pytest
 
+from trials.cli import main
 from trials.errors import StudyError
 from trials.robot.settings import RobotSettings, read_robot_settings
 from trials.robot.transport import ROS1, ROS2, RobotUri
-
-TRIALS = (sys.executable, "-m", "trials.cli")
 
 
 def write(tmp_path, table: str):
@@ -68,16 +64,15 @@ def test_a_bad_table_is_one_line_naming_file_and_key(tmp_path, table, message):
     assert message in text and str(spec) in text and "[robot]" in text and "\n" not in text
 
 
-def test_design_writes_the_robot_table_and_a_bad_one_exits_2(tmp_path):
+def test_design_writes_the_robot_table_and_a_bad_one_exits_2(tmp_path, capsys):
     study = tmp_path / "s"
-    made = subprocess.run([*TRIALS, "design", "--ab", "--robot", "ros2://3", "--seed", "1", "--study", str(study)], capture_output=True, text=True)
-    assert made.returncode == 0, made.stderr
+    assert main(["design", "--ab", "--robot", "ros2://3", "--seed", "1", "--study", str(study), "--quiet"]) == 0
     settings = read_robot_settings(study / "study.toml")
     assert settings is not None and settings.uri == "ros2://3"
     spec = study / "study.toml"
     spec.write_text(spec.read_text(encoding="utf-8") + "max_speed = -1\n", encoding="utf-8")
-    run = subprocess.run([*TRIALS, "run", "--robot", "ros2://3", "--study", str(study)], capture_output=True, text=True)
-    assert run.returncode == 2
-    assert run.stderr.strip().splitlines() == [f"error: {spec} [robot]: max_speed must be a number in [0.01, 5], got -1"]
-    bad_uri = subprocess.run([*TRIALS, "run", "--robot", "ros9://3", "--study", str(study)], capture_output=True, text=True)
-    assert bad_uri.returncode == 2 and "expected ros1://HOST:PORT" in bad_uri.stderr
+    capsys.readouterr()
+    assert main(["run", "--robot", "ros2://3", "--study", str(study)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"error: {spec} [robot]: max_speed must be a number in [0.01, 5], got -1"]
+    assert main(["run", "--robot", "ros9://3", "--study", str(study)]) == 2
+    assert "expected ros1://HOST:PORT" in capsys.readouterr().err

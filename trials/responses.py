@@ -4,7 +4,7 @@ then one per questionnaire item the study defines in study.toml, only when it de
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from analysis.records import HUMAN, SIMULATED, Response
@@ -65,12 +65,15 @@ def append_responses(folder: StudyFolder, responses: Sequence[Response], ratings
 
 
 def record_response(folder: StudyFolder, code: str, participant: str, answer: str, ratings: Mapping[str, str] = {},
-                    items: Sequence[LikertItem] = ()) -> tuple[Response, bool]:
+                    items: Sequence[LikertItem] = (), finished: Iterable[str] | None = None) -> tuple[Response, bool]:
     """Check and append one participant's judgment of a finished run (`trials respond CODE P yes`, the
     console's questionnaire) with its answers to the study's questionnaire `items` (a blank answer: none);
-    returns it and whether it replaces an earlier judgment of theirs. StudyError for an answer other
-    than yes or no, a rating off its scale, or a run not in the plan or not finished."""
-    plan_codes, finished = [row["run_code"] for row in folder.read_plan()], finished_codes(folder)
+    returns it and whether it replaces an earlier judgment of theirs. The finished runs are those with an
+    outcome row unless `finished` names them (the console adds runs whose finish the experimenter recorded,
+    before their log is played). StudyError for an answer other than yes or no, a rating off its scale, or a
+    run not in the plan or not finished."""
+    plan_codes = [row["run_code"] for row in folder.read_plan()]
+    finished = finished_codes(folder) if finished is None else list(finished)
     try:
         compliant = parse_answer(answer)
         answers = {item.name: _rating(item, ratings.get(item.name, "")) for item in items}

@@ -1,18 +1,27 @@
-"""A picture of one run from above: the robot's path and footprint with time marks, the pedestrians' paths, goal and cone."""
+"""A picture of one run from above: the robot's path and footprint with time marks, the pedestrians' paths, goal and cone;
+drawn from a run's log as `trials log show` and the console's run page show it."""
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import numpy as np
 
 from robot_logs.figure_files import Rendered
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
 from robot_logs.run_log import LoggedRun
+from trials.scenario import CONE, GOAL
 from trials.sim.robot import RobotLimits
 
 #: Seconds between the robot outlines drawn along its path.
 OUTLINE_EVERY_S = 1.0
 #: Seconds between the time marks on every path (the same instants on the robot's and the pedestrians').
 MARK_EVERY_S = 2.0
+#: A run log's metadata that is not one of its settings: its code, what `trials log show` says apart (seed, perception,
+#: the log played, a simulated scene's variation and noise) and the controller, which a blinded run's log never holds.
+NOT_SETTINGS = frozenset({"run_code", "study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m",
+                          "controller", "weights", "log", "log_format", "log_frame", "scan_topic", "odometry", "log_start_stamp",
+                          "log_offset_s", "goal_x", "goal_y", "log_damage", "static_map"})
 #: The robot is black; the pedestrians take tab10's colours, none of which is black or grey-black.
 ROBOT_COLOUR = "black"
 PEDESTRIAN_COLOURS = "tab10"
@@ -80,3 +89,17 @@ def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tupl
     axes.grid(alpha=0.3)
     figure.legend(loc="outside right upper", fontsize=8)
     return Rendered(figure)
+
+
+def run_settings(metadata: Mapping[str, str]) -> str:
+    """A run's settings from its log's metadata, "Pedestrians 2, Controller A" (a blinded factor by its arm label)."""
+    return ", ".join(f"{k} {v}" for k, v in metadata.items() if k not in NOT_SETTINGS)
+
+
+def log_figure(run: LoggedRun, code: str) -> Rendered:
+    """The picture of a run's log, titled with its code, settings and ending: a simulated run's goal and cone, a logged
+    trial's goal from its metadata (and no cone)."""
+    meta = run.metadata
+    logged = "log" in meta
+    goal = (float(meta["goal_x"]), float(meta["goal_y"])) if logged else GOAL
+    return run_figure(run, f"run {code}: {run_settings(meta)}; {run.status or 'unfinished'}", goal, None if logged else CONE)

@@ -1,4 +1,5 @@
-"""A blinded field-day study for the console's tests and screenshots, the console as a Flask test client,
+"""A blinded field-day study for the console's tests and screenshots (with its runs' outcome rows, logs and
+unblinding written through their owners when a test needs them at once), the console as a Flask test client,
 `trials serve` as a process, and Debian's Chromium driven through Selenium."""
 
 from __future__ import annotations
@@ -11,11 +12,18 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import SimpleNamespace
 
-from analysis.records import Outcome
+import numpy as np
+
+from analysis.records import Blinding, Outcome
+from trials.atomic import write_files
 from trials.cli import main
 from trials.outcomes import Outcomes
-from trials.study import StudyFolder
+from trials.run_log import RunLog
+from trials.sim.robot import RobotState
+from trials.study import UNBLINDING, StudyFolder
+from trials.study_data import unblinding_record
 
 #: Two runs, the controller blinded as arms A and B, and one Likert item.
 SPEC = """
@@ -60,14 +68,42 @@ def design_study(folder: Path, spec: str = SPEC) -> Path:
     return folder
 
 
-def add_outcome(folder: Path, code: str, perception: str = "log") -> None:
+def add_outcome(folder: Path, code: str, perception: str = "log", finished_utc: str = "2026-05-01T10:00:00+00:00", duration_s: float = 12.0,
+                controller: str | None = None) -> None:
     """An outcome row for run `code` through outcomes.csv's owner, as if its log had been played (or, with perception
-    `live`, as if it had been driven live)."""
-    outcomes = Outcomes(StudyFolder(folder), blind=True)
-    outcomes.append(Outcome(run_code=code, status="goal", seed=7, perception=perception, duration_s=12.0, time_to_goal_s=12.0,
+    `live`, as if it had been driven live); an open study's names its `controller`."""
+    outcomes = Outcomes(StudyFolder(folder), blind=controller is None)
+    outcomes.append(Outcome(run_code=code, status="goal", seed=7, perception=perception, duration_s=duration_s, time_to_goal_s=duration_s,
                             path_length_m=9.5, min_distance_m=0.8, time_within_0_5m_s=0.0, time_within_1_2m_s=1.2, collisions=0,
                             max_deceleration_mps2=0.4, max_jerk_mps3=1.0, path_irregularity_rad_per_m=0.1, turn_in_place_s=0.0,
-                            backing_up_s=0.0, stopped_s=0.0, finished_utc="2026-05-01T10:00:00+00:00"))
+                            backing_up_s=0.0, stopped_s=0.0, controller=controller, finished_utc=finished_utc))
+
+
+def add_run_log(folder: Path, code: str, arm: str = "A") -> Path:
+    """runs/<code>.mcap as a blinded logged trial leaves it (through the run-log writer): 8 s at 0.4 s steps, the robot
+    driving 0.8 m/s along x towards (10, 0) while two people cross its path; it ends at the goal."""
+    path = StudyFolder(folder).run_log(code)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    metadata = {"run_code": code, "study": "field-day", "seed": "7", "perception": "log", "Pedestrians": "2", "Controller": arm,
+                "log": "robot.bag", "goal_x": "10", "goal_y": "0"}
+    with RunLog(path, metadata, (10.0, 0.0), None, blind=True) as log:
+        log.event(0.0, "start", "log from 0.0 s, goal (10, 0) in frame laser")
+        for k in range(21):
+            t = 0.4 * k
+            people = SimpleNamespace(ids=(1, 2), position=np.array([[4.0, 3.0 - 0.6 * t], [6.0, -3.0 + 0.6 * t]]),
+                                     velocity=np.array([[0.0, -0.6], [0.0, 0.6]]))
+            log.state(t, RobotState(2.0 + 0.8 * t, 0.0, 0.0, 0.8, 0.0), (0.8, 0.0), people)
+        log.event(8.0, "goal", "0.40 m from the goal")
+    return path
+
+
+def unblind(folder: Path, when: str = "2026-05-01T16:30:00+00:00") -> None:
+    """report/unblinding.json as `trials report --unblind` leaves it (through its owner), the key opened at `when`."""
+    study = StudyFolder(folder)
+    commitment = study.read_design()["blinding"]["commitment"]["digest"]
+    record = unblinding_record(study, Blinding(True, "Controller", {}, True, commitment, (when,), "", "2 of 2 runs finished"))
+    study.path(UNBLINDING).parent.mkdir(parents=True, exist_ok=True)
+    write_files({study.path(UNBLINDING): record})
 
 
 def chromium_ready() -> bool:
@@ -96,14 +132,17 @@ def browser(size: tuple[int, int] = (1280, 900)) -> Iterator:
 
 
 @contextmanager
-def served(study: Path, *options: str, env: dict[str, str] | None = None) -> Iterator[str]:
-    """`trials serve` on the study at a free loopback port (with more `options`, in `env`); yields the experimenter's URL it prints first."""
+def served(study: Path, *options: str, env: dict[str, str] | None = None, printed: list[str] | None = None) -> Iterator[str]:
+    """`trials serve` on the study at a free port, on loopback unless `options` say otherwise (with more `options`, in
+    `env`); yields the experimenter's URL it prints first, and keeps the next two lines it prints in `printed`."""
     process = subprocess.Popen([sys.executable, "-m", "trials.cli", "serve", "--study", str(study), "--port", "0", *options],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert process.stdout is not None
         first = process.stdout.readline().strip()
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[\w-]{32}", first), first + (process.stderr.read() if process.poll() is not None else "")
+        if printed is not None:
+            printed += [process.stdout.readline().strip() for _ in range(2)]
         yield first
     finally:
         process.terminate()  # a live run going is stopped first, which takes its own time
@@ -127,9 +166,34 @@ def go(driver, by: str, value: str) -> None:
         lambda d: d.execute_script("return window.leavingThisPage === undefined && document.readyState === 'complete'"))
 
 
+#: Seconds a log may take to be played in the background here: a worker process starts, loads both controllers and
+#: tracks the people in the bag, on a loaded 2-core machine.
+PLAY_DEADLINE_S = 300
+
+
+def played(driver) -> None:
+    """Wait until the run page has followed its log to the end (its script reloads it then) and shows the outcome with
+    its picture drawn; fails with the page's error if the log could not be played."""
+    from selenium.common.exceptions import WebDriverException
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    def done(d) -> bool:
+        state = d.execute_script("""
+            if (document.readyState !== 'complete' || document.getElementById('playing')) { return 'playing'; }
+            var alert = document.querySelector('[role=alert]');
+            if (alert) { return alert.textContent; }
+            var picture = document.getElementById('picture');
+            return document.getElementById('outcome') && (!picture || (picture.complete && picture.naturalWidth > 0)) ? 'done' : 'playing';""")
+        assert state in ("playing", "done"), state
+        return state == "done"
+
+    WebDriverWait(driver, PLAY_DEADLINE_S, poll_frequency=0.5, ignored_exceptions=(WebDriverException,)).until(done)
+
+
 def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None = None) -> list[str]:
     """Work through the study in real browsers as its field day would: the experimenter starts, finishes and
-    attaches the log of each run (run 1 by upload, run 2 by its path), an evaluator scores both, three
+    attaches the log of each run (run 1 by upload, run 2 by its path; each is played in the background while its
+    page follows it), an evaluator scores both, three
     participants, each in their own browser, answer both runs' questionnaires (P01 and P02 say yes to
     the first run, P03 no; all no to the second). Returns the source of every page seen; with `shots`,
     saves screenshots of the main pages there."""
@@ -164,6 +228,8 @@ def field_day(experimenter_url: str, study: Path, log: Path, shots: Path | None 
             experimenter.find_element(By.ID, "log-start").send_keys(WINDOW["start"])
             experimenter.find_element(By.ID, "log-duration").send_keys(WINDOW["duration"])
             go(experimenter, By.ID, "attach")
+            seen(experimenter)  # the log being checked and played
+            played(experimenter)
             seen(experimenter, "run_page" if i == 0 else None)
             links.append(experimenter.find_element(By.ID, "participant-link").get_attribute("href"))
             go(experimenter, By.ID, "score-link")

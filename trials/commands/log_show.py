@@ -33,8 +33,7 @@ def show(args: argparse.Namespace) -> int:
     from trials.errors import StudyError
     from trials.metrics import measure
     from trials.outcomes import outcome_cells
-    from trials.run_figure import run_figure
-    from trials.scenario import CONE, GOAL
+    from trials.run_figure import log_figure, run_settings
     from trials.sealed_runs import unsealed_lines
     from trials.study import (
         StudyFolder,
@@ -48,12 +47,8 @@ def show(args: argparse.Namespace) -> int:
     code = meta.pop("run_code", path.stem)
     status = run.status or "unfinished"
     outcome = measure(status, run.time, run.pose, run.velocity, run.pedestrians)
-    logged = "log" in meta  # a logged trial: its goal is in its metadata, and it has no cone
-    goal = (float(meta["goal_x"]), float(meta["goal_y"])) if logged else GOAL
-    plain = {"study", "seed", "perception", "timeout_s", "variation", "noise_std_m", "dropout", "range_m", "controller", "weights",
-             "log", "log_format", "log_frame", "scan_topic", "odometry", "log_start_stamp", "log_offset_s", "goal_x", "goal_y",
-             "log_damage", "static_map"}
-    settings = ", ".join(f"{k} {v}" for k, v in meta.items() if k not in plain)
+    logged = "log" in meta  # a logged trial, played from a robot log
+    settings = run_settings(meta)
     lines = [f"{path}: run {code} of study {meta.get('study', '?')}", f"settings: {settings}",
              f"seed {meta.get('seed', '?')}, perception {meta.get('perception', '?')}"
              + (f" (noise {meta['noise_std_m']} m, dropout {meta['dropout']}, range {meta['range_m']} m)" if "noise_std_m" in meta else "")]
@@ -80,7 +75,7 @@ def show(args: argparse.Namespace) -> int:
         lines.append(f"plans against the log: {figures['plan_deviation_mean_m']} m from the recorded path on average "
                      f"(at most {figures['plan_deviation_max_m']} m), closest predicted {figures['plan_min_clearance_m']} m")
     lines.extend(f"  {name:<30} {value or '-'}" for name, value in outcome_cells(outcome).items() if name != "duration_s")
-    pictures = run_figure(run, f"run {code}: {settings}; {status}", goal, None if logged else CONE).files(path.with_suffix(""), args.dpi)
+    pictures = log_figure(run, code).files(path.with_suffix(""), args.dpi)
     write_files(pictures)
     lines.append(f"trajectories: {', '.join(str(picture) for picture in pictures)}")
     lines.append(f"Foxglove: open {path} with the layout {LAYOUT} (scene, robot velocity, events)")

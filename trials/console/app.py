@@ -4,16 +4,19 @@ fonts or styles from elsewhere, so it works offline).
 Experimenter pages (run sheet, run page, score form, progress) need the experimenter's token once
 (`/?token=...`, kept in the signed session cookie); a participant's questionnaire link opens only its
 run's form, and the participant's code, entered once, stays in their cookie. Every form carries a
-CSRF token (Flask-WTF). Nothing from the study folder is served: pages are rendered from it.
+CSRF token (Flask-WTF). Nothing from the study folder is served: pages are rendered from it, and a
+run's picture is drawn from its log. Every experimenter page says whether the study is blinded or when
+it was unblinded; times are shown in the laptop's local time with its zone (the `local` filter).
 
-In a study driven live, a run page's Start starts the live run, a small script of the console's own
-(static/live.js) follows its state through `/runs/<code>/live`, and every experimenter page shows
-E-STOP while a run is live.
+A log attached to a run is played in the background; in a study driven live, a run page's Start starts
+the live run. A small script of the console's own (static/run.js) follows either through
+`/runs/<code>/log` or `/runs/<code>/live`, and every experimenter page shows E-STOP while a run is live.
 """
 
 from __future__ import annotations
 
 import math
+import shlex
 from typing import Any
 
 import segno
@@ -26,9 +29,12 @@ from werkzeug.wrappers import Response as HttpResponse
 from trials.attached_logs import MAX_UPLOAD_BYTES
 from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
+from trials.console.address import LOOPBACK, NETWORK_OPTION, Reach, url_host
 from trials.console.live import GOING
+from trials.console.pictures import RunPictures
 from trials.console.progress import progress
-from trials.console.sheet import SheetRow
+from trials.console.sheet import SheetRow, study_key
+from trials.console.times import local_time
 from trials.errors import USER_ERRORS
 from trials.numbers import finite_number
 from trials.robot.live_state import read_state
@@ -41,12 +47,14 @@ PARTICIPANT, COMPLIANT = "participant", "compliant"
 FORM_ERRORS = (ValueError, *USER_ERRORS)
 
 
-def create_app(console: Console, access: ConsoleAccess) -> Flask:
-    """The console's WSGI app for one study folder."""
+def create_app(console: Console, access: ConsoleAccess, reach: Reach = LOOPBACK) -> Flask:
+    """The console's WSGI app for one study folder, served as `reach` says (the address phones' links carry)."""
     app = Flask(__name__)
     app.config.update(SECRET_KEY=access.secret_key, MAX_CONTENT_LENGTH=MAX_UPLOAD_BYTES, WTF_CSRF_TIME_LIMIT=None,
                       SESSION_COOKIE_SAMESITE="Lax", SESSION_COOKIE_NAME="trials_console")
+    app.add_template_filter(local_time, "local")
     CSRFProtect(app)
+    pictures = RunPictures(console.folder)
 
     def experimenter() -> None:
         if not session.get("experimenter"):
@@ -69,6 +77,13 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def unknown_run(error: UnknownRun) -> tuple[str, int]:
         return fail(str(error), 404)
 
+    def unreadable(error: Exception) -> tuple[str, int]:
+        """A study file (or a run's log) that cannot be read: the page says which, and what is wrong with it."""
+        return fail(f"the study's files cannot be shown: {error}", 500)
+
+    for kind in USER_ERRORS:
+        app.register_error_handler(kind, unreadable)
+
     @app.context_processor
     def live_now() -> dict[str, Any]:
         """The run E-STOP stops: this console's live run, else one live.json says is under way (started elsewhere)."""
@@ -78,6 +93,16 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
         written = read_state(console.folder) if running is None else None
         elsewhere = written.get("run_code") if written is not None and written.get("state") in GOING else None
         return {"live_now": running, "estop_run": running or elsewhere}
+
+    @app.context_processor
+    def blinding() -> dict[str, Any]:
+        """The study's name and key state for every experimenter page's header (blinded, or unblinded and when)."""
+        if not session.get("experimenter"):
+            return {}
+        try:
+            return {"study_key": study_key(console.folder)}
+        except USER_ERRORS as exc:  # shown in the header: a page must still render to say what is wrong
+            return {"study_key_error": str(exc)}
 
     @app.get("/")
     def sheet() -> str | HttpResponse:
@@ -97,11 +122,26 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
 
     def _run_page(code: str, status: int, error: str = "") -> tuple[str, int]:
         sheet, row = console.run(code)
-        link = url_for("questionnaire", token=access.participant_token(code), _external=True)
+        link = participant_link(code)
         qr = Markup(segno.make(link, error="m").svg_inline(scale=4))
         live = console.live.state(code)
+        playing = console.playing(code)
+        if not error and playing is not None and playing.error:
+            error = playing.error  # the latest log played for this run, in the background, failed
+        serve = f"trials serve --study {shlex.quote(str(console.folder.root))} {NETWORK_OPTION}"
         return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}",
-                               live_uri=console.live.uri, live=live, shown=_shown(row, live)), status
+                               live_uri=console.live.uri, live=live, shown=_shown(row, live), playing=playing,
+                               busy=console.playing_now(), picture=row.outcome and console.folder.run_log(code).exists(),
+                               reach=reach, serve=serve), status
+
+    def participant_link(code: str) -> str:
+        """Run `code`'s questionnaire link: at this laptop's network address when phones reach it there, else at the
+        address the experimenter's browser used."""
+        token = access.participant_token(code)
+        if reach.host is None:
+            return url_for("questionnaire", token=token, _external=True)
+        port = request.environ.get("SERVER_PORT", "")
+        return f"{request.scheme}://{url_host(reach.host)}{'' if port in ('', '80') else ':' + port}{url_for('questionnaire', token=token)}"
 
     @app.post("/runs/<code>/live")
     def live_start(code: str) -> tuple[str, int] | HttpResponse:
@@ -117,7 +157,8 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def live_state(code: str) -> HttpResponse:
         experimenter()
         console.run(code)
-        return jsonify(console.live.state(code))
+        state = console.live.state(code)
+        return jsonify({**state, "since": local_time(state["since_utc"])} if "since_utc" in state else state)
 
     @app.post("/estop")
     def estop() -> HttpResponse:
@@ -147,6 +188,7 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def attach_log(code: str) -> tuple[str, int] | HttpResponse:
         experimenter()
         upload = request.files.get("log")
+        replace = request.form.get("replace") == "1"
         try:
             goal = (_number(request.form, "goal_x"), _number(request.form, "goal_y"))
             if (goal[0] is None) != (goal[1] is None):
@@ -158,11 +200,33 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
             name = upload.filename or "" if upload is not None else ""
             log = LogRequest(name, upload.read() if upload is not None and name else b"", request.form.get("path", ""),
                              (goal[0], goal[1]) if goal[0] is not None and goal[1] is not None else None, start, duration)
-            done = console.attach_log(code, log)
+            playing = console.attach_log(code, log, replace)
         except FORM_ERRORS as exc:
             return _run_page(code, 400, str(exc))
-        flash(f"Run {code}: its log was played; outcome {done.outcome.status}.")
+        which = "the corrected" if replace else "its"
+        flash(f"Run {code}: {which} log {playing.log} is being checked and played; this page shows the outcome when it is done.")
         return redirect(url_for("run_page", code=code))
+
+    @app.get("/runs/<code>/log")
+    def log_state(code: str) -> HttpResponse:
+        """Whether run `code`'s log is still being played (the run page asks every second while it is)."""
+        experimenter()
+        console.run(code)
+        playing = console.playing(code)
+        if playing is None:
+            return jsonify({"run_code": code, "running": False})
+        return jsonify({"run_code": code, "running": playing.running, "log": playing.log, "since": local_time(playing.since_utc),
+                        "outcome": playing.outcome, "error": playing.error})
+
+    @app.get("/runs/<code>/picture.png")
+    def picture(code: str) -> HttpResponse:
+        """The run's picture from its log, as `trials log show` draws it: its path, the people tracked, the goal."""
+        experimenter()
+        console.run(code)
+        png = pictures.png(code)
+        if png is None:
+            abort(404, f"run {code} has no log yet, so no picture")
+        return HttpResponse(png, mimetype="image/png", headers={"Cache-Control": "no-store"})
 
     @app.route("/runs/<code>/score", methods=["GET", "POST"])
     def score(code: str) -> tuple[str, int] | HttpResponse:
@@ -183,7 +247,8 @@ def create_app(console: Console, access: ConsoleAccess) -> Flask:
     def progress_page() -> str:
         experimenter()
         sheet = console.sheet()
-        return render_template("progress.html", sheet=sheet, progress=progress(console.folder, sheet), title="Progress", percent=_percent, points=_points)
+        return render_template("progress.html", sheet=sheet, progress=progress(console.folder, sheet), title="Progress", percent=_percent,
+                               points=_points)
 
     @app.route("/q/<token>", methods=["GET", "POST"])
     def questionnaire(token: str) -> tuple[str, int] | HttpResponse:

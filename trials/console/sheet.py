@@ -1,13 +1,15 @@
 """The run sheet as the console shows it: every plan row in order with its settings (a blinded factor's
-arm label, never a controller), status and what has been recorded for it. Read from the public study
-files only; the sealed key is never opened."""
+arm label, never a controller), status and what has been recorded for it, and whether the study's key has
+been opened (report/unblinding.json, through its owner). Read from the public study files only; the sealed
+key is never opened."""
 
 from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import Any
 
-from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN
+from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN, Outcome
 from designs.questionnaire import LikertItem
 from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
@@ -17,14 +19,49 @@ from trials.run_events import ABORT, ABORTED, FINISH, LOG, NOTE, PENDING, RUNNIN
 from trials.scenario import CONTROLLER
 from trials.scores import read_scores
 from trials.study import OUTCOMES, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
-from trials.study_data import run_origin
+from trials.study_data import read_unblinding, run_origin
+
+
+@dataclass(frozen=True)
+class StudyKey:
+    """The study's name, whether it is blinded, and when its sealed key was opened (`trials report --unblind`)."""
+
+    name: str
+    blind: bool
+    unblinded_utc: tuple[str, ...] = ()
+
+    @property
+    def sealed(self) -> bool:
+        """Blinded and never opened: no page compares the arms (that would be an unplanned interim look)."""
+        return self.blind and not self.unblinded_utc
+
+
+def study_key(folder: StudyFolder, design: dict[str, Any] | None = None) -> StudyKey:
+    """The study's key state from design.json and report/unblinding.json (the openings of this design's key)."""
+    design = folder.read_design() if design is None else design
+    blinding = design.get("blinding") or {}
+    opened = read_unblinding(folder, blinding["commitment"]["digest"]) if blinding else ()
+    return StudyKey(str(design.get("study", "")), bool(blinding), opened)
+
+
+def outcome_figures(outcome: Outcome) -> list[tuple[str, str]]:
+    """A run's public outcome metrics as its page shows them, (label, value) in outcomes.csv's order."""
+
+    def measure(value: float | None, unit: str, digits: int = 1) -> str:
+        return "-" if value is None else f"{value:.{digits}f} {unit}"
+
+    return [("Status", outcome.status), ("Duration", measure(outcome.duration_s, "s")), ("Time to goal", measure(outcome.time_to_goal_s, "s")),
+            ("Path length", measure(outcome.path_length_m, "m", 2)), ("Closest gap", measure(outcome.min_distance_m, "m", 2)),
+            ("Within 0.5 m", measure(outcome.time_within_0_5m_s, "s")), ("Within 1.2 m", measure(outcome.time_within_1_2m_s, "s")),
+            ("Collisions", str(outcome.collisions))]
 
 
 @dataclass(frozen=True)
 class SheetRow:
     """One run on the sheet: order, code, settings by factor, status, its outcome's status (empty until
     its log is played or its live run ends) and how the run was made (`analysis.records`: simulated, driven
-    live, external log; empty without an outcome), counts of human scores and judgments, and its events."""
+    live, external log; empty without an outcome), counts of human scores and judgments, its events and its
+    outcome row."""
 
     order: int
     code: str
@@ -35,6 +72,12 @@ class SheetRow:
     judgments: int
     events: list[RunEvent] = field(default_factory=list)
     origin: str = ""
+    result: Outcome | None = None
+
+    @property
+    def figures(self) -> list[tuple[str, str]]:
+        """Its outcome's public metrics (none before its outcome row), never its controller."""
+        return outcome_figures(self.result) if self.result is not None else []
 
     @property
     def made(self) -> str:
@@ -72,7 +115,8 @@ class SheetRow:
 
 @dataclass(frozen=True)
 class RunSheet:
-    """The study's name, whether it is blinded (and its arm factor and labels), factor columns, questionnaire items and rows."""
+    """The study's name, whether it is blinded (and its arm factor and labels), factor columns, questionnaire items, rows
+    and whether its key has been opened."""
 
     name: str
     blind: bool
@@ -81,6 +125,12 @@ class RunSheet:
     factors: list[str]
     questionnaire: tuple[LikertItem, ...]
     rows: list[SheetRow]
+    key: StudyKey
+
+    @property
+    def sealed(self) -> bool:
+        """Blinded and never unblinded: its pages compare no arms."""
+        return self.key.sealed
 
     @property
     def codes(self) -> list[str]:
@@ -115,7 +165,7 @@ def run_sheet(folder: StudyFolder) -> RunSheet:
         code = row["run_code"]
         outcome = outcomes.get(code)
         rows.append(SheetRow(int(row["order"]), code, {name: row[name] for name in factors}, status[code], outcome.status if outcome else "",
-                             scores[code], judgments[code], [e for e in events if e.run_code == code], run_origin(outcome) if outcome else ""))
+                             scores[code], judgments[code], [e for e in events if e.run_code == code], run_origin(outcome) if outcome else "", outcome))
     arm_factor = blinding.get("factor") or (CONTROLLER if CONTROLLER in factors else None)
     arms = list(blinding.get("arms") or dict.fromkeys(row[arm_factor] for row in plan) if arm_factor else [registry.DEFAULT])
-    return RunSheet(spec.name, bool(blinding), arm_factor, arms, factors, spec.questionnaire, rows)
+    return RunSheet(spec.name, bool(blinding), arm_factor, arms, factors, spec.questionnaire, rows, study_key(folder, design))
