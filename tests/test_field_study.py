@@ -4,14 +4,17 @@ exit 2, and `--allow-simulated` lets them."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from trials.cli import main
+from trials.commands.status import redo
 from trials.outcomes import read_outcomes
 from trials.responses import read_responses
 from trials.study import OUTCOMES, RESPONSES, StudyFolder
+from trials.study_status import study_status
 
 
 def codes(study: Path) -> list[str]:
@@ -56,3 +59,13 @@ def test_a_study_with_a_played_log_is_a_field_study(tmp_path, robot_logs_dir, ca
     assert not (study / RESPONSES).exists()
     assert main(["respond", "--simulate", "--study", str(study), "--allow-simulated", "--seed", "1"]) == 0
     assert {r.run_code for r in read_responses(study / RESPONSES)} == {first}
+
+
+def test_status_suggests_only_what_the_study_can_do_again(tmp_path, capsys):
+    study = tmp_path / "s"
+    assert main(["design", "--runs", "6", "--seed", "3", "--robot", "ros1://127.0.0.1:11311", "--study", str(study), "--quiet"]) == 0
+    status = study_status(StudyFolder(study))
+    assert status.field is not None and "[robot] table" in status.field
+    assert redo(status) == "`trials run --robot ros1://127.0.0.1:11311` drives them again"
+    assert redo(replace(status, robot=None)).startswith("attach their logs in `trials serve`")
+    assert redo(replace(status, robot=None, field=None)) == "the next `trials run` redoes them"

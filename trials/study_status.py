@@ -13,6 +13,7 @@ from typing import Any
 
 from analysis.records import HUMAN, SIMULATED
 from robot_logs.foxglove_log import partial_path
+from trials.field_study import field_reason
 from trials.outcomes import STATUSES, outcome_cells, read_outcomes
 from trials.responses import read_responses
 from trials.robot.live_state import read_state
@@ -65,6 +66,8 @@ class StudyStatus:
     #: The robot the study's runs are driven on (the [robot] table's URI), if it has one, and the last live run's state.
     robot: str | None = None
     live: dict[str, str] | None = None
+    #: Why the study is a field study (`trials.field_study`), or None: its runs may be simulated.
+    field: str | None = None
 
     @property
     def finished(self) -> int:
@@ -129,6 +132,7 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         recorded_settings=distinct(outcome_cells(o) for o in outcomes.values()),
         robot=robot.uri if (robot := read_robot_settings(folder.path(SPEC))) is not None else None,
         live=read_state(folder),
+        field=field_reason(folder, bool(blinding)),
     )
 
 

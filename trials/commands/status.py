@@ -42,6 +42,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def redo(status: StudyStatus) -> str:
+    """How an unfinished run of this study is run again: live on its robot, from the robot's log in a field study
+    without one, else simulated."""
+    if status.robot:
+        return f"`trials run --robot {status.robot}` drives them again"
+    if status.field:
+        return "attach their logs in `trials serve`, or play them with `trials run --from-log LOG --only CODE`"
+    return "the next `trials run` redoes them"
+
+
 def status_lines(status: StudyStatus) -> list[str]:
     """The text of `trials status`."""
     from trials.study import RUN_LOCK, SPEC
@@ -59,8 +69,7 @@ def status_lines(status: StudyStatus) -> list[str]:
     for code, reason in status.failed.items():
         lines.append(f"  failed {code}: {reason}")
     if status.aborted:
-        again = f"trials run --robot {status.robot}" if status.robot else "trials run"
-        lines.append(f"  aborted (a partial log left; the next `{again}` redoes them): {', '.join(status.aborted)}")
+        lines.append(f"  aborted (a partial log left): {', '.join(status.aborted)}; {redo(status)}")
     lines.append(f"judgments: {status.responses['human']} human, {status.responses['simulated']} simulated, "
                  f"of {status.judged_runs} runs; scores: {status.scores}, of {status.scored_runs} runs")
     lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
