@@ -31,7 +31,7 @@ MINUTE_NS = 60_000_000_000
 
 class LiveLog:
     """Writes a live run's log as the loop reports it (a `trials.robot.live.LiveSink`); nothing is written
-    until `started`, and `close` or `abort` ends it (use as a context manager)."""
+    until `started`, and `close` ends it, however the run ended (what was recorded is always kept)."""
 
     def __init__(self, path: Path, metadata: Mapping[str, str], blind: bool, limits: RobotLimits) -> None:
         self.path, self.metadata, self.blind, self.limits = path, dict(metadata), blind, limits
@@ -73,7 +73,3 @@ class LiveLog:
     def close(self) -> None:
         if self.log is not None:
             self.log.close()
-
-    def abort(self) -> None:
-        if self.log is not None:
-            self.log.abort()

@@ -63,9 +63,11 @@ class LiveDriver:
     def drive(self, code: str, row: dict[str, str], controller: Controller, log: LiveLog) -> LiveEnd:
         """Drive row `code` with its (reset) controller, writing `log`. The robot is stopped however the run ends.
 
+        Returns how the run ended; an `aborted` ending (e-stop, stale sensors, a signal, the middleware lost) is the
+        caller's to keep aside.
+
         Raises:
-            RunAborted: the run stopped before its own ending (e-stop, stale sensors, a signal, the middleware
-                lost, no sensors at the start); its log, if it started, is closed and moved to runs/aborted/.
+            RunAborted: the run never started (its sensors were not all seen in time, or it was stopped while waiting).
         """
         estop = self.folder.path(LIVE_ESTOP)
         estop.unlink(missing_ok=True)  # an e-stop stops one run, not the next
@@ -81,9 +83,6 @@ class LiveDriver:
         finally:
             self.stop = None
         return end
-
-    def close(self) -> None:
-        self.link.close()
 
 
 def aborted_stamp() -> str:
