@@ -12,6 +12,7 @@ Numeric factors are compared in their own units; a categorical factor only with 
 from __future__ import annotations
 
 import ast
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,6 +91,7 @@ class _Compiler:
         self.factors = factors
         self.where = where
         self.blind = blind
+        self.text = ""
 
     def fail(self, what: str) -> DesignError:
         return DesignError(f"{self.where}: {what}")
@@ -99,6 +101,7 @@ class _Compiler:
             raise self.fail("expected a non-empty string")
         if len(text) > MAX_LENGTH:
             raise self.fail(f"longer than {MAX_LENGTH} characters")
+        self.text = text
         try:
             tree = ast.parse(text, mode="eval")
         except SyntaxError as exc:
@@ -163,6 +166,19 @@ class _Compiler:
                 return factor
         return None
 
+    def finite(self, node: ast.Constant) -> float:
+        """A number written in the expression as the float the programs hold: one too large for a float (a
+        400-digit integer, 1e999) is refused, never turned into infinity or an OverflowError."""
+        try:
+            value = float(node.value)
+        except OverflowError:
+            value = math.inf
+        if not math.isfinite(value):
+            written = ast.get_source_segment(self.text, node) or ast.unparse(node)
+            shown = written if len(written) <= 24 else f"{written[:20]}... ({len(written)} characters)"
+            raise self.fail(f"the number {shown} is too large: numbers must be finite, below about 1.8e308 in magnitude")
+        return value
+
     def number(self, node: ast.expr) -> list[tuple[int, float]]:
         if isinstance(node, ast.Name):
             if node.id == self.blind:
@@ -173,7 +189,7 @@ class _Compiler:
                 raise self.fail(f"{node.id} is categorical: compare it with its level names, not in arithmetic")
             return [(VAR, float(self.index[node.id]))]
         if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
-            return [(CONST, float(node.value))]
+            return [(CONST, self.finite(node))]
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             inner = self.number(node.operand)
             return [*inner, (NEG, 0.0)] if isinstance(node.op, ast.USub) else inner

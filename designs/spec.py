@@ -159,6 +159,8 @@ def read_spec(path: Path) -> StudySpec:
         raise DesignError(f"cannot read the study spec {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"malformed {path.name}: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise DesignError(f"malformed {path.name}: values nested too deeply to read") from None
     return spec_from_dict(data, source=path.name, folder=path.parent)
 
 
@@ -344,6 +346,8 @@ def factor_from_table(raw: Any, where: str, folder: Path | None = None) -> Facto
                                   "(quote numbers: \"2\")")
             if not level.isprintable():
                 raise DesignError(f"{where}: level {level!r} must be one line of printable text")
+            if level.strip() and level != level.strip():  # every study CSV is read with its cells stripped: the plan would no longer match
+                raise DesignError(f"{where}: level {level!r} begins or ends with a space; write {level.strip()!r}")
         factor = CategoricalFactor(name, tuple(levels), blind)
     else:
         _no_unknown_keys(raw, common | {"value"}, where)

@@ -1,7 +1,8 @@
 """Robot logs: ROS1/ROS2 bags and MCAP, lidar person detection and Kalman tracking.
 
 Reading: `reader.LogReader` (one interface over every format) on `sources` (the formats and
-layouts), `bag_metadata` (ROS2 bag folders) and `decoding` (definitions and encodings); `topics`
+layouts), `mcap_chunks` and `inflate` (chunks and files decompressed within a bound), `bag_metadata` (ROS2 bag folders)
+and `decoding` (definitions and encodings); `topics`
 (choice by type), `convert` (messages to `records`), `summary` (`trials log inspect`). Perception: `detection`, `tracking`, `pipeline`
 (`PersonTracker`), `static_world` and `occupancy_map` (ROS map_server maps), `log_tracking` (a whole log), `tracks` (CSV, `history_at`). Simulation:
 `lidar_sim`. Writing: `foxglove_log` (MCAP run logs for Foxglove), `track_mcap`. Times are header

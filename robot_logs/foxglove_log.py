@@ -22,11 +22,14 @@ from typing import Any, BinaryIO
 
 import numpy as np
 from mcap.reader import make_reader
+from mcap.records import Message as McapMessage
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_schemas import Schema, foxglove_schema, open_schema
 from robot_logs.frames import Pose2D
+from robot_logs.inflate import InflateError
+from robot_logs.mcap_chunks import indexed_messages, stream_records
 from robot_logs.records import Scan
 
 Message = dict[str, Any]
@@ -300,11 +303,27 @@ class FoxgloveReader:
         return found
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
-        """Messages in time order, all or those of the given topics."""
+        """Messages in time order, all or those of the given topics; each chunk decompressed within the size it
+        declares (`robot_logs.mcap_chunks`).
+
+        Raises:
+            LogError: a chunk that expands beyond its declared size or does not decompress.
+        """
         wanted = None if topics is None else list(topics)
         bad = [c.topic for c in self._summary.channels.values() if c.message_encoding != "json" and (wanted is None or c.topic in wanted)]
         if bad:
             raise LogError(f"{self.path}: topics {', '.join(bad)} are not JSON-encoded")
+        channels = {c.id: c for c in self._summary.channels.values() if wanted is None or c.topic in wanted}
         with self.path.open("rb") as stream:
-            for schema, channel, message in make_reader(stream).iter_messages(topics=wanted, log_time_order=True):
-                yield LoggedMessage(channel.topic, schema.name if schema else "", message.log_time, json.loads(message.data))
+            try:
+                if self._summary.chunk_indexes:
+                    found: Iterable[McapMessage] = indexed_messages(stream, self._summary, channels)
+                else:  # unchunked, or chunks without an index: the whole file, ordered by time as an index would give it
+                    found = sorted((r for r in stream_records(stream) if isinstance(r, McapMessage) and r.channel_id in channels),
+                                   key=lambda r: r.log_time)
+                for message in found:
+                    channel = channels[message.channel_id]
+                    schema = self._summary.schemas.get(channel.schema_id)
+                    yield LoggedMessage(channel.topic, schema.name if schema else "", message.log_time, json.loads(message.data))
+            except InflateError as exc:
+                raise LogError(f"{self.path} is damaged ({exc})") from None

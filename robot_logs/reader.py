@@ -21,12 +21,12 @@ from pathlib import Path
 from tempfile import TemporaryDirectory
 from types import TracebackType
 
-import zstandard
 from mcap.writer import MCAP0_MAGIC
 
 from robot_logs.bag_metadata import read_bag_metadata
 from robot_logs.decoding import MessageDecoder, Undecodable
 from robot_logs.errors import LogError
+from robot_logs.inflate import InflateError, inflate_file
 from robot_logs.sources import BagWalkSource, McapSource, Ros1Source, Rosbag2Source, TopicInfo
 
 Source = Ros1Source | Rosbag2Source | McapSource | BagWalkSource
@@ -46,7 +46,8 @@ def detect_format(path: Path) -> str:
     """'ros1', 'ros2', 'mcap' or 'sqlite' for a log path.
 
     Raises:
-        LogError: the path is missing, empty or not a log of a known format.
+        LogError: the path is missing, empty, not a regular file or a folder (a FIFO or a device, which reading
+            would wait on or never finish), or not a log of a known format.
     """
     if not path.exists():
         raise LogError(f"{path}: no such file or folder")
@@ -54,6 +55,8 @@ def detect_format(path: Path) -> str:
         if not (path / "metadata.yaml").is_file():
             raise LogError(f"{path} is a folder without metadata.yaml, so not a ROS2 bag")
         return "ros2"
+    if not path.is_file():
+        raise LogError(f"{path} is not a regular file or a folder, so not a log")
     with path.open("rb") as stream:
         head = stream.read(16)
     if not head:
@@ -123,7 +126,7 @@ class LogReader:
         if self.kind == "sqlite":
             return Rosbag2Source([self.path])
         bag = read_bag_metadata(self.path)
-        files = self._decompressed(bag.files) if bag.compression == "file" else bag.files
+        files = self._decompressed(bag.files, bag.storage) if bag.compression == "file" else bag.files
         per_message = bag.compression == "message"
         if bag.storage == "mcap":
             return McapSource(files, bag.distro, salvage=self.salvage, compressed=per_message)
@@ -131,15 +134,20 @@ class LogReader:
             return Rosbag2Source(files, bag.distro, compressed=per_message)
         raise LogError(f"{self.path}: storage {bag.storage!r} in metadata.yaml; robot_logs reads 'sqlite3' and 'mcap'")
 
-    def _decompressed(self, files: list[Path]) -> list[Path]:
-        """Copies of zstd-compressed storage files, decompressed into a folder removed on close."""
+    def _decompressed(self, files: list[Path], storage: str) -> list[Path]:
+        """Copies of zstd-compressed storage files, decompressed into a folder removed on close; one that is not a
+        file of the bag's storage, or expands beyond `inflate`'s bound, is refused before it fills the disk."""
+        magic, what = {"mcap": (MCAP0_MAGIC, "an MCAP file"), "sqlite3": (SQLITE_MAGIC, "an sqlite3 database")}.get(storage, (b"", storage))
         self._scratch = TemporaryDirectory(prefix="robot_logs-")
         copies = []
-        for path in files:
-            copy = Path(self._scratch.name) / path.name.removesuffix(".zstd")
-            with path.open("rb") as source, copy.open("wb") as target:
-                zstandard.ZstdDecompressor().copy_stream(source, target)
-            copies.append(copy)
+        try:
+            for path in files:
+                copy = Path(self._scratch.name) / path.name.removesuffix(".zstd")
+                inflate_file(path, copy, magic, what)
+                copies.append(copy)
+        except InflateError as exc:
+            self.close()
+            raise LogError(f"{self.path}: storage file {exc}") from None
         return copies
 
     def open(self) -> None:

@@ -8,14 +8,13 @@ the first damaged byte.
 
 from __future__ import annotations
 
-import bz2
 import io
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import BinaryIO
 
-import lz4.frame
+from robot_logs.inflate import InflateError, inflate
 
 MAGIC = b"#ROSBAG V2.0\n"
 OP_MESSAGE, OP_CHUNK, OP_CONNECTION = 0x02, 0x05, 0x07
@@ -78,15 +77,24 @@ def _records(stream: BinaryIO) -> Iterator[tuple[dict[str, bytes], bytes]]:
         yield fields, data
 
 
-def _chunk_payload(fields: dict[str, bytes], data: bytes) -> bytes:
-    compression = fields.get("compression", b"none").decode()
-    if compression == "none":
-        return data
-    if compression == "bz2":
-        return bz2.decompress(data)
-    if compression == "lz4":
-        return lz4.frame.decompress(data)
-    raise BagDamaged(f"unknown chunk compression {compression!r}")
+def _chunk_compression(fields: dict[str, bytes]) -> tuple[str, int | None]:
+    """A chunk record's compression and the uncompressed size it declares (its `size` field, if there is one)."""
+    size = fields.get("size", b"")
+    return fields.get("compression", b"none").decode("ascii", "replace"), struct.unpack("<I", size)[0] if len(size) == 4 else None
+
+
+def chunk_header(stream: BinaryIO, position: int) -> tuple[str, int | None]:
+    """The compression and declared uncompressed size of the chunk record at `position` in a bag.
+
+    Raises:
+        BagDamaged: there is no complete record header there.
+    """
+    stream.seek(position)
+    head = stream.read(4)
+    if len(head) < 4:
+        raise BagDamaged(f"chunk record at byte {position} cut short")
+    header = stream.read(struct.unpack("<I", head)[0])
+    return _chunk_compression(_fields(header))
 
 
 def _connection(fields: dict[str, bytes], data: bytes) -> BagConnection:
@@ -116,10 +124,11 @@ def walk_bag(stream: BinaryIO) -> Iterator[BagConnection | BagMessage]:
     for fields, data in _records(stream):
         if fields["op"][0] != OP_CHUNK:
             continue
+        compression, declared = _chunk_compression(fields)
         try:
-            payload = _chunk_payload(fields, data)
-        except (OSError, RuntimeError, ValueError) as exc:
-            raise BagDamaged(f"chunk does not decompress: {exc}") from None
+            payload = inflate(data, compression, declared)
+        except InflateError as exc:
+            raise BagDamaged(str(exc)) from None
         for inner, inner_data in _records(io.BytesIO(payload)):
             try:
                 if inner["op"][0] == OP_CONNECTION:

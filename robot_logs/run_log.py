@@ -232,6 +232,8 @@ def read_run(path: Path) -> LoggedRun:
                 events.append((float(data["t"]), str(data["event"]), str(data["detail"])))
             else:
                 plans += 1
+    except LogError:
+        raise  # a damaged file, said as such: not a message of the wrong form
     except KeyError as exc:
         raise LogError(f"{path}: a {topic} message lacks field {exc} of the run-log format (docs/study_folder.md)") from None
     except (TypeError, ValueError) as exc:

@@ -16,24 +16,25 @@ from __future__ import annotations
 
 import sqlite3
 from collections import Counter
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import closing
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
-import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, Schema
 from mcap.records import Message as McapMessage
-from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
 from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.rosbag1 import Reader as Ros1Reader
 from rosbags.rosbag2 import Reader as Rosbag2Reader
 
 from robot_logs.decoding import CDR, ROS1, MessageType, is_service, ros2_type_name
-from robot_logs.ros1_records import BagConnection, BagMessage, walk_bag
+from robot_logs.inflate import InflateError, inflate
+from robot_logs.mcap_chunks import chunk_records, indexed_messages, stream_records
+from robot_logs.ros1_records import BagConnection, BagMessage, chunk_header, walk_bag
 
 
 class SourceDamaged(Exception):
@@ -78,8 +79,14 @@ def _rosbags_type(connection: Connection, encoding: str) -> MessageType:
     )
 
 
+def _per_message(compressed: bool) -> Callable[[bytes], bytes] | None:
+    """How the messages of a ROS2 bag compressed message by message (zstd) are decompressed: within `inflate`'s bound."""
+    return partial(inflate, compression="zstd") if compressed else None
+
+
 class Ros1Source:
-    """A ROS1 `.bag` file through rosbags (its index must be intact)."""
+    """A ROS1 `.bag` file through rosbags (its index must be intact); its chunks decompressed within the size each
+    declares (`inflate`), where rosbags would decompress them whole."""
 
     distro = None
 
@@ -87,6 +94,10 @@ class Ros1Source:
         self._reader = Ros1Reader(path)
         self._reader.open()
         self._types = {c.id: _rosbags_type(c, ROS1) for c in self._reader.connections}
+        with path.open("rb") as stream:
+            for position, chunk in self._reader.chunks.items():
+                compression, declared = chunk_header(stream, position)
+                self._reader.chunks[position] = chunk._replace(decompressor=partial(inflate, compression=compression, declared=declared))
 
     def topics(self) -> list[TopicInfo]:
         counts: Counter[tuple[str, MessageType]] = Counter()
@@ -116,7 +127,7 @@ class Rosbag2Source:
 
     def __init__(self, files: list[Path], distro: str | None = None, compressed: bool = False) -> None:
         self.distro = distro or (_sqlite_distro(files[0]) if files else None)
-        self._decompress = zstandard.ZstdDecompressor().decompress if compressed else None
+        self._decompress = _per_message(compressed)
         self._readers: list[Rosbag2Reader] = []
         for path in files:
             reader = Rosbag2Reader(path)
@@ -182,7 +193,7 @@ class McapSource:
         self.files = files
         self.distro = distro
         self.salvage = salvage
-        self._decompress = zstandard.ZstdDecompressor().decompress if compressed else None
+        self._decompress = _per_message(compressed)
         self.damage: str | None = None
         self._schemas: dict[tuple[int, int], Schema] = {}
         self._types: dict[tuple[int, int], tuple[str, MessageType]] = {}
@@ -203,7 +214,7 @@ class McapSource:
                 self._counts[self._types[index, channel_id]] += count
 
     def _note(self, path: Path, exc: Exception) -> None:
-        self.damage = self.damage or f"{path.name}: {type(exc).__name__} {exc}".strip()
+        self.damage = self.damage or _what(path, exc)
 
     def _walk(self, index: int, path: Path, topics: Collection[str] | None) -> Iterator[McapMessage]:
         """Records in file order (counting them when `topics` is None).
@@ -213,7 +224,7 @@ class McapSource:
         counting = topics is None
         with path.open("rb") as stream:
             try:
-                for record in StreamReader(stream, validate_crcs=True).records:
+                for record in stream_records(stream):
                     if isinstance(record, Schema):
                         self._schemas[index, record.id] = record
                     elif isinstance(record, Channel):
@@ -229,7 +240,7 @@ class McapSource:
                             yield record
             except Exception as exc:  # any malformed byte ends the readable part
                 if not self.salvage:
-                    raise SourceDamaged(f"{path.name}: {type(exc).__name__} {exc}".strip()) from None
+                    raise SourceDamaged(_what(path, exc)) from None
                 self._note(path, exc)
 
     def _chunks(self, index: int, path: Path, topics: Collection[str]) -> Iterator[McapMessage]:
@@ -240,19 +251,17 @@ class McapSource:
             for chunk_index in sorted(summary.chunk_indexes, key=lambda c: c.message_start_time):
                 try:
                     stream.seek(chunk_index.chunk_start_offset + 9)  # past the opcode and length
-                    records = breakup_chunk(Chunk.read(ReadDataStream(stream)), validate_crc=True)
+                    records = chunk_records(Chunk.read(ReadDataStream(stream)))
                 except Exception as exc:  # a damaged chunk is skipped, the others still read
                     self._note(path, exc)
                     continue
                 found = [r for r in records if isinstance(r, McapMessage) and r.channel_id in wanted]
                 yield from sorted(found, key=lambda r: r.log_time)
 
-    @staticmethod
-    def _indexed(path: Path, topics: Collection[str]) -> Iterator[McapMessage]:
+    def _indexed(self, index: int, path: Path, topics: Collection[str]) -> Iterator[McapMessage]:
+        summary = self._summaries[index]
         with path.open("rb") as stream:
-            reader = SeekingReader(stream, validate_crcs=True)
-            for _, _, record in reader.iter_messages(topics=list(topics), log_time_order=True):
-                yield record
+            yield from indexed_messages(stream, summary, {c.id for c in summary.channels.values() if c.topic in topics})
 
     def topics(self) -> list[TopicInfo]:
         return _summarise(self._counts)
@@ -264,7 +273,7 @@ class McapSource:
             elif self.salvage:
                 records = self._chunks(index, path, topics)
             else:
-                records = self._indexed(path, topics)
+                records = self._indexed(index, path, topics)
             for record in records:
                 topic, mtype = self._types[index, record.channel_id]
                 data = self._decompress(record.data) if self._decompress else record.data
@@ -272,6 +281,11 @@ class McapSource:
 
     def close(self) -> None:
         """Nothing stays open between calls."""
+
+
+def _what(path: Path, exc: Exception) -> str:
+    """A damaged MCAP record in words: the file, and the error (named by type where mcap's own text is terse)."""
+    return f"{path.name}: {exc}" if isinstance(exc, InflateError) else f"{path.name}: {type(exc).__name__} {exc}".strip()
 
 
 def _usable_summary(path: Path) -> Summary | None:

@@ -9,18 +9,22 @@ import csv
 import errno
 import hashlib
 import json
+import math
 import os
 import shutil
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from trials import atomic
 from trials.cli import main
 from trials.errors import DiskFullError
+from trials.option_types import number
 from trials.pool import Failure
+from trials.run_settings import MAX_NOISE_M, settings_from_table
 from trials.study import StudyFolder
 
 SPEC_HEAD = '[study]\nname = "bad"\nruns = 8\n\n'
@@ -246,6 +250,35 @@ CASES = [
          "line 2 of sheet.csv: recorded_utc must give its UTC offset (e.g. +00:00), got '2026-01-01T10:00:00'",
          write("sheet.csv", "run_code,participant,compliant,recorded_utc\nNGAC3,P1,yes,2026-01-01T10:00:00\n")),
     Case("respond seed negative", ("respond", "--simulate", "--seed", "-1", "--study", "{study}"), "argument --seed: expected a whole number from 0"),
+    # values a parser can only refuse by running out of stack, a number no float holds, spaces a CSV reader strips, a folder
+    # that cannot be made (issue 43)
+    Case("spec nested 5,000 arrays deep", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "error: malformed spec.toml: values nested too deeply to read", spec(SPEC_HEAD + "deep = " + "[" * 5000 + "]" * 5000 + "\n" + SPEED)),
+    Case("spec nested 3,000 inline tables deep", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "error: malformed spec.toml: values nested too deeply to read", spec(SPEC_HEAD + "deep = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n" + SPEED)),
+    Case("study.toml nested deep (status)", ("status", "--study", "{study}"),
+         "study.toml: cannot read its [run] table (values nested too deeply to read)", lambda tmp, study: append(study / "study.toml", NESTED_TABLE)),
+    Case("study.toml nested deep (run)", ("run", "--study", "{study}"),
+         "study.toml: cannot read its [run] table (values nested too deeply to read)", lambda tmp, study: append(study / "study.toml", NESTED_TABLE)),
+    Case("study.toml nested deep (design)", ("design", "--force", "--study", "{study}"),
+         "error: malformed study.toml: values nested too deeply to read", lambda tmp, study: append(study / "study.toml", NESTED_TABLE)),
+    Case("design.json nested 100,000 deep (status)", ("status", "--study", "{study}"),
+         "design.json is damaged: values nested too deeply to read", lambda tmp, study: _nest_design(study)),
+    Case("design.json nested 100,000 deep (run)", ("run", "--study", "{study}"),
+         "design.json is damaged: values nested too deeply to read", lambda tmp, study: _nest_design(study)),
+    Case("a 400-digit number in a disallowed expression", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "the number 10000000000000000000... (401 characters) is too large: numbers must be finite, below about 1.8e308 in magnitude",
+         spec(SPEC_HEAD + f'disallowed = ["Speed > 1{"0" * 400}"]\n' + SPEED)),
+    Case("1e999 in a constraint", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "constraints[0] 'Speed < 1e999': the number 1e999 is too large", spec(SPEC_HEAD + 'constraints = ["Speed < 1e999"]\n' + SPEED)),
+    Case("a level with a leading space", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "spec.toml: factors[1] (Direction): level ' Crossing' begins or ends with a space; write 'Crossing'",
+         spec(SPEC_HEAD + SPEED + '[[factors]]\nname = "Direction"\ntype = "categorical"\nlevels = [" Crossing", "Parallel"]\n')),
+    Case("a level with a trailing space", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
+         "level 'Parallel ' begins or ends with a space; write 'Parallel'",
+         spec(SPEC_HEAD + SPEED + '[[factors]]\nname = "Direction"\ntype = "categorical"\nlevels = ["Crossing", "Parallel "]\n')),
+    Case("power out under /proc", ("power", "--out", "/proc/navtrials-power", "--study", "{study}"),
+         "error: cannot write /proc/navtrials-power: No such file or directory"),
     # trials evaluate / train / playback
     Case("evaluate seed negative", ("evaluate", "--baseline", "constant-velocity", "--split", "eth", "--seed", "-1"),
          "argument --seed: expected a whole number from 0"),
@@ -269,6 +302,16 @@ def _edit_design(study: Path, change: Callable[[dict], object]) -> None:
     record = json.loads(path.read_text())
     change(record)
     path.write_text(json.dumps(record))
+
+
+#: A table whose one value is nested 5,000 arrays deep, appended to a study.toml.
+NESTED_TABLE = "\n[deep]\nx = " + "[" * 5000 + "]" * 5000 + "\n"
+
+
+def _nest_design(study: Path) -> None:
+    """Give design.json a field nested 100,000 arrays deep."""
+    path = study / "design.json"
+    path.write_text(path.read_text().replace("{", '{"deep": ' + "[" * 100_000 + "]" * 100_000 + ", ", 1))
 
 
 def _snapshot(root: Path) -> dict[str, str]:
@@ -300,6 +343,23 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(case: Case, template: P
     assert case.expected.format(tmp=tmp_path, study=study) in err, err
     assert "Traceback" not in err
     assert _snapshot(tmp_path) == before
+
+
+def test_a_noise_of_minus_zero_is_zero() -> None:
+    """`--noise -0` and `[run] noise = -0.0` were taken as they were written, and numpy refused every run (scale < 0)."""
+    for noise in (number(0, MAX_NOISE_M)("-0"), settings_from_table({"noise": -0.0}, "study.toml [run]").noise_std_m):
+        assert noise == 0.0 and math.copysign(1.0, noise) == 1.0
+        assert np.random.default_rng(0).normal(0.0, noise, 2).tolist() == [0.0, 0.0]  # as a run draws its position noise
+
+
+@pytest.mark.slow  # one simulated run in a worker process
+def test_a_run_with_a_noise_of_minus_zero_finishes(template: Path, tmp_path: Path) -> None:
+    study = Path(shutil.copytree(template, tmp_path / "study"))
+    append(study / "study.toml", "\n[run]\nnoise = -0.0\n")
+    assert main(["run", "--only", "NGAC3", "--workers", "1", "--study", str(study)]) == 0
+    with (study / "outcomes.csv").open(newline="", encoding="utf-8") as handle:
+        (row,) = csv.DictReader(handle)
+    assert row["run_code"] == "NGAC3" and row["noise_std_m"] == "0.000"
 
 
 def test_spreadsheet_resaves_read_as_the_plan(template: Path, tmp_path: Path) -> None:

@@ -72,7 +72,7 @@ def number(minimum: float, maximum: float, *, above: bool = False, below: bool =
         high_ok = value < maximum if below else value <= maximum
         if not (math.isfinite(value) and low_ok and high_ok):
             raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-        return value
+        return value + 0.0  # -0 is 0: numpy refuses a negative zero scale ("scale < 0")
 
     return parse
 

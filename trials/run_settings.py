@@ -80,6 +80,8 @@ def read_run_settings(spec: Path) -> RunSettings:
         return RunSettings()
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise StudyError(f"{spec}: cannot read its [{TABLE}] table ({exc})") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise StudyError(f"{spec}: cannot read its [{TABLE}] table (values nested too deeply to read)") from None
     table = data.get(TABLE, {})
     if not isinstance(table, dict):
         raise StudyError(f"{spec}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
@@ -111,7 +113,8 @@ def override(settings: RunSettings, values: Mapping[str, Any], where: str) -> Ru
     given = {name: value for name, value in values.items() if value is not None}
     for name, value in given.items():
         _check(name, value, where)
-    return replace(settings, **{name: float(v) if name in NUMBERS else v for name, v in given.items()})
+    # + 0.0 makes -0.0 0.0: numpy refuses a noise of -0.0 ("scale < 0") in every run
+    return replace(settings, **{name: float(v) + 0.0 if name in NUMBERS else v for name, v in given.items()})
 
 
 #: Numeric fields and their ranges (closed, but dropout's upper end is open).

@@ -68,7 +68,6 @@ from trials.study import (
     StudyFolder,
     private_folder,
     to_the_minute,
-    utc_now,
 )
 
 #: Seconds a live run's worker has to stop the robot and keep its log after SIGTERM, before it is killed.
@@ -375,7 +374,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                         raise RuntimeError(f"a worker could not start: {exc}\n{exc.failure.details if exc.failure else ''}") from None
                     raise StudyError(exc.failure.message.splitlines()[0]) from None
                 if rerun:
-                    summary.superseded = supersede_runs(folder, outcomes, rerun, utc_now().replace(":", ""))
+                    summary.superseded = supersede_runs(folder, outcomes, rerun, folder.aside_stamp())
                 on_start(len(todo))
                 for code, answer in _answers(pool, ((task.code, task) for task in tasks)):
                     if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:

@@ -9,12 +9,13 @@ run_events.csv `trials.run_events`, logs/ `trials.attached_logs`, console/access
 report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
 `trials.power.campaigns`, the rest of power/ `trials.power.study_power`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
-sealed/superseded/<UTC time>/), never deleted.
+sealed/superseded/<UTC time>/; `-2`, `-3` ... after the time when that second's folder is taken), never deleted.
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import os
 import shutil
@@ -100,6 +101,8 @@ POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
 PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
+#: Its sealed part: the key, the spec naming the real levels, and the sealed records of the old plan's runs.
+SEALED_STUDY_FILES = (ALLOCATION, SEALED_SPEC, SEALED_RUNS)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:
@@ -198,6 +201,8 @@ class StudyFolder:
             record = json.loads(path.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise StudyError(f"{path} is damaged: {exc}") from None
+        except RecursionError:  # json decodes nested arrays and objects recursively
+            raise StudyError(f"{path} is damaged: values nested too deeply to read") from None
         if not isinstance(record, dict) or record.get("format") != export.FORMAT:
             raise StudyError(f"{path} is not a design record (its format field must be {export.FORMAT!r}); `trials design --force` makes a new plan")
         for key, kind in (("seed", int), ("factors", list), ("design", list)):
@@ -230,6 +235,8 @@ class StudyFolder:
             raise StudyError(f"the sealed key {path} is missing") from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise StudyError(f"the sealed key {path} is damaged: {exc}") from None
+        except RecursionError:
+            raise StudyError(f"the sealed key {path} is damaged: values nested too deeply to read") from None
         try:
             sealed = SealedAllocation.from_dict(data, str(path))
             commitment = blinding["commitment"]
@@ -266,20 +273,39 @@ class StudyFolder:
             shutil.move(str(self.path(name)), str(target / Path(name).name))
         return target
 
+    def aside_stamp(self) -> str:
+        """A new name for superseded/<name>/ and sealed/superseded/<name>/: the UTC time to the second without colons,
+        then `-2`, `-3` ... while that name is taken. The public folder is made here, exclusively, so two moves in
+        the same second (or two processes at once) never share a folder and never overwrite each other's files."""
+        time = utc_now().replace(":", "")
+        self.path(SUPERSEDED).mkdir(parents=True, exist_ok=True)
+        for stamp in itertools.chain([time], (f"{time}-{count}" for count in itertools.count(2))):
+            try:
+                (self.path(SUPERSEDED) / stamp).mkdir()
+            except FileExistsError:
+                continue
+            if not (self.path(SEALED) / SUPERSEDED / stamp).exists():
+                return stamp
+            (self.path(SUPERSEDED) / stamp).rmdir()  # ours, empty: a sealed folder of that name exists without it
+        raise AssertionError("the names above never run out")
+
     def copy_aside(self, names: tuple[str, ...]) -> Path:
-        """Copy existing entries (files) into superseded/<UTC time>/, leaving them in place; returns that folder."""
-        target = self.path(SUPERSEDED) / utc_now().replace(":", "")
-        target.mkdir(parents=True, exist_ok=True)
+        """Copy existing entries (files) into a new superseded/<UTC time>/ (`aside_stamp`), leaving them in place;
+        returns that folder."""
+        target = self.path(SUPERSEDED) / self.aside_stamp()
         for name in names:
             if self.path(name).exists():
                 shutil.copy2(self.path(name), target / Path(name).name)
         return target
 
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:
-        """Move existing entries aside into superseded/<UTC time>/; returns that folder if any moved."""
-        stamp = utc_now().replace(":", "")
+        """Move existing entries aside into a new superseded/<UTC time>/ (sealed ones into sealed/superseded/<UTC
+        time>/, `aside_stamp`); returns the public folder if anything public moved."""
         public = [name for name in names if self.path(name).exists()]
         secret = [name for name in sealed_names if self.path(name).exists()]
+        if not public and not secret:
+            return None
+        stamp = self.aside_stamp()
         if secret:
             private_folder(self, self.path(SEALED) / SUPERSEDED / stamp)
         for name, base in [(n, self.path(SUPERSEDED) / stamp) for n in public] + [
@@ -288,7 +314,10 @@ class StudyFolder:
             target = base / Path(name).name
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.move(str(self.path(name)), str(target))
-        return self.path(SUPERSEDED) / stamp if public else None
+        if not public:
+            (self.path(SUPERSEDED) / stamp).rmdir()
+            return None
+        return self.path(SUPERSEDED) / stamp
 
 
 def check_plan(path: Path, header: list[str], rows: list[tuple[int, list[str]]], design: dict[str, Any], design_path: Path) -> None:

@@ -143,6 +143,6 @@ def _report_state(folder: StudyFolder) -> str:
         recorded = json.loads(folder.path(REPORT_RECORD).read_text(encoding="utf-8")).get(INPUTS_KEY)
     except FileNotFoundError:
         return "none"
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError, AttributeError, RecursionError):  # unreadable (RecursionError: nested too deeply)
         recorded = None
     return "current" if recorded == folder.report_inputs() else "older than the data"

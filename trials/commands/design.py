@@ -173,10 +173,9 @@ def run(args: argparse.Namespace) -> int:
     from trials.robot.settings import robot_table
     from trials.run_settings import run_table
     from trials.study import (
-        ALLOCATION,
         DESIGN,
         PUBLIC_STUDY_FILES,
-        SEALED_SPEC,
+        SEALED_STUDY_FILES,
         SPEC,
         StudyFolder,
     )
@@ -219,7 +218,7 @@ def run(args: argparse.Namespace) -> int:
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
-    moved = folder.supersede(PUBLIC_STUDY_FILES, (ALLOCATION, SEALED_SPEC)) if args.force else None
+    moved = folder.supersede(PUBLIC_STUDY_FILES, SEALED_STUDY_FILES) if args.force else None
     written = write_design(folder, plan, original, tables, args.dpi if args.figures else None)
 
     if args.json:

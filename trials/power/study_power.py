@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from designs.diagnostics import diagnose
 from designs.spec import StudySpec
-from trials.atomic import write_files
+from trials.atomic import write_files, writing
 from trials.controllers import registry
 from trials.errors import StudyError
 from trials.power import campaigns as campaign_file
@@ -75,6 +75,8 @@ def power_seed(out: Path, given: int | None) -> int:
             return int(json.loads(record.read_text(encoding="utf-8"))["power_seed"])
         except (ValueError, KeyError, TypeError) as exc:
             raise StudyError(f"{record}: cannot read its power_seed ({exc}); give --seed or another --out") from None
+        except RecursionError:
+            raise StudyError(f"{record}: cannot read its power_seed (values nested too deeply to read); give --seed or another --out") from None
     return fresh_seed()
 
 
@@ -167,7 +169,8 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
             raise StudyError("--ray runs closed-loop campaigns: give --campaigns K too")
         check_ray(request.ray)
     controllers = controllers_for(plans, request.controllers) if request.campaigns else ()
-    out.mkdir(parents=True, exist_ok=True)
+    with writing(out):  # a folder that cannot be made (under /proc, a read-only disk) is one line naming it
+        out.mkdir(parents=True, exist_ok=True)
     settings: dict[str, Any] = {
         "power_seed": seed, "study": spec.name, "alpha": spec.alpha,
         "model_based": {"simulations": request.simulations, "assumed": anticipated.describe(), "shares": list(request.shares),

@@ -116,6 +116,8 @@ def read_robot_settings(spec: Path) -> RobotSettings | None:
         return None
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise StudyError(f"{spec}: cannot read its [{TABLE}] table ({exc})") from None
+    except RecursionError:
+        raise StudyError(f"{spec}: cannot read its [{TABLE}] table (values nested too deeply to read)") from None
     if TABLE not in data:
         return None
     table = data[TABLE]
