@@ -156,6 +156,7 @@ def test_report_refuses_broken_results(study: Path, capsys: pytest.CaptureFixtur
     assert not (study / "report").exists()
 
 
+@pytest.mark.slow
 def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(study: Path, capsys: pytest.CaptureFixture[str]) -> None:
     finished, _ = _codes(study)
     digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
