@@ -143,8 +143,12 @@ def table_text(header: Sequence[str], rows: Iterable[Sequence[str]], with_header
 
 def append_rows(path: Path, header: Sequence[str], rows: Iterable[Sequence[str]], widen: bool = False) -> None:
     """Add rows to a CSV file (creating it with `header`), rewriting it atomically. With `widen`, a file
-    whose columns are the first ones of `header` gets the new columns, empty in its earlier rows."""
-    existing = path.read_text(encoding="utf-8") if path.exists() else ""
+    whose columns are the first ones of `header` gets the new columns, empty in its earlier rows. A file a spreadsheet
+    re-saved (a byte-order mark, CRLF line ends) is taken as it reads and rewritten plainly."""
+    existing = path.read_bytes().decode("utf-8-sig") if path.exists() else ""
+    if "\r" in existing:  # re-saved by a spreadsheet (CRLF line ends): rewritten with this module's line ends
+        found, earlier = read_rows(path, same_width=False)
+        existing = table_text(found, (cells for _, cells in earlier))
     if existing:
         found = next(csv.reader(io.StringIO(existing)), [])
         if widen and len(found) < len(header) and tuple(found) == tuple(header[:len(found)]):

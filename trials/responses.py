@@ -26,6 +26,8 @@ ANSWERS = {"yes": True, "no": False}
 REQUIRED = ("run_code", "participant", "compliant")
 #: Participant codes: what a person types on a phone and the statistics group by.
 MAX_PARTICIPANT = 40
+#: First characters that make a spreadsheet read a cell as a formula.
+FORMULA_STARTS = ("=", "+", "-", "@")
 
 
 def parse_answer(cell: str) -> bool:
@@ -88,9 +90,12 @@ def record_response(folder: StudyFolder, code: str, participant: str, answer: st
 
 
 def check_participant(participant: str) -> None:
-    """StudyError unless a participant code is one short line of printable text."""
+    """StudyError unless a participant code is one short line of printable text that a spreadsheet will not take for a
+    formula (a leading =, +, - or @ would run as one when responses.csv is opened)."""
     if not participant.strip() or not participant.isprintable() or len(participant) > MAX_PARTICIPANT or participant != participant.strip():
         raise StudyError(f"a participant code must be 1 to {MAX_PARTICIPANT} printable characters without surrounding spaces, got {participant!r}")
+    if participant.startswith(FORMULA_STARTS):
+        raise StudyError(f"a participant code must not begin with =, +, - or @ (a spreadsheet would run it as a formula), got {participant!r}")
 
 
 def _rating(item: LikertItem, cell: str) -> int | None:
@@ -108,6 +113,8 @@ def _response(row: dict[str, str]) -> Response:
         raise ValueError(f"source must be {HUMAN} or {SIMULATED}, got {source!r}")
     if not row["participant"]:
         raise ValueError("participant is empty")
+    if row["participant"].startswith(FORMULA_STARTS):
+        raise ValueError(f"participant must not begin with =, +, - or @ (a spreadsheet would run it as a formula), got {row['participant']!r}")
     seed = row.get("seed", "")
     try:
         parsed_seed = int(seed) if seed else None
