@@ -4,8 +4,10 @@ fails (a full disk, no permission) is a one-line error naming the file."""
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import secrets
+import time
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -37,6 +39,38 @@ def writing(path: Path) -> Iterator[None]:
             yield
     except OSError as exc:
         raise StudyError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+#: Seconds a writer waits for another process's read-change-write of the same file before it gives up.
+LOCK_WAIT_S = 30.0
+
+
+@contextmanager
+def one_writer(path: Path, wait_s: float = LOCK_WAIT_S) -> Iterator[None]:
+    """Hold `path`'s writer lock (a hidden `.<name>.writing` beside it) for a read-change-write, so that writers in other
+    processes (the console, `trials score`, `trials respond`) take turns and no one's rows are lost.
+
+    Raises:
+        StudyError: another process held the lock for `wait_s` seconds.
+    """
+    lock = path.with_name(f".{path.name}.writing")
+    with writing(lock):
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        handle = lock.open("a")
+    deadline = time.monotonic() + wait_s
+    try:
+        while True:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    raise StudyError(f"another process has been writing {path} for over {wait_s:g} s (it holds {lock}); "
+                                     "try again, or stop it") from None
+                time.sleep(0.01)
+        yield
+    finally:
+        handle.close()  # closing the file releases the lock
 
 
 def write_files(files: dict[Path, bytes], private: Collection[Path] = ()) -> None:

@@ -15,7 +15,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any, TypeVar
 
-from trials.atomic import write_text
+from trials.atomic import one_writer, write_text
 from trials.errors import StudyError
 
 Row = TypeVar("Row")
@@ -144,7 +144,13 @@ def table_text(header: Sequence[str], rows: Iterable[Sequence[str]], with_header
 def append_rows(path: Path, header: Sequence[str], rows: Iterable[Sequence[str]], widen: bool = False) -> None:
     """Add rows to a CSV file (creating it with `header`), rewriting it atomically. With `widen`, a file
     whose columns are the first ones of `header` gets the new columns, empty in its earlier rows. A file a spreadsheet
-    re-saved (a byte-order mark, CRLF line ends) is taken as it reads and rewritten plainly."""
+    re-saved (a byte-order mark, CRLF line ends) is taken as it reads and rewritten plainly. One process at a time
+    (`trials.atomic.one_writer`), so concurrent writers never lose each other's rows."""
+    with one_writer(path):
+        _append_rows(path, header, list(rows), widen)
+
+
+def _append_rows(path: Path, header: Sequence[str], rows: Sequence[Sequence[str]], widen: bool) -> None:
     existing = path.read_bytes().decode("utf-8-sig") if path.exists() else ""
     if "\r" in existing:  # re-saved by a spreadsheet (CRLF line ends): rewritten with this module's line ends
         found, earlier = read_rows(path, same_width=False)
