@@ -73,7 +73,9 @@ def check_complete(study: Path, before: list[dict[str, str]]) -> None:
     with (study / "plan.csv").open(newline="") as handle:
         planned = [r["run_code"] for r in csv.DictReader(handle)]
     assert sorted(codes) == sorted(planned) and len(set(codes)) == RUNS  # every run exactly once
-    assert rows[: len(before)] == before  # the rows written before the interruption are untouched
+    kept = {r["run_code"] for r in before}
+    assert [r for r in rows if r["run_code"] in kept] == before  # the rows written before the interruption are untouched
+    assert codes == [c for c in planned if c in set(codes)]  # in plan order, whatever order the runs ended in
     for code in planned:
         assert FoxgloveReader(study / "runs" / f"{code}.mcap").metadata["run"]["run_code"] == code
     assert not [p for p in study.rglob(".*") if p.name.endswith((".partial", ".tmp"))]

@@ -80,11 +80,14 @@ def check_run_codes(codes: Iterable[str], plan_codes: Iterable[str], finished: I
 
 
 class Outcomes:
-    """A study's outcomes.csv while it runs: its checked rows, and atomic appends and removals."""
+    """A study's outcomes.csv while it runs: its checked rows, and atomic appends and removals. Rows are kept in plan
+    order, whatever order the runs finish in: with several workers, the order runs finish in times them, and so would
+    tell a blinded study's faster controller."""
 
     def __init__(self, folder: StudyFolder, blind: bool) -> None:
         self.path, self.blind = folder.path(OUTCOMES), blind
         self.rows = read_outcomes(self.path, blind)
+        self._order = {row["run_code"]: k for k, row in enumerate(folder.read_plan() if folder.path(PLAN).exists() else [])}
 
     @property
     def finished(self) -> set[str]:
@@ -92,6 +95,7 @@ class Outcomes:
 
     def append(self, outcome: Outcome) -> None:
         self.rows.append(outcome)
+        self.rows.sort(key=lambda row: self._order.get(row.run_code, len(self._order)))  # stable: a later duplicate stays later
         write_text(self.path, outcomes_text(self.rows, self.blind))
 
     def remove(self, codes: Sequence[str]) -> None:

@@ -151,15 +151,22 @@ def run(args: argparse.Namespace) -> int:
                   "Ctrl-C stops the robot.", flush=True)
         progress.start(count)
 
+    judged: dict[str, RunDone] = {}
+
     def done(run: RunDone) -> None:
         say(run.code, run_line(study.task(run.code).row, run.row) + _replayed(run))
         if not args.no_responses and run.simulated:
-            # Simulated participants judge the run (analysis.participants), seeded by the run's seed; a
-            # logged trial's robot drove as recorded, not as its controller planned, and a live run is
-            # judged by real people, so neither gets simulated judgments.
-            simulate_run(study.folder, run.code, int(run.row["seed"]), args.participants, run.row["finished_utc"])
-            if study.blind:
-                to_the_minute(study.folder.path(RESPONSES), study.folder.root)
+            judged[run.code] = run
+
+    def judge() -> None:
+        """Simulated participants judge the finished runs (analysis.participants), seeded by each run's seed, in plan
+        order once the runs have ended (the order runs end in would time them); a logged trial's robot drove as
+        recorded, not as its controller planned, and a live run is judged by real people, so neither is judged here."""
+        for code in (c for c in study.codes if c in judged):
+            row = judged[code].row
+            simulate_run(study.folder, code, int(row["seed"]), args.participants, row["finished_utc"])
+        if judged and study.blind:
+            to_the_minute(study.folder.path(RESPONSES), study.folder.root)
 
     def failed(code: str, message: str) -> None:
         say(code, f"{run_label(study.task(code).row)}: failed: {message}", error=True)
@@ -167,6 +174,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
     finally:
+        judge()
         progress.close()
         signal.signal(signal.SIGTERM, previous)
         progress.held([held[code] for code in study.codes if code in held])
