@@ -155,5 +155,13 @@ def test_log_show_unblind_adds_the_sealed_controller_and_plans(blind_run, capsys
     plans = len(record["topics"]["/controller/plan"])
     assert f"arm {row['Controller']} is {key[row['Controller']]}; controller: {key[row['Controller']]}" in out
     assert f"{plans} plans and {plans} controller records in" in out and "recorded outside the study" in out
+    # Showing the key is an unblinding like the report's, recorded with the study's completeness.
+    (opening,) = json.loads((study / "report" / "unblinding.json").read_text())["openings"]
+    assert (opening["command"], opening["completeness"], opening["interim"]) == (f"trials log show {row['run_code']} --unblind",
+                                                                                "6 of 6 runs finished", None)
+    assert main(["status", "--study", str(study)]) == 0
+    assert f"unblinded: yes, on {opening['utc']}" in capsys.readouterr().out
     assert main(["log", "show", row["run_code"], "--study", str(study), "--commitment", recorded]) == 2
-    assert "give it with --unblind" in capsys.readouterr().err
+    assert "give them with --unblind" in capsys.readouterr().err
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--unblind"]) == 2
+    assert "--unblind needs --commitment HEX" in capsys.readouterr().err

@@ -180,10 +180,17 @@ def unblinding_opening(folder: StudyFolder, commitment: str | None, interim: str
 
 
 def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
-    """report/unblinding.json: when the key of this design was opened, every time, and how complete the study was then
-    (`openings`: time, completeness and any interim reason, one per opening recorded with them)."""
-    earlier = _unblinding_file(folder, blinding.commitment or "").get("openings", [])
-    opening = {"utc": blinding.unblinded_utc[-1], "completeness": blinding.completeness, "interim": blinding.interim}
-    data = {"format": UNBLINDING_FORMAT, "commitment": blinding.commitment, "unblinded_utc": list(blinding.unblinded_utc),
-            "openings": [*earlier, opening]}
+    """report/unblinding.json after the report opened the key (`trials report --unblind`)."""
+    opening = Opening(blinding.completeness, blinding.interim)
+    return opened_record(folder, blinding.commitment or "", blinding.unblinded_utc[-1], opening, "trials report --unblind")
+
+
+def opened_record(folder: StudyFolder, commitment: str, utc: str, opening: Opening, command: str) -> bytes:
+    """report/unblinding.json with one more opening of the key: every time it was opened (`unblinded_utc`) and, for each
+    opening recorded with them, its time, how complete the study was, any interim reason and the command that opened it
+    (`openings`). Whatever command shows the key records it here, so reports and `trials status` know."""
+    earlier = _unblinding_file(folder, commitment)
+    entry = {"utc": utc, "completeness": opening.completeness, "interim": opening.interim, "command": command}
+    data = {"format": UNBLINDING_FORMAT, "commitment": commitment, "unblinded_utc": [*earlier.get("unblinded_utc", []), utc],
+            "openings": [*earlier.get("openings", []), entry]}
     return (json.dumps(data, indent=1) + "\n").encode()

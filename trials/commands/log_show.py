@@ -21,7 +21,10 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--unblind", action="store_true",
                         help="blinded study: open the sealed key (checked against design.json's commitment) and show "
                         "the run's controller and its plans from sealed/runs/")
-    parser.add_argument("--commitment", metavar="HEX", help="with --unblind: the commitment recorded when the study was designed")
+    parser.add_argument("--commitment", metavar="HEX",
+                        help="with --unblind (required): the commitment recorded when the study was designed")
+    parser.add_argument("--interim", metavar="REASON",
+                        help="with --unblind: open the key although runs are pending or failed, for this reason (recorded)")
     types.add_dpi(parser)
     parser.set_defaults(handler=show)
 
@@ -35,12 +38,11 @@ def show(args: argparse.Namespace) -> int:
     from trials.outcomes import outcome_cells
     from trials.run_figure import log_figure, run_settings
     from trials.sealed_runs import unsealed_lines
-    from trials.study import (
-        StudyFolder,
-    )
+    from trials.study import UNBLINDING, StudyFolder, utc_now
+    from trials.study_data import opened_record, unblinding_opening
 
-    if args.commitment is not None and not args.unblind:
-        raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
+    if (args.commitment is not None or args.interim is not None) and not args.unblind:
+        raise StudyError("--commitment and --interim go with the key's opening: give them with --unblind")
     path = study_log(args.run, args.study)
     run = read_run(path)
     meta = dict(run.metadata)
@@ -67,7 +69,12 @@ def show(args: argparse.Namespace) -> int:
     if args.unblind:
         if not blinded:
             raise StudyError(f"--unblind: run {code}'s log is not blinded, it names its controller already")
-        unsealed = unsealed_lines(StudyFolder(args.study), code, args.commitment)
+        folder = StudyFolder(args.study)
+        opening = unblinding_opening(folder, args.commitment, args.interim)
+        unsealed = unsealed_lines(folder, code, args.commitment)
+        if opening is not None:  # opening the key is an unblinding, recorded as `trials report --unblind` records it
+            write_files({folder.path(UNBLINDING): opened_record(folder, folder.read_design()["blinding"]["commitment"]["digest"],
+                                                                utc_now(), opening, f"trials log show {code} --unblind")})
         lines += unsealed.lines
         replay = unsealed.replay
     if replay:
