@@ -16,6 +16,10 @@ study every public file a run writes, and its folder, gets its modification time
 the minute, as `finished_utc` is. A run that fails leaves runs/<code>.failed.txt (its one-line
 reason; removed when the run later finishes), so `trials status` can tell failed from pending runs.
 
+With a robot (`trials run --robot`, `trials.robot`), one worker drives each row live: it opens the sealed key and
+its node on the robot's middleware once, and is stopped by SIGTERM (Ctrl-C, kill, or its parent dying) with time to
+stop the robot and keep the run's log; a run aborted so keeps its log in runs/aborted/ and stays pending.
+
 Every run records the settings it was made with (`trials.run_settings`); runs are not mixed with
 finished runs made with other settings unless the command says so (`settings_differ`). A full disk
 (`DiskFullError`, in the parent or a worker) stops the command at its first failed write, since
@@ -78,6 +82,7 @@ REAL_TIME_NS = 946_684_800 * 1_000_000_000
 SEED_BITS = 53
 
 if TYPE_CHECKING:
+    from trials.robot.live_log import LiveLog
     from trials.scenario import Scenario
     from trials.sim.closed_loop import SimConfig
     from trials.sim.perception import Perception
@@ -610,7 +615,7 @@ class TrialWorker:
             log.close()
         return end.status, end.metrics
 
-    def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: Any, stamp: str) -> Path | None:
+    def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: LiveLog, stamp: str) -> Path | None:
         """Close an aborted run's log and move it (and its sealed record) to where aborted runs are kept."""
         from trials.robot.live_trial import move_aside
 

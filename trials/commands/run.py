@@ -1,5 +1,5 @@
-"""`trials run`: run the study's pending plan rows in the closed-loop simulator, or play them from robot
-logs open loop (`--from-log`, or a plan `Log` column), logging each to MCAP."""
+"""`trials run`: run the study's pending plan rows in the closed-loop simulator, play them from robot logs open
+loop (`--from-log`, or a plan `Log` column), or drive them live on a robot (`--robot`), logging each to MCAP."""
 
 from __future__ import annotations
 
@@ -33,7 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "the row's controller in closed loop among social-force pedestrians, write runs/<code>.mcap "
             "and append the run's row to outcomes.csv. A row whose Log column names a robot log, or every "
             "row with --from-log, plays that log instead: its tracked people and recorded robot motion go "
-            "through the row's controller open loop, and its plans are logged next to what the robot did. "
+            "through the row's controller open loop, and its plans are logged next to what the robot did. With --robot, "
+            "each row is driven live on the robot instead, one at a time. "
             "Interrupted, it keeps every finished run; run it again to continue. A blinded study always "
             "runs blind."
         ),
@@ -68,7 +69,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="simulated participants judging each run (default: one per pedestrian)")
     parser.add_argument("--no-responses", action="store_true",
-                        help="do not add simulated participant judgments to responses.csv after each run")
+                        help="do not add simulated participants' judgments of the simulated runs to responses.csv (added in plan "
+                        "order once the runs end)")
     parser.add_argument("--robot", metavar="URI",
                         help="drive the runs live on a robot through ROS: ros1://HOST:PORT (a ROS 1 master) or ros2://DOMAIN; "
                         "topics, frames, goal and limits come from study.toml's [robot] table (docs/live_runs.md). "
