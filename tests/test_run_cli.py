@@ -139,8 +139,8 @@ def test_rerun_moves_the_old_run_aside_and_reproduces_it(finished, tmp_path, cap
     with (aside / "outcomes.csv").open(newline="") as handle:
         assert list(csv.DictReader(handle)) == [old]
     table = rows(study)
-    assert len(table) == 6 and table[-1]["run_code"] == code
-    new = table[-1]
+    assert len(table) == 6 and [r["run_code"] for r in table] == [r["run_code"] for r in plan(study)]  # back in its place
+    new = next(r for r in table if r["run_code"] == code)
     assert {k: v for k, v in new.items() if k != "finished_utc"} == {k: v for k, v in old.items() if k != "finished_utc"}
 
 
