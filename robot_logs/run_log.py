@@ -2,7 +2,7 @@
 layout of its own messages, and the one reader of it (`read_run`).
 
 `trials` writes these logs (simulated and logged trials) and `analysis` reads them back for the
-report; both take the format from here, so it has one owner. docs/study_folder.md describes it.
+report; both take the format from here, so it has one owner. docs/run_logs.md describes it.
 Times are the run's own seconds (each message's `t`); log times count from 0, or from the wall-clock
 start the `clock` metadata records; values are rounded to 0.1 mm.
 """
@@ -235,9 +235,9 @@ def read_run(path: Path) -> LoggedRun:
     except LogError:
         raise  # a damaged file, said as such: not a message of the wrong form
     except KeyError as exc:
-        raise LogError(f"{path}: a {topic} message lacks field {exc} of the run-log format (docs/study_folder.md)") from None
+        raise LogError(f"{path}: a {topic} message lacks field {exc} of the run-log format (docs/run_logs.md)") from None
     except (TypeError, ValueError) as exc:
-        raise LogError(f"{path}: a {topic} message breaks the run-log format (docs/study_folder.md): {exc}") from None
+        raise LogError(f"{path}: a {topic} message breaks the run-log format (docs/run_logs.md): {exc}") from None
     if not robot:
         raise LogError(f"{path}: no {ROBOT_STATE.name} messages")
     if len(people) != len(robot):
