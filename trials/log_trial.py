@@ -112,6 +112,9 @@ class People:
     position: np.ndarray
     velocity: np.ndarray
 
+    def __len__(self) -> int:
+        return len(self.ids)
+
 
 @dataclass(frozen=True)
 class LoggedScene:

@@ -70,6 +70,7 @@ from trials.study import (
     SPEC,
     SUPERSEDED,
     StudyFolder,
+    minute_ns,
     private_folder,
     to_the_minute,
 )
@@ -558,7 +559,7 @@ class TrialWorker:
         if not self.options.wall_clock:
             return 0
         now = time.time_ns()
-        return now - now % 60_000_000_000 if self.blind else now
+        return minute_ns(now) if self.blind else now
 
     def _simulate(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int],
                   path: Path) -> tuple[str, RunMetrics]:

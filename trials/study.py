@@ -113,11 +113,16 @@ def private_folder(folder: StudyFolder, path: Path) -> None:
         level.chmod(0o700)
 
 
+def minute_ns(stamp_ns: int) -> int:
+    """A time in ns since 1970 moved back to the start of its minute: how a blinded study gives every public time."""
+    return stamp_ns - stamp_ns % 60_000_000_000
+
+
 def to_the_minute(*paths: Path) -> None:
     """Set each path's modification time to the start of its minute, as a blinded study gives every
     public time: to the second, the times of its runs tell the controllers apart."""
     for path in paths:
-        minute = path.stat().st_mtime_ns // 60_000_000_000 * 60_000_000_000
+        minute = minute_ns(path.stat().st_mtime_ns)
         os.utime(path, ns=(minute, minute))
 
 

@@ -36,17 +36,18 @@ import numpy as np
 from analysis.records import RunMetrics
 from robot_logs.frames import FrameTree, Pose2D, frame_name
 from robot_logs.lidar_sim import LidarSimulator
-from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
+from robot_logs.physical import PEDESTRIAN_RADIUS_M, STEP_S, T_OBS
 from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Scan, Transform
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
+from trials.log_trial import People
 from trials.metrics import measure
 from trials.robot.settings import START_FRAME, RobotSettings
 from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, Transport, Velocity
-from trials.sim.closed_loop import COLLISION, GOAL, START, TIMEOUT
+from trials.sim.closed_loop import START, TIMEOUT, SimConfig, run_ending
 from trials.sim.follower import WaypointFollower
-from trials.sim.robot import RobotLimits, RobotState, footprint_gaps
+from trials.sim.robot import RobotLimits, RobotState
 
 #: A run that stopped for any reason but its own ending (goal, collision, timeout).
 ABORTED = "aborted"
@@ -58,6 +59,8 @@ RUN_TOPIC = "/trials/run"
 STOP_REPEATS = 3
 #: Where `warm_up` puts the goal (m ahead).
 GOAL_AHEAD = (10.0, 0.0)
+#: Nobody tracked yet.
+NOBODY = People((), np.zeros((0, 2)), np.zeros((0, 2)))
 #: Scans kept waiting for the loop; more means the loop has fallen behind and the oldest are dropped.
 SCAN_QUEUE = 64
 
@@ -77,15 +80,6 @@ class StopRequest:
     @property
     def reason(self) -> str | None:
         return self._reason
-
-
-@dataclass(frozen=True)
-class People:
-    """The confirmed tracks at one moment, shaped as the run log expects a crowd."""
-
-    ids: tuple[int, ...] = ()
-    position: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 class Sensors:
@@ -373,7 +367,8 @@ class LiveRun:
         rows: deque[TrackRow] = deque()
         robot_poses: deque[tuple[float, np.ndarray]] = deque()
         trace = Trace()
-        people = People()
+        people = NOBODY
+        ending_rule = SimConfig(timeout_s=s.timeout, limits=limits)
         planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
         pending: Future[tuple[float, np.ndarray, Plan, float]] | None = None
         next_plan, planned = 0.0, False
@@ -444,7 +439,7 @@ class LiveRun:
                         late += 1
                 command = follower.command(t, robot) if planned else (0.0, 0.0)
                 command = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
-                ending = _ending(t, robot, people, goal, limits, s.timeout)
+                ending = run_ending(t, robot, people, goal, ending_rule)
                 if ending is not None:
                     break
                 self.send(*command)
@@ -534,18 +529,3 @@ def _limited(command: tuple[float, float], last: tuple[float, float], limits: Ro
     v = last[0] + float(np.clip(v - last[0], -limits.max_acceleration * dt, limits.max_acceleration * dt))
     w = last[1] + float(np.clip(w - last[1], -limits.max_angular_acceleration * dt, limits.max_angular_acceleration * dt))
     return v, w
-
-
-def _ending(t: float, robot: RobotState, people: People, goal: np.ndarray, limits: RobotLimits, timeout: float) -> tuple[str, str] | None:
-    """The run's own ending now, as a simulated run ends: contact with a tracked person's disc, the goal, the timeout."""
-    if len(people.ids):
-        gaps = footprint_gaps(robot.pose, people.position, limits, PEDESTRIAN_RADIUS_M)
-        hit = int(np.argmin(gaps))
-        if gaps[hit] <= 0.0:
-            return COLLISION, f"tracked person {people.ids[hit]}"
-    distance = float(np.hypot(*(robot.position - goal)))
-    if distance <= GOAL_TOLERANCE_M:
-        return GOAL, f"{distance:.2f} m from the goal"
-    if t >= timeout - 1e-9:
-        return TIMEOUT, f"{distance:.2f} m from the goal after {timeout:g} s"
-    return None

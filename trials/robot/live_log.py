@@ -22,11 +22,10 @@ from robot_logs.foxglove_log import frame_transform, laser_scan, pose
 from robot_logs.frames import Pose2D
 from robot_logs.records import Scan, Transform
 from trials.controllers.base import Plan
-from trials.robot.live import People
+from trials.log_trial import People
 from trials.run_log import RunLog
 from trials.sim.robot import RobotLimits, RobotState
-
-MINUTE_NS = 60_000_000_000
+from trials.study import minute_ns
 
 
 class LiveLog:
@@ -38,7 +37,7 @@ class LiveLog:
         self.log: RunLog | None = None
 
     def started(self, start_ns: int, goal: np.ndarray) -> None:
-        origin = start_ns - start_ns % MINUTE_NS if self.blind else start_ns
+        origin = minute_ns(start_ns) if self.blind else start_ns
         self.log = RunLog(self.path, {**self.metadata, "robot_start_stamp_ns": str(origin)}, (float(goal[0]), float(goal[1])),
                           None, self.blind, self.limits, start_ns=origin)
 

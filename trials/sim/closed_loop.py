@@ -44,6 +44,15 @@ class SimConfig:
         return max(round(STEP_S / self.physics_dt), 1)
 
 
+class Bodies(Protocol):
+    """People as a run's ending sees them: the simulator's crowd, or the tracked people of a live run."""
+
+    ids: tuple[int, ...]
+    position: np.ndarray
+
+    def __len__(self) -> int: ...
+
+
 class RunSink(Protocol):
     """Where a run reports what happens (the MCAP run log, or nothing)."""
 
@@ -87,7 +96,9 @@ def _observation(time: float, robot: RobotState, history: deque[np.ndarray], goa
                        robot_history=np.array(history), pedestrian_ids=ids, pedestrian_history=pedestrians)
 
 
-def _ending(time: float, robot: RobotState, crowd: Crowd, goal: np.ndarray, config: SimConfig) -> tuple[str, str] | None:
+def run_ending(time: float, robot: RobotState, crowd: Bodies, goal: np.ndarray, config: SimConfig) -> tuple[str, str] | None:
+    """How a run ends now, if it does: the robot's footprint touching a person's disc, the goal, or the timeout (with
+    its detail). Simulated, logged and live runs end by this one rule."""
     if len(crowd):
         gaps = footprint_gaps(robot.pose, crowd.position, config.limits, config.pedestrian_radius_m)
         hit = int(np.argmin(gaps))
@@ -117,7 +128,7 @@ def simulate(scenario: Scenario, controller: Controller, perception: Perception,
     trace.add(time, robot, crowd)
     sink.state(time, robot, command, crowd)
     sink.event(time, START, f"goal ({goal[0]:g}, {goal[1]:g}), {len(crowd)} pedestrians")
-    ending = _ending(time, robot, crowd, goal, config)
+    ending = run_ending(time, robot, crowd, goal, config)
     while ending is None:
         if step % config.plan_every == 0:
             if step:
@@ -135,7 +146,7 @@ def simulate(scenario: Scenario, controller: Controller, perception: Perception,
         perception.sense(time, robot, crowd)
         trace.add(time, robot, crowd)
         sink.state(time, robot, command, crowd)
-        ending = _ending(time, robot, crowd, goal, config)
+        ending = run_ending(time, robot, crowd, goal, config)
     status, detail = ending
     sink.event(time, status, detail)
     return RunResult(status, time, trace)
