@@ -83,3 +83,21 @@ def test_an_exception_in_the_loop_stops_the_robot(tmp_path, master):
         time.sleep(0.5)
         assert rig.moving_commands() > 0
         assert rig.last_heard() == (0.0, 0.0)
+
+
+def test_a_run_without_sensors_never_starts(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    spec = study.root / "study.toml"
+    spec.write_text(spec.read_text(encoding="utf-8") + "sensor_wait = 3.0\n", encoding="utf-8")
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+        rig.processes[1].kill()  # no robot: no scan, odometry or transform ever comes
+        run = rig.trials_run("--only", code)
+        assert run.wait(timeout=300) == 1, rig.output()
+        state = rig.wait_state("aborted")
+        assert state["detail"] == "no start after 3 s: still waiting for a scan on /scan, odometry on /odom", state
+        time.sleep(0.5)
+        assert rig.last_heard() == (0.0, 0.0) and rig.moving_commands() == 0  # told to stand still, never to move
+    assert "did not start: no start after 3 s" in study.run_failure(code).read_text(encoding="utf-8")
+    assert not study.run_log(code).exists() and not (study.root / "runs" / "aborted").exists()
