@@ -1,10 +1,12 @@
 """Scoring a tracks CSV against the people labelled in a log (`trials log score-tracks`).
 
-Labels are leg_tracker's `Person`/`PersonArray` messages (positions with ids) or a
-geometry_msgs/PoseArray (the k-th pose is person k). Every scan of the scan topic is scored:
-a scan with no label message holds no labelled person, so its tracks are false positives;
-the figures are also given over the labelled scans alone. An optional angular window keeps
-only people and tracks whose bearing from the sensor lies inside it (tracks in the sensor frame).
+Labels come in three forms: leg_tracker's `PersonArray` (a stamped array of people with ids),
+its `Person` (one message per person, no header: the form of Leigh et al.'s benchmark logs,
+whose people are grouped by the scan recorded nearest), or a geometry_msgs/PoseArray (the k-th
+pose is person k). Every scan of the scan topic is scored: a scan with no label holds no
+labelled person, so its tracks are false positives; the figures are also given over the
+labelled scans alone. An optional angular window keeps only people and tracks whose bearing
+from the sensor lies inside it (tracks in the sensor frame).
 """
 
 from __future__ import annotations
@@ -25,11 +27,32 @@ from robot_logs.reader import LogReader
 from robot_logs.topics import POINTS_TYPES, SCAN_TYPES, listing, pick_topic
 from robot_logs.tracks import TrackTable
 
+#: leg_tracker's label messages as its msg/ folder defines them, for writing and registering them with rosbags.
+LEG_TRACKER_MSGS = {
+    "leg_tracker/msg/Person": "geometry_msgs/Pose pose\nuint32 id\n",
+    "leg_tracker/msg/PersonArray": "std_msgs/Header header\nPerson[] people\n",
+}
+
+
+def _kind(msgtype: str) -> str | None:
+    """'person', 'people' or 'poses' for a label type score-tracks reads, else None."""
+    if msgtype in POINTS_TYPES:
+        return "poses"
+    if msgtype.endswith("/PersonArray"):
+        return "people"
+    if msgtype.endswith("/Person"):
+        return "person"
+    return None
+
+
+#: The label types in words, for messages.
+LABEL_TYPES = "leg_tracker/Person, leg_tracker/PersonArray or geometry_msgs/PoseArray"
+
 
 @dataclass(frozen=True)
 class Labels:
-    """One label message: stamp and record time (ns; equal when the label was unstamped),
-    frame, (N,) person ids and (N, 2) positions."""
+    """One scan's labelled people: stamp and record time (ns; equal when the label was
+    unstamped), frame ('' when the message names none), (N,) person ids and (N, 2) positions."""
 
     stamp_ns: int
     record_ns: int
@@ -38,26 +61,49 @@ class Labels:
     points: np.ndarray
 
 
-def to_labels(msg: Any, record_ns: int) -> Labels:
-    """Labelled people of a PersonArray (`people`, each with `pose` and `id`) or a PoseArray."""
-    if hasattr(msg, "people"):
-        ids = np.array([int(p.id) for p in msg.people], dtype=int)
-        points = [[p.pose.position.x, p.pose.position.y] for p in msg.people]
-    else:
-        ids = np.arange(len(msg.poses))
-        points = [[p.position.x, p.position.y] for p in msg.poses]
+def to_labels(msg: Any, record_ns: int, kind: str) -> Labels:
+    """Labelled people of a PersonArray (`people`, each with `pose` and `id`), of one Person
+    (`pose` and `id`, unstamped and without frame) or of a PoseArray.
+
+    Raises:
+        LogError: the message lacks the fields of its kind.
+    """
+    try:
+        if kind == "person":
+            return Labels(record_ns, record_ns, "", np.array([int(msg.id)]),
+                          np.array([[msg.pose.position.x, msg.pose.position.y]], dtype=float))
+        if kind == "people":
+            ids = np.array([int(p.id) for p in msg.people], dtype=int)
+            points = [[p.pose.position.x, p.pose.position.y] for p in msg.people]
+        else:
+            ids = np.arange(len(msg.poses))
+            points = [[p.position.x, p.position.y] for p in msg.poses]
+        header = msg.header
+    except AttributeError as exc:
+        raise LogError(f"a label message lacks a field of {LABEL_TYPES} ({exc})") from None
     points_array = np.array(points, dtype=float).reshape(-1, 2)
-    return Labels(stamp_ns(msg.header, record_ns), record_ns, frame_name(msg.header.frame_id), ids, points_array)
+    return Labels(stamp_ns(header, record_ns), record_ns, frame_name(header.frame_id), ids, points_array)
 
 
-def _label_topic(log: LogReader, override: str | None) -> str:
+def _label_topic(log: LogReader, override: str | None) -> tuple[str, str]:
+    """The label topic's name and kind (see `_kind`).
+
+    Raises:
+        LogError: the named topic is missing or of a type score-tracks does not read, or no
+            topic or several have a label type when none is named.
+    """
     if override is not None:
-        return pick_topic(log.topics, tuple({t.msgtype for t in log.topics}), "labels", override, log.path, "--gt-topic").name
-    fitting = [t for t in log.topics if t.msgtype in POINTS_TYPES or t.msgtype.endswith("/PersonArray")]
+        topic = pick_topic(log.topics, tuple({t.msgtype for t in log.topics}), "labels", override, log.path, "--gt-topic")
+        kind = _kind(topic.msgtype)
+        if kind is None:
+            raise LogError(f"topic {topic.name} of {log.path} holds {topic.msgtype}; score-tracks reads {LABEL_TYPES}")
+        return topic.name, kind
+    fitting = [t for t in log.topics if _kind(t.msgtype) is not None]
     if len(fitting) != 1:
         what = "no" if not fitting else "several"
-        raise LogError(f"{log.path} has {what} PersonArray or PoseArray topics; name one with --gt-topic (topics: {listing(log.topics)})")
-    return fitting[0].name
+        raise LogError(f"{log.path} has {what} label topics ({LABEL_TYPES}); name one with --gt-topic "
+                       f"(topics: {listing(log.topics)})")
+    return fitting[0].name, str(_kind(fitting[0].msgtype))
 
 
 @dataclass(frozen=True)
@@ -83,26 +129,32 @@ def scored_scans(
     """Each scan of the log as (people and tracks, whether a label message goes with it).
 
     A label goes with the scan of the same stamp, else the nearest within half a scan period; an
-    unstamped label (labelling tools often leave stamps at zero) with the scan recorded nearest.
+    unstamped label (labelling tools often leave stamps at zero, and a Person has no header)
+    with the scan recorded nearest. Person labels name no frame: theirs is `gt_frame`, else the scan's.
 
     Raises:
-        LogError: no label topic, or labels and tracks in different frames.
+        LogError: no label topic, one of a type not read, a malformed label, or labels and
+            tracks in different frames.
     """
     with LogReader(path) as log:
         scan_name = pick_topic(log.topics, SCAN_TYPES, "LaserScan", scan_topic, log.path, "--scan-topic").name
-        label_name = _label_topic(log, gt_topic)
-        stamps, records, labels = [], [], []
+        label_name, kind = _label_topic(log, gt_topic)
+        stamps, records, labels, scan_frame = [], [], [], ""
         for message in log.messages({scan_name, label_name}):
             if message.topic == scan_name:
                 stamps.append(stamp_ns(message.data.header, message.record_ns))
                 records.append(message.record_ns)
+                scan_frame = scan_frame or frame_name(message.data.header.frame_id)
             else:
-                labels.append(to_labels(message.data, message.record_ns))
+                try:
+                    labels.append(to_labels(message.data, message.record_ns, kind))
+                except LogError as exc:
+                    raise LogError(f"{path}, topic {label_name}: {exc}") from None
     scan_stamps, scan_records = np.array(stamps, dtype=np.int64), np.array(records, dtype=np.int64)
     if len(scan_stamps) == 0 or not labels:
         raise LogError(f"{path}: no scans on {scan_name} or no labels on {label_name}")
     frames = {row.frame for row in tracks.rows}
-    label_frame = gt_frame or labels[0].frame
+    label_frame = gt_frame or labels[0].frame or scan_frame
     if frames and frames != {label_frame}:
         raise LogError(
             f"the tracks are in frame {', '.join(sorted(frames))} but the labels of {path} in {label_frame}; "
@@ -112,11 +164,17 @@ def scored_scans(
     by_scan: dict[int, Labels] = {}
     for label in labels:
         if label.stamp_ns == label.record_ns:
-            by_scan[int(np.argmin(np.abs(scan_records - label.record_ns)))] = label
-            continue
-        nearest = int(np.argmin(np.abs(scan_stamps - label.stamp_ns)))
-        if abs(int(scan_stamps[nearest]) - label.stamp_ns) <= period / 2:
-            by_scan[nearest] = label
+            nearest = int(np.argmin(np.abs(scan_records - label.record_ns)))
+        else:
+            nearest = int(np.argmin(np.abs(scan_stamps - label.stamp_ns)))
+            if abs(int(scan_stamps[nearest]) - label.stamp_ns) > period / 2:
+                continue
+        earlier = by_scan.get(nearest)
+        if kind == "person" and earlier is not None:  # one message per person: the scan's people together
+            kept = earlier.ids != label.ids[0]  # a person labelled twice near one scan: the later label
+            label = Labels(earlier.stamp_ns, earlier.record_ns, earlier.frame, np.append(earlier.ids[kept], label.ids),
+                           np.vstack((earlier.points[kept], label.points)))
+        by_scan[nearest] = label
     rows_by_scan: dict[int, list] = {}
     for row in tracks.rows:
         rows_by_scan.setdefault(row.scan_index, []).append(row)

@@ -14,14 +14,14 @@ def register(group: argparse._SubParsersAction) -> None:
         "score-tracks",
         help="CLEAR-MOT (MOTA, MOTP, misses, false positives, id switches) of tracks against labelled people",
         description="Score a tracks CSV (trials log track) against the people labelled in the log it came from "
-        "(leg_tracker PersonArray or geometry_msgs/PoseArray), by Leigh et al.'s protocol: a match within 0.75 m, "
+        "(leg_tracker Person, one message per person, or PersonArray, or geometry_msgs/PoseArray), by Leigh et al.'s protocol: a match within 0.75 m, "
         "matches carried over while they hold, then Hungarian assignment; every scan counts, a scan without a "
         "label holding nobody. Figures are printed over all scans and over the labelled scans.",
     )
     parser.add_argument("file", type=Path, metavar="BAG", help="the log with the labels")
     parser.add_argument("tracks", type=types.input_file, metavar="TRACKS", help="the tracks CSV")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic whose scans are scored (default: the only one)")
-    parser.add_argument("--gt-topic", metavar="TOPIC", help="topic of the labelled people (default: the only PersonArray or PoseArray)")
+    parser.add_argument("--gt-topic", metavar="TOPIC", help="topic of the labelled people (default: the only Person, PersonArray or PoseArray topic)")
     parser.add_argument("--gt-frame", metavar="FRAME", help="frame of the labels when their header names none or a wrong one")
     parser.add_argument("--radius", type=types.number(0.0, 100.0, above=True), default=0.75, metavar="M",
                         help="largest distance of a match (default 0.75 m)")
