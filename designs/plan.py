@@ -71,10 +71,11 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
 
     `progress(done, starts)` follows the exchange's starts, searched on `threads` threads. With `kept`
     (augmenting; `spec` is the study's public spec, `spec.runs` the new total) the kept runs stay first and
-    unchanged, the new ones are searched around them and randomized after them, and the sealed key stays as it is.
+    unchanged, the new ones are searched around them and randomized after them, and the sealed key stays as it is;
+    a blinded study's new runs are split evenly between its arms first (`balanced_arms`), as its plan splits them.
 
-    The public seed (drawn when the spec has none) drives the exchange starts, the run order
-    and the run codes; the blind allocation uses its own secret seed.
+    The public seed (drawn when the spec has none) drives the exchange starts, the run order, the run codes
+    and an augmentation's arm labels (public already in plan.csv); the blind allocation uses its own secret seed.
     """
     seed = spec.seed if spec.seed is not None else secrets.randbits(31)
     spec = replace(spec, seed=seed)
@@ -88,13 +89,19 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     check_runs(model, spec.runs)
     restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "study.toml [study]")
     bound = approximate_d_optimal(model.matrix(candidate_set(model, restrictions)))
-    design_seed, order_seed, code_seed = np.random.SeedSequence(seed).spawn(3)
+    design_seed, order_seed, code_seed, arm_seed = np.random.SeedSequence(seed).spawn(4)
     old = tuple(PlannedRun(order, code, _values(spec, model, settings), settings)
                 for order, code, settings in (kept.runs if kept is not None else ()))
+    per_run = spec.per_run()
+    if blind is not None and old:
+        arm = [f.name for f in model.factors].index(blind.name)
+        new_arms = balanced_arms(np.array([run.settings[arm] for run in old]), spec.runs - len(old), len(blind.levels),
+                                 np.random.default_rng(arm_seed))
+        per_run[arm] = np.concatenate([np.zeros(len(old)), new_arms])
     design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
                             criterion=spec.criterion, restrictions=restrictions, progress=progress,
                             kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
-                            per_run=spec.per_run(), threads=threads)
+                            per_run=per_run, threads=threads)
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
     order = len(old) + _run_order(spec, spec.runs - len(old), np.random.default_rng(order_seed))
     codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})
@@ -103,6 +110,19 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
         for position, row in enumerate(order)
     )
     return StudyPlan(spec, model, design, bound, diagnostics, runs, sealed, restrictions)
+
+
+def balanced_arms(kept: np.ndarray, count: int, arms: int, rng: np.random.Generator) -> np.ndarray:
+    """The arm (0 .. arms-1) of each of `count` new runs of a blinded study whose runs so far have arms `kept`.
+
+    Each arm gets count // arms of them; the remainder goes to the arms with the fewest runs so far, ties
+    drawn at random, so no arm is favoured by the exchange's search (which may give it every new run).
+    """
+    share, extra = divmod(count, arms)
+    held = np.bincount(kept.astype(int), minlength=arms)
+    favoured = np.lexsort((rng.permutation(arms), held))[:extra]
+    counts = np.full(arms, share) + np.isin(np.arange(arms), favoured)
+    return rng.permutation(np.repeat(np.arange(arms, dtype=float), counts))
 
 
 def _run_order(spec: StudySpec, count: int, rng: np.random.Generator) -> np.ndarray:

@@ -8,8 +8,11 @@ import itertools
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from designs.plan import balanced_arms
+from tests.support.blinding import NAMES
 from trials.cli import main
 
 SPEC = """[study]
@@ -203,6 +206,49 @@ def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
     # Figures of the old plan are kept aside only: drawn without --figures, none would show the new plan.
     assert (copies[0] / "correlation_map.svg").read_bytes() == old_map
     assert not list(study.glob("correlation_map.*")) and not list(study.glob("design_evaluation.*"))
+
+
+def _public_files(study: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(study)): p.read_bytes() for p in sorted(study.rglob("*"))
+            if p.is_file() and "sealed" not in p.relative_to(study).parts and "superseded" not in p.relative_to(study).parts}
+
+
+def test_augmented_runs_of_a_blinded_study_are_split_evenly_between_its_arms(tmp_path, capsys):
+    """Left to the exchange, four runs added to this 18-run A/B plan went 1 to A and 3 to B (and all 4 to B in
+    other studies); the allocation gives each arm two, and an odd fifth to a random arm. The public files are
+    the same whichever controller the sealed key puts behind A, so they tell nothing of the new runs' controllers."""
+    studies = {}
+    for seed in (0, 3):  # two allocation seeds giving opposite keys
+        study = tmp_path / f"s{seed}"
+        assert main(["design", "--ab", "--seed", "7", "--allocation-seed", str(seed), "--study", str(study)]) == 0
+        assert main(["design", "--augment", "4", "--seed", "1", "--study", str(study)]) == 0
+        studies[seed] = study
+    capsys.readouterr()
+    keys = [json.loads((s / "sealed" / "allocation.json").read_text())["arms"] for s in studies.values()]
+    assert keys[0]["A"] == keys[1]["B"] and keys[0]["A"] != keys[1]["A"]
+    rows = _plan_rows(studies[0])
+    assert [row["Controller"] for row in rows[:18]].count("A") == 9
+    assert sorted(row["Controller"] for row in rows[18:]) == ["A", "A", "B", "B"]
+    public = [_public_files(s) for s in studies.values()]
+    assert public[0]["plan.csv"] == public[1]["plan.csv"]
+    records = [json.loads(files.pop("design.json")) for files in public]
+    for record in records:
+        del record["blinding"], record["created"]
+    assert records[0] == records[1]
+    assert not any(NAMES.search(content) for files in public for content in files.values())
+
+    assert main(["design", "--augment", "5", "--seed", "2", "--study", str(studies[0])]) == 0
+    new = [row["Controller"] for row in _plan_rows(studies[0])[22:]]
+    assert len(new) == 5 and sorted(new.count(arm) for arm in "AB") == [2, 3]
+
+
+def test_balanced_arms_gives_the_remainder_to_the_arms_with_fewest_runs():
+    kept = np.array([0.0] * 10 + [1.0] * 8 + [2.0] * 9)
+    for seed in range(5):
+        arms = balanced_arms(kept, 5, 3, np.random.default_rng(seed))
+        assert np.bincount(arms.astype(int), minlength=3).tolist() == [1, 2, 2]
+    drawn = {tuple(balanced_arms(np.zeros(0), 6, 2, np.random.default_rng(seed))) for seed in range(10)}
+    assert all(sorted(arms) == [0, 0, 0, 1, 1, 1] for arms in drawn) and len(drawn) > 3  # in random order
 
 
 def test_augment_needs_a_plan(tmp_path, capsys):
