@@ -1,0 +1,183 @@
+"""The run-level randomization test of two arms: each run's share of yes compared between the arms, with the
+arm labels re-drawn as the design allocates them (the same number of runs per arm within each stratum).
+
+Under the sharp null hypothesis that the arm changes no run's share, every allocation the design could
+have made was equally likely and gives the same shares, so the p-value is the share of allocations
+whose statistic is at least as far from zero as the observed one (Fisher's randomization test; Rosenbaum,
+Observational Studies, 2002, ch. 2). The statistic is the stratified difference of mean run shares, first
+arm minus second: within each stratum the difference of the arms' means, weighted by n1 n2 / n (strata
+holding one arm carry no weight). It needs no model, so an all-yes arm or separated judgments leave it intact.
+
+The reference set is enumerated completely when it holds at most `max_allocations` allocations; otherwise
+`draws` allocations are drawn at random from a recorded seed and p = (1 + hits) / (1 + draws), with its
+Monte Carlo standard error. The interval for the difference inverts the test under a constant shift of every
+run's share: the shifts it does not reject at the level asked, found by bisection from the estimate.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from analysis.errors import AnalysisError
+
+#: Complete enumeration up to this many allocations (C(18, 9) = 48,620 is well inside).
+MAX_ALLOCATIONS = 1_000_000
+#: Monte Carlo draws when the allocations are too many to enumerate.
+DRAWS = 20_000
+#: Allocations handled at once, so memory stays small whatever the count.
+_CHUNK = 100_000
+#: Statistics closer than this count as equal (sums of the same shares in another order).
+_TIE = 1e-9
+
+
+@dataclass(frozen=True)
+class RandomizationTest:
+    """A randomization test's result: the observed statistic, its two-sided p-value and how it was found."""
+
+    runs: int
+    strata: int
+    #: Stratified difference of mean run shares, first arm minus second.
+    difference: float
+    p_value: float
+    #: How many allocations the design could have made (prod over strata of C(n, n1)).
+    allocations: int
+    exact: bool
+    #: Monte Carlo draws and the p-value's Monte Carlo standard error (0 and 0.0 when exact).
+    draws: int
+    mc_error: float
+    seed: int | None
+    #: Interval for the difference by test inversion, at `level` (NaN when not asked for).
+    low: float = math.nan
+    high: float = math.nan
+    level: float = math.nan
+
+    def describe(self) -> str:
+        """How the p-value was found, in one phrase."""
+        if self.exact:
+            return f"exact: all {self.allocations:,} allocations enumerated"
+        return (f"Monte Carlo: {self.draws:,} of {self.allocations:,} allocations drawn (seed {self.seed}), "
+                f"Monte Carlo standard error of p {self.mc_error:.4f}")
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """The allocation rule: each run's stratum index, and each stratum's run count and first-arm count."""
+
+    stratum: np.ndarray
+    sizes: tuple[int, ...]
+    firsts: tuple[int, ...]
+
+    @property
+    def count(self) -> int:
+        return math.prod(math.comb(n, k) for n, k in zip(self.sizes, self.firsts))
+
+    def weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per run, the coefficient of its share when in the first arm and when in the second."""
+        n = np.array(self.sizes, dtype=float)
+        k = np.array(self.firsts, dtype=float)
+        w = np.where((k > 0) & (k < n), k * (n - k) / n, 0.0)
+        if w.sum() == 0.0:
+            raise AnalysisError("no stratum holds runs of both arms: the arms cannot be compared")
+        w /= w.sum()
+        first = np.divide(w, k, out=np.zeros_like(w), where=k > 0)
+        second = np.divide(w, n - k, out=np.zeros_like(w), where=n > k)
+        return first[self.stratum], second[self.stratum]
+
+
+def _layout(first: np.ndarray, strata: np.ndarray | None) -> _Layout:
+    labels = np.zeros(len(first), dtype=int) if strata is None else np.unique(strata, return_inverse=True)[1].reshape(-1)
+    sizes = tuple(int(n) for n in np.bincount(labels))
+    firsts = tuple(int(k) for k in np.bincount(labels, weights=first.astype(float), minlength=len(sizes)))
+    return _Layout(labels, sizes, firsts)
+
+
+@lru_cache(maxsize=8)
+def _enumerated(stratum: tuple[int, ...], sizes: tuple[int, ...], firsts: tuple[int, ...]) -> np.ndarray:
+    """Every allocation of the layout as rows of a boolean (count, runs) matrix: True for the first arm."""
+    members = [np.flatnonzero(np.array(stratum) == s) for s in range(len(sizes))]
+    parts = []
+    for runs, k in zip(members, firsts):
+        chosen = np.fromiter(itertools.chain.from_iterable(itertools.combinations(range(len(runs)), k)), dtype=np.int64,
+                             count=math.comb(len(runs), k) * k).reshape(-1, k)
+        rows = np.zeros((len(chosen), len(runs)), dtype=bool)
+        np.put_along_axis(rows, chosen, True, axis=1)
+        parts.append(rows)
+    grid = np.stack(np.meshgrid(*[np.arange(len(p)) for p in parts], indexing="ij"), axis=-1).reshape(-1, len(parts))
+    allocations = np.zeros((len(grid), len(stratum)), dtype=bool)
+    for s, (runs, rows) in enumerate(zip(members, parts)):
+        allocations[:, runs] = rows[grid[:, s]]
+    allocations.flags.writeable = False
+    return allocations
+
+
+def _drawn(layout: _Layout, draws: int, rng: np.random.Generator) -> np.ndarray:
+    """`draws` allocations at random: within each stratum, a random set of its runs of the stratum's first-arm count."""
+    allocations = np.zeros((draws, len(layout.stratum)), dtype=bool)
+    for s, k in enumerate(layout.firsts):
+        runs = np.flatnonzero(layout.stratum == s)
+        ranks = np.argsort(rng.random((draws, len(runs))), axis=1)
+        allocations[np.arange(draws)[:, None], runs[ranks[:, :k]]] = True
+    return allocations
+
+
+def randomization_test(shares: np.ndarray, first: np.ndarray, strata: np.ndarray | None = None, *, level: float | None = 0.95,
+                       max_allocations: int = MAX_ALLOCATIONS, draws: int = DRAWS, seed: int = 0) -> RandomizationTest:
+    """The two-sided randomization test of the runs' `shares` between the arms (`first`: True for a run of the first arm),
+    re-randomized within `strata` (one label per run; None: all runs one stratum); with `level`, the inverted interval.
+
+    Raises:
+        AnalysisError: shares outside [0, 1] or not finite, or no stratum with runs of both arms.
+    """
+    y = np.asarray(shares, dtype=float)
+    z = np.asarray(first, dtype=bool)
+    if y.shape != z.shape or y.ndim != 1 or (strata is not None and len(strata) != len(y)):
+        raise AnalysisError(f"one share, one arm and one stratum per run expected, got {y.shape}, {z.shape}")
+    if not np.all(np.isfinite(y)) or np.any((y < 0.0) | (y > 1.0)):
+        raise AnalysisError("every run's share of yes must be a number in [0, 1]")
+    layout = _layout(z, None if strata is None else np.asarray(strata))
+    a, b = layout.weights()
+    count = layout.count
+    exact = count <= max_allocations
+    allocations = (_enumerated(tuple(layout.stratum.tolist()), layout.sizes, layout.firsts) if exact
+                   else _drawn(layout, draws, np.random.default_rng(seed)))
+
+    def statistics(values: np.ndarray) -> np.ndarray:
+        """The statistic of `values` under every allocation: sum of a*y over the first arm minus b*y over the second."""
+        out = np.empty(len(allocations))
+        for start in range(0, len(allocations), _CHUNK):
+            chunk = allocations[start:start + _CHUNK]
+            out[start:start + _CHUNK] = chunk @ ((a + b) * values) - float(b @ values)
+        return out
+
+    observed = float(np.where(z, a, 0.0) @ y - np.where(z, 0.0, b) @ y)
+    under = statistics(y)
+    indicator = statistics(z.astype(float))  # the statistic of the allocation itself, for shifted shares
+
+    def p_at(shift: float) -> float:
+        hits = int(np.count_nonzero(np.abs(under - shift * indicator) >= abs(observed - shift) - _TIE))
+        return hits / len(allocations) if exact else (1 + hits) / (1 + len(allocations))
+
+    p = p_at(0.0)
+    mc_error = 0.0 if exact else math.sqrt(p * (1.0 - p) / draws)
+    low = high = math.nan
+    if level is not None:
+        low, high = (_edge(p_at, observed, 1.0 - level, side) for side in (-1.0, 1.0))
+    return RandomizationTest(len(y), len(layout.sizes), observed, p, count, exact, 0 if exact else draws, mc_error,
+                             None if exact else seed, low, high, math.nan if level is None else level)
+
+
+def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float) -> float:
+    """The last shift from `estimate` towards `side` that the test does not reject at `alpha` (shares keep it in [-1, 1])."""
+    inside, outside = estimate, side * 1.0
+    if p_at(outside) > alpha:
+        return outside
+    for _ in range(40):
+        middle = (inside + outside) / 2.0
+        inside, outside = (middle, outside) if p_at(middle) > alpha else (inside, middle)
+    return inside
