@@ -25,7 +25,7 @@ from trials.errors import DiskFullError
 from trials.option_types import number
 from trials.pool import Failure
 from trials.run_settings import MAX_NOISE_M, settings_from_table
-from trials.study import StudyFolder
+from trials.study import StudyFolder, design_digest
 
 SPEC_HEAD = '[study]\nname = "bad"\nruns = 8\n\n'
 SPEED = '[[factors]]\nname = "Speed"\ntype = "continuous"\nlow = 0.5\nhigh = 1.5\n'
@@ -169,7 +169,7 @@ CASES = [
          "spec.toml: every factor is fixed; a design needs at least one varying factor",
          spec(SPEC_HEAD + '[[factors]]\nname = "A"\ntype = "fixed"\nvalue = 1\n')),
     Case("unknown table", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
-         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run] and [robot])",
+         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run], [robot] and [analysis])",
          spec(SPEC_HEAD + "[extra]\n" + SPEED)),
     Case("arms without blind", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "factors[0] (A): arms are only for a blind factor; use levels",
@@ -233,6 +233,15 @@ CASES = [
          plan_rows(edit_cell(2, "Direction", "Parallel"))),
     Case("design.json emptied", ("report", "--study", "{study}"), "design.json is not a design record (its format field must be 'navtrials.design/1')",
          lambda tmp, study: (study / "design.json").write_text("{}")),
+    Case("design.json seed edited", ("run", "--study", "{study}"),
+         "design.json was edited after `trials design` wrote it (its content no longer matches its digest)",
+         lambda tmp, study: _edit_design(study, lambda d: d.update(seed=d["seed"] + 1), redigest=False)),
+    Case("design.json efficiency edited (report)", ("report", "--study", "{study}"), "design.json was edited after `trials design`",
+         lambda tmp, study: _edit_design(study, lambda d: d["diagnostics"].update(d_efficiency=100.0), redigest=False)),
+    Case("design.json field added (status)", ("status", "--study", "{study}"), "design.json was edited after `trials design`",
+         lambda tmp, study: _edit_design(study, lambda d: d.update(note="checked"), redigest=False)),
+    Case("design.json digest not a record", ("status", "--study", "{study}"), "design.json was edited after `trials design`",
+         lambda tmp, study: _edit_design(study, lambda d: d.update(digest="0" * 64), redigest=False)),
     Case("design.json seed gone", ("run", "--study", "{study}"), "design.json: field 'seed' is missing or not a int",
          lambda tmp, study: _edit_design(study, lambda d: d.pop("seed"))),
     Case("plan digest differs", ("run", "--study", "{study}"), "design.json: its plan digest does not match its own runs",
@@ -297,10 +306,14 @@ CASES = [
 ]
 
 
-def _edit_design(study: Path, change: Callable[[dict], object]) -> None:
+def _edit_design(study: Path, change: Callable[[dict], object], redigest: bool = True) -> None:
+    """Rewrite design.json through `change`; with `redigest` its own digest is made again, so the edit meets the
+    checks behind the digest's."""
     path = study / "design.json"
     record = json.loads(path.read_text())
     change(record)
+    if redigest:
+        record["digest"] = design_digest(record)
     path.write_text(json.dumps(record))
 
 
@@ -392,6 +405,25 @@ def test_design_json_records_the_plan_digest_and_old_records_without_it_still_ch
     plan_rows(edit_cell(5, "Direction", "Parallel" if table[4][3] != "Parallel" else "Crossing"))(tmp_path, study)
     with pytest.raises(ValueError, match=r"plan.csv line 5 \(run \w+\): Direction is"):
         StudyFolder(study).read_plan()
+
+
+def test_design_json_is_checked_by_its_own_digest_and_old_records_without_it_still_read(template: Path, tmp_path: Path,
+                                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    study = Path(shutil.copytree(template, tmp_path / "study"))
+    path = study / "design.json"
+    record = json.loads(path.read_text())
+    content = {key: value for key, value in record.items() if key != "digest"}
+    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode()
+    assert record["digest"]["sha256"] == hashlib.sha256(canonical).hexdigest()
+    path.write_text(json.dumps(dict(reversed(record.items())), indent=4))  # laid out anew, not edited
+    assert StudyFolder(study).read_design() == record
+    assert main(["status", "--study", str(study)]) == 0
+    assert "digest" not in capsys.readouterr().out
+    _edit_design(study, lambda d: d.pop("digest"), redigest=False)  # a design.json written before the digest
+    _edit_design(study, lambda d: d.update(seed=d["seed"] + 1), redigest=False)
+    assert StudyFolder(study).read_design()["seed"] == record["seed"] + 1
+    assert main(["status", "--study", str(study)]) == 0
+    assert "note: design.json has no digest of its own content" in capsys.readouterr().out
 
 
 def test_design_with_unicode_levels_prints_no_glyph_warnings(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:

@@ -15,7 +15,7 @@ from designs.errors import DesignError
 from trials.cli import main
 from trials.controllers.registry import NAMES as CONTROLLERS
 from trials.errors import StudyError
-from trials.study import StudyFolder
+from trials.study import StudyFolder, design_digest
 
 CONTROLLER_WORDS = ("navigan", "lattice", "sbpl")
 
@@ -156,6 +156,7 @@ def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(st
     path.write_text(json.dumps(key))
     record = json.loads(design.read_text())
     record["blinding"]["commitment"]["digest"] = _digest(key)
+    record["digest"] = design_digest(record)
     design.write_text(json.dumps(record))
     # design.json alone is fooled, and says it could be; the recorded value is not.
     assert "a key and design.json changed together would pass" in folder.open_sealed()[1]
@@ -182,6 +183,7 @@ def test_an_older_study_keeps_its_commitment_checked_as_before(study):
     record = json.loads(design.read_text())
     record["blinding"]["commitment"] = {"algorithm": FACTOR_AND_ARMS,
                                         "digest": hashlib.sha256(f"{key['salt']}\n{arms}".encode()).hexdigest()}
+    del record["digest"]  # earlier releases' design.json had no digest of its own
     design.write_text(json.dumps(record))
     folder = StudyFolder(study)
     assert "the older format: the allocation seed is not covered" in folder.open_sealed()[1]

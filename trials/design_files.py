@@ -13,17 +13,22 @@ import tomli_w
 from designs.export import design_record, plan_table
 from designs.plan import StudyPlan
 from designs.spec import spec_to_toml
+from trials.analysis_plan import COMMITMENT as PLAN_COMMITMENT
+from trials.analysis_plan import TABLE as ANALYSIS_TABLE
+from trials.analysis_plan import commitment
 from trials.atomic import write_files
 from trials.errors import StudyError
 from trials.study import (
     ALLOCATION,
     DESIGN,
+    DESIGN_DIGEST,
     DESIGN_FIGURES,
     PLAN,
     SEALED,
     SEALED_SPEC,
     SPEC,
     StudyFolder,
+    design_digest,
     evaluated_figures,
     json_content,
     plan_content,
@@ -46,11 +51,15 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
     it is kept under sealed/. `tables` are the study's own tables beside the design (`[run]`:
-    `trials.run_settings`; `[robot]`: `trials.robot.settings`), written after the design's. Returns the public files written.
+    `trials.run_settings`; `[robot]`: `trials.robot.settings`; `[analysis]`: `trials.analysis_plan`, committed to in design.json),
+    written after the design's. Returns the public files written.
     """
     created = utc_now()
     table = plan_table(plan)
     record = {**design_record(plan, created, ALLOCATION), "plan": plan_digest(*table)}
+    if tables and tables.get(ANALYSIS_TABLE):
+        record[PLAN_COMMITMENT] = commitment(dict(tables[ANALYSIS_TABLE]))
+    record[DESIGN_DIGEST] = design_digest(record)
     own_tables = "".join(f"\n{tomli_w.dumps({name: dict(table)})}" for name, table in (tables or {}).items() if table)
     public = {
         folder.path(SPEC): (spec_to_toml(plan.spec) + own_tables).encode(),

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from designs import export
-from designs.blinding import SealedAllocation, verify
+from designs.blinding import SealedAllocation, canonical_bytes, verify
 from designs.errors import DesignError
 from designs.spec import LOG_COLUMN
 from robot_logs.figure_files import FORMATS
@@ -144,6 +144,21 @@ def plan_digest(header: Sequence[str], rows: Iterable[Sequence[str]]) -> dict[st
     return {"file": PLAN, "sha256": hashlib.sha256(plan_content(header, rows)).hexdigest()}
 
 
+#: design.json's field holding the digest of the rest of its content (`design_digest`).
+DESIGN_DIGEST = "digest"
+
+
+def design_digest(record: Mapping[str, Any]) -> dict[str, str]:
+    """design.json's `digest` field: the SHA-256 of every other field as canonical JSON (keys sorted, no spaces, UTF-8).
+
+    Reading design.json checks it, so a hand edit of any field (the seed, a run, a field added by a later release)
+    is refused instead of silently changing what the runs do; a reformatted file (indents, key order) still matches.
+    """
+    content = {key: value for key, value in record.items() if key != DESIGN_DIGEST}
+    return {"covers": "every other field of design.json, as JSON with sorted keys, no spaces, UTF-8",
+            "sha256": hashlib.sha256(canonical_bytes(content)).hexdigest()}
+
+
 def json_content(record: Mapping[str, Any]) -> bytes:
     """design.json or the sealed key as `StudyFolder.read_design` and `read_sealed` read them back."""
     return (json.dumps(record, indent=1) + "\n").encode()
@@ -213,6 +228,10 @@ class StudyFolder:
         for key, kind in (("seed", int), ("factors", list), ("design", list)):
             if not isinstance(record.get(key), kind) or isinstance(record.get(key), bool):
                 raise StudyError(f"{path}: field {key!r} is missing or not a {kind.__name__}; `trials design --force` makes a new plan")
+        recorded = record.get(DESIGN_DIGEST)  # absent from design.json of earlier releases (`trials status` says so)
+        if recorded is not None and (not isinstance(recorded, dict) or recorded.get("sha256") != design_digest(record)["sha256"]):
+            raise StudyError(f"{path} was edited after `trials design` wrote it (its content no longer matches its digest): "
+                             "put back the file as it was, or make a new plan with `trials design --force`")
         return record
 
     def read_plan(self) -> list[dict[str, str]]:

@@ -22,7 +22,7 @@ from trials.run_events import ABORTED, RUNNING, read_run_events, statuses
 from trials.run_settings import RunSettings, distinct, read_run_settings, setting_names
 from trials.runner import LockState, lock_state
 from trials.scores import read_scores
-from trials.study import OUTCOMES, REPORT_RECORD, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
+from trials.study import DESIGN_DIGEST, OUTCOMES, REPORT_RECORD, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
 from trials.study_data import CONTROLLER_FACTOR, INPUTS_KEY, read_unblinding
 
 #: The group of runs of a study that compares no controllers.
@@ -68,6 +68,8 @@ class StudyStatus:
     live: dict[str, str] | None = None
     #: Why the study is a field study (`trials.field_study`), or None: its runs may be simulated.
     field: str | None = None
+    #: Whether design.json carries the digest of its own content (earlier releases wrote none, so edits go unnoticed).
+    design_digest: bool = True
 
     @property
     def finished(self) -> int:
@@ -133,6 +135,7 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         robot=robot.uri if (robot := read_robot_settings(folder.path(SPEC))) is not None else None,
         live=read_state(folder),
         field=field_reason(folder, bool(blinding)),
+        design_digest=DESIGN_DIGEST in design,
     )
 
 

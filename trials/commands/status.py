@@ -54,7 +54,7 @@ def redo(status: StudyStatus) -> str:
 
 def status_lines(status: StudyStatus) -> list[str]:
     """The text of `trials status`."""
-    from trials.study import RUN_LOCK, SPEC
+    from trials.study import DESIGN, RUN_LOCK, SPEC
 
     kind = "blinded" if status.blinded else "open"
     lines = [f"{status.name} ({kind} study) in {status.root}",
@@ -90,6 +90,9 @@ def status_lines(status: StudyStatus) -> list[str]:
     if status.blinded:
         opened = f"yes, on {', '.join(status.unblinded_utc)}" if status.unblinded_utc else "no (the sealed key is closed)"
         lines.append(f"unblinded: {opened}")
+    if not status.design_digest:
+        lines.append(f"note: {DESIGN} has no digest of its own content (an earlier release wrote it), so a hand edit of it "
+                     "would go unnoticed")
     lock = status.lock
     if lock.held:
         lines.append(f"lock: a `trials run` is running on the study (pid {lock.pid})")
