@@ -60,13 +60,13 @@ def test_the_printed_table_is_the_pooled_table_of_the_csv_and_markdown(walked):
     out, printed = walked
     with (out / "table1.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0])[3:] == ["R", "R_dagger", "human"]
-    assert {r["scope"] for r in rows} == {"all", "split_mean", "zara1"}
-    pooled = {(r["metric"], r["source"]): list(r.values())[3:] for r in rows if r["scope"] == "all"}
+    assert list(rows[0])[4:] == ["R", "R_dagger", "human"]
+    assert {r["scope"] for r in rows} == {"all", "split_mean", "zara1"} and {r["protocol"] for r in rows} == {"strict"}
+    pooled = {(r["metric"], r["source"]): list(r.values())[4:] for r in rows if r["scope"] == "all"}
     assert {("S", "paper"), ("C", "ours_low"), ("A", "ours_high"), ("ade_m", "ours")} <= set(pooled)
     assert pooled["episodes", "ours"][2] == "3" and pooled["A", "ours"][2] == "1.000"
     assert pooled["C", "paper"] == ["0.970", "0.850", "0.960"] and pooled["A", "ours_low"][2] == "0.439"  # Wilson, 3 of 3
-    split_mean = {(r["metric"], r["source"]): list(r.values())[3:] for r in rows if r["scope"] == "split_mean"}
+    split_mean = {(r["metric"], r["source"]): list(r.values())[4:] for r in rows if r["scope"] == "split_mean"}
     assert split_mean == pooled  # one split: the two aggregations agree
     shown = table_rows(printed)[1:]  # below the header
     assert ["A, 95 % interval", "0.439-1.000", "0.439-1.000", "0.439-1.000"] in shown
@@ -83,6 +83,7 @@ def test_every_episode_and_figure_is_written(walked):
     with (out / "episodes.csv").open() as f:
         episodes = list(csv.DictReader(f))
     assert len(episodes) == 9 and {e["model"] for e in episodes} == set(COLUMNS.split(","))
+    assert {e["protocol"] for e in episodes} == {"strict"}
     assert {"min_distance_m", "time_to_goal_s", "irregularity_rad_per_m", "ade_m"} <= set(episodes[0])
     assert {e[k] for e in episodes for k in ("arrived", "comfortable", "collided")} <= {"0", "1"}
     assert not {v for e in episodes for v in e.values()} & {"n/a", "None", "True", "False", "inf"}
@@ -93,7 +94,7 @@ def test_every_episode_and_figure_is_written(walked):
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt"
     settings = record["identity"]["settings"]
     assert (settings["seed"], settings["gamma"], settings["v_pref"], settings["subgoal_speed"]) == (0, 0.9, 1.0, "recorded")
-    assert settings["protocol"] == "observed"
+    assert (settings["protocol"], settings["targets"], settings["distances"]) == ("strict", "observed", "interpolated")
     assert len(record["results"]) == 3 and len(record["results"][0]["path"]) == record["results"][0]["steps"] + 1
 
 
@@ -222,12 +223,22 @@ def test_missing_checkpoint_is_named(eth_ucy_dir, tmp_path, capsys):
     assert not out.exists()
 
 
-def test_the_present_protocol_takes_fewer_targets_and_is_never_mixed_with_the_other(eth_ucy_dir, tmp_path, capsys):
+def test_the_paper_protocol_is_recorded_everywhere_and_never_mixed_with_the_strict_one(eth_ucy_dir, tmp_path, capsys):
     out = tmp_path / "pb"
     assert main(["playback", "--data", str(eth_ucy_dir), "--out", str(out), "--split", "zara1", "--models", "human",
-                 "--protocol", "present", "--quiet"]) == 0
-    assert "episodes per split: zara1 19" in capsys.readouterr().out
-    assert "(protocol `present`: pedestrians present for 44 consecutive frames)" in (out / "table1.md").read_text()
+                 "--protocol", "paper", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("Protocol paper; all splits pooled:") and "episodes per split: zara1 19" in printed
+    assert "| C, paper | 0.960 |" in printed  # the paper's row beside ours
+    markdown = (out / "table1.md").read_text()
+    assert "Protocol `paper`: targets `present`, distances `frames`, networks handed the goal itself." in markdown
+    assert "(pedestrians present for 44 consecutive frames)" in markdown
+    settings = stored_result(out, "human")["identity"]["settings"]
+    assert (settings["protocol"], settings["targets"], settings["distances"], settings["subgoal_speed"]) == (
+        "paper", "present", "frames", None)
+    for name in ("table1.csv", "episodes.csv"):
+        with (out / name).open() as f:
+            assert {r["protocol"] for r in csv.DictReader(f)} == {"paper"}
     assert main(["playback", "--data", str(eth_ucy_dir), "--out", str(out), "--split", "zara1", "--models", "human",
                  "--quiet"]) == 2
     assert "human.json was made with other settings and episodes" in error_line(capsys)

@@ -1,4 +1,5 @@
-"""The playback scores on hand-made episodes: collision, near miss, arrival, comfort boundary, path measures."""
+"""The playback scores on hand-made episodes: collision, near miss, arrival, comfort boundary, path measures,
+and the two ways of measuring distances (at the recorded frames, or within each step)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 from navigan.playback.metrics import Scoring, score_episode, step_distances
+from navigan.playback.protocols import FRAMES
 
 STEP = 0.4  # metres per step along x in these episodes: 1 m/s at 0.4 s a step
 
@@ -100,6 +102,39 @@ def test_crossing_agents_meet_between_samples():
     sampled = np.linalg.norm(other[:, 0] - path, axis=-1).min()
     assert sampled > 0.2
     assert score(path, other, FAR_GOAL).collided
+
+
+def test_a_crossing_closer_than_0_2_m_only_between_frames_fails_comfort_only_when_interpolated():
+    """The target walks +x at 0.4 m a step; the other walks -y along x = 1.15 at the same pace. Relative
+    to the target the other moves by (-0.4, -0.4) a step: from (0.35, 0.2) at frame 2 to (-0.05, -0.2)
+    at frame 3, passing closest at a fraction 0.22 / 0.32 = 0.6875 of step 3, at (0.075, -0.075)."""
+    n = 5
+    path = straight(n)
+    other = np.stack([np.full(n + 1, 1.15), 1.0 - np.arange(n + 1) * STEP], axis=1)[:, None]
+    between = math.hypot(0.075, 0.075)  # 0.1061 m: uncomfortable, not a collision (0.1 m)
+    at_frame_3 = math.hypot(0.05, 0.2)  # 0.2062 m: the nearest recorded frame, comfortable
+
+    interpolated = score(path, other, FAR_GOAL)
+    assert step_distances(path, other)[2] == pytest.approx(between)
+    assert interpolated.min_distance == pytest.approx(between)
+    assert not interpolated.comfortable and not interpolated.collided
+    assert interpolated.social_score == pytest.approx((-0.1 + between / 2) * 0.9 ** (2 * 0.4), abs=1e-9)
+
+    frames = score(path, other, FAR_GOAL, scoring=Scoring(distances=FRAMES))
+    assert step_distances(path, other, FRAMES) == pytest.approx(
+        [math.hypot(0.75, 0.6), math.hypot(0.35, 0.2), at_frame_3, math.hypot(0.45, 0.6), math.hypot(0.85, 1.0)])
+    assert frames.min_distance == pytest.approx(at_frame_3)
+    assert frames.comfortable and not frames.collided and frames.social_score == 0.0
+
+
+def test_frames_ignore_time_0_and_who_is_absent_at_a_frame():
+    n = 3
+    path = straight(n)
+    others = np.full((n + 1, 2, 2), np.nan)
+    others[0, 0] = (0.0, 0.05)   # beside the target at time 0 only: not a step's frame
+    others[2, 1] = (0.8, 0.1)    # at step 2's frame only
+    assert step_distances(path, others, FRAMES) == pytest.approx([math.inf, 0.1, math.inf])
+    assert np.isinf(step_distances(path, np.full((n + 1, 1, 2), np.nan), FRAMES)).all()
 
 
 def test_agents_seen_at_one_end_of_a_step_count_there_only():

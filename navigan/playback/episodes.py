@@ -1,11 +1,11 @@
 """Playback episodes: one per pedestrian of a test scene who stays long enough to set a goal.
 
-Two protocols (`navigan.playback.protocols`) choose the targets. Under PRESENT a pedestrian present
-for T_OBS + GOAL_STEPS consecutive frames is a target from its first such stretch: observed for T_OBS
-steps, its goal its own recorded position GOAL_STEPS = 3 * T_PRED steps (14.4 s) later. Under
-OBSERVED (the default), T_OBS + T_PRED consecutive frames suffice, and a target that leaves before GOAL_STEPS
-gets its last recorded position of that stretch as goal. Either way the episode is cut
-CUTOFF_STEPS = 5 * T_PRED steps (24 s) after the last observed step, or at the end of the
+Two target rules (`navigan.playback.protocols`) choose the targets. Under PRESENT (the paper protocol's)
+a pedestrian present for T_OBS + GOAL_STEPS consecutive frames is a target from its first such stretch:
+observed for T_OBS steps, its goal its own recorded position GOAL_STEPS = 3 * T_PRED steps (14.4 s)
+later. Under OBSERVED (the strict protocol's), T_OBS + T_PRED consecutive frames suffice, and a target
+that leaves before GOAL_STEPS gets its last recorded position of that stretch as goal. Either way the
+episode is cut CUTOFF_STEPS = 5 * T_PRED steps (24 s) after the last observed step, or at the end of the
 recording if sooner. A pedestrian whose goal lies within the goal radius of where it starts
 (someone standing) has nothing to navigate and makes no episode; the count is kept.
 """
@@ -20,17 +20,15 @@ import numpy as np
 
 from navigan.data import Recording, read_recording
 from navigan.errors import NaviganError
-from navigan.playback.protocols import OBSERVED, PRESENT
+from navigan.playback.protocols import OBSERVED, PRESENT, target_rule
 from robot_logs.physical import STEP_S, T_OBS, T_PRED
 
 GOAL_STEPS = 3 * T_PRED
 CUTOFF_STEPS = 5 * T_PRED
 #: An episode ends with success once the target is this close to its goal (m).
 GOAL_RADIUS = 0.5
-#: Consecutive frames a target must be present under each protocol.
+#: Consecutive frames a target must be present under each target rule.
 NEEDED_FRAMES = {PRESENT: T_OBS + GOAL_STEPS, OBSERVED: T_OBS + T_PRED}
-#: Sub-goals at each target's recorded pace (`Episodes.pace`), not at one speed for all.
-RECORDED = "recorded"
 
 
 @dataclass(frozen=True)
@@ -128,8 +126,9 @@ class Episodes:
 
 
 def episodes_of(scenes: Sequence[SceneGrid], protocol: str) -> Episodes:
-    """Every episode of some scenes under a protocol (PROTOCOLS), in scene then pedestrian order."""
-    need = NEEDED_FRAMES[protocol]
+    """Every episode of some scenes under a protocol (`protocols.PROTOCOLS`) or a target rule, in scene
+    then pedestrian order."""
+    need = NEEDED_FRAMES[target_rule(protocol)]
     rows: list[tuple[int, int, int, int, int]] = []
     goals: list[np.ndarray] = []
     standing = 0
@@ -158,7 +157,7 @@ def episodes_of(scenes: Sequence[SceneGrid], protocol: str) -> Episodes:
 
 
 def load_episodes(files: Sequence[str | Path], protocol: str) -> Episodes:
-    """The episodes of a split's test recordings under a protocol (PROTOCOLS).
+    """The episodes of a split's test recordings under a protocol (`protocols.PROTOCOLS`) or a target rule.
 
     Raises:
         NaviganError: a file cannot be read, or no pedestrian stays long enough.
@@ -167,5 +166,5 @@ def load_episodes(files: Sequence[str | Path], protocol: str) -> Episodes:
     if not len(episodes):
         names = ", ".join(Path(f).name for f in files)
         raise NaviganError(f"no playback episodes in {names}: no pedestrian is present for "
-                           f"{NEEDED_FRAMES[protocol]} consecutive frames")
+                           f"{NEEDED_FRAMES[target_rule(protocol)]} consecutive frames")
     return episodes

@@ -21,7 +21,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -33,7 +33,7 @@ from navigan.playback import figures
 from navigan.playback.episodes import CUTOFF_STEPS, Episodes, load_episodes
 from navigan.playback.metrics import Scoring, score_episode
 from navigan.playback.paper import PAPER_FILE, PaperTable, load_paper
-from navigan.playback.protocols import DEFAULT_PROTOCOL
+from navigan.playback.protocols import DEFAULT_PROTOCOL, PROTOCOLS, target_rule
 from navigan.playback.rollout import RECORDED, Policy, Rollout, recorded_rollout, roll_out
 from navigan.playback.table import (
     COLUMNS,
@@ -71,8 +71,8 @@ class Settings:
             toward the goal: RECORDED (each target's own) or m/s; None hands them the goal itself
             (see `rollout.roll_out`).
         shield: the margin (m) of the shielded columns' check (`navigan.shield`).
-        protocol: which pedestrians become targets and where their goals lie (`episodes.PROTOCOLS`);
-            OBSERVED by default, whose human column is nearer the paper's (docs/playback.md).
+        protocol: the protocol's name (`protocols.PROTOCOLS`): which pedestrians become targets and
+            where their goals lie; `scoring.distances` and `subgoal_speed` carry its other two choices.
     """
 
     scoring: Scoring = field(default_factory=Scoring)
@@ -84,7 +84,18 @@ class Settings:
 
     def record(self) -> dict[str, Any]:
         return asdict(self.scoring) | {"seed": self.seed, "limit": self.limit, "subgoal_speed": self.subgoal_speed,
-                                       "shield": self.shield, "protocol": self.protocol}
+                                       "shield": self.shield, "protocol": self.protocol,
+                                       "targets": target_rule(self.protocol)}
+
+    @classmethod
+    def of(cls, protocol: str, gamma: float = 0.9, v_pref: float = 1.0, collision: float = 0.1, seed: int = 0,
+           limit: int | None = None, subgoal_speed: float | str | None | Literal["protocol"] = "protocol",
+           shield: float = SHIELD_MARGIN) -> Settings:
+        """The settings of a named protocol: its targets, distances and (unless `subgoal_speed` says
+        otherwise) its goal handed to the networks."""
+        chosen = PROTOCOLS[protocol]
+        speed = chosen.subgoal_speed if subgoal_speed == "protocol" else subgoal_speed
+        return cls(Scoring(gamma, v_pref, collision, chosen.distances), seed, limit, speed, shield, protocol)
 
     def policy(self, model: str, record: ckpt.Checkpoint, path: Path) -> Policy:
         """The policy a learned column walks with: its checkpoint's, its dagger, shield or evasion
@@ -284,9 +295,10 @@ class Playback:
         scenes = [SceneCount(s, loaded[s][1], len(loaded[s][0]), loaded[s][0].standing) for s in splits]
         weights = {(s, m): results[s, m]["checkpoint"] for s in splits for m in models}
         write_atomic(self.out / "table1.md", document(tables, scenes, weights, self.settings.record(), paper).encode())
-        write_atomic(self.out / "table1.csv", csv_text(tables, paper).encode())
+        write_atomic(self.out / "table1.csv", csv_text(tables, paper, self.settings.protocol).encode())
         write_atomic(self.out / "episodes.csv",
-                     episodes_csv({(s, m): results[s, m]["results"] for s in splits for m in models}).encode())
+                     episodes_csv({(s, m): results[s, m]["results"] for s in splits for m in models},
+                                  self.settings.protocol).encode())
         return tables
 
     def scored(self, split: str, model: str, episodes: Episodes, results: dict[tuple[str, str], dict[str, Any]]
@@ -306,7 +318,8 @@ class Playback:
         closest = {COLUMNS[m]: [np.inf if r["min_distance"] is None else r["min_distance"]
                                 for s in splits for r in results[s, m]["results"]] for m in models}
         self.save_figure(folder / "min_distance",
-                         figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)})"))
+                         figures.plot_min_distances(closest, f"Closest approach per episode ({', '.join(splits)}; "
+                                                                   f"protocol {self.settings.protocol})"))
         model = next((m for m in FIGURE_MODELS if any(base_model(c) == m for c in models)), None)
         if model is None:
             return
@@ -320,7 +333,7 @@ class Playback:
             walked = roll_out(Policy.load(path, seed=self.settings.seed), one, record=True, subgoal_speed=speed)
             intention = roll_out(Policy.load(path, dagger=True, seed=self.settings.seed), one, subgoal_speed=speed)
             n = int(walked.steps[0])
-            label = f"{COLUMNS[model]} ({path.name}) on {split}, episode {one.ids[0]}"
+            label = f"{COLUMNS[model]} ({path.name}) on {split}, episode {one.ids[0]}, protocol {self.settings.protocol}"
             self.save_figure(folder / f"fig4_{split}",
                              figures.plot_paths(one, 0, walked.path(0), intention.path(0), walked.plans[0, :n, 2, 0],
                                                 label))

@@ -1,9 +1,11 @@
 """Scoring one playback episode: the CrowdNav reward, comfort, arrival and the path measures.
 
-Distances are between pedestrians as points (the recordings give no body sizes). Over each
-0.4 s step both the target and every other agent are taken to move in a straight line, and the
-step's distance d_k is the closest approach of the target to any other agent during it (an
-agent seen at only one end of the step counts at that instant).
+Distances are between pedestrians as points (the recordings give no body sizes). The step's
+distance d_k is measured one of two ways (`Scoring.distances`). FRAMES (the paper protocol): the
+distance to the nearest other agent at the recorded frame that ends step k. INTERPOLATED (the strict
+protocol): over each 0.4 s step the target and every other agent are taken to move in a straight
+line, and d_k is the closest approach during it (an agent seen at only one end of the step counts at
+that instant); two people whose paths cross between frames count as meeting.
 
 Reward of step k (the paper's eq. 1, CrowdNav's reward), the first case that holds:
     -0.25             if d_k < collision distance (a collision)
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navigan.playback.episodes import GOAL_RADIUS
+from navigan.playback.protocols import FRAMES, INTERPOLATED
 from robot_logs.physical import STEP_S
 
 #: Closer than this (m) is uncomfortable: C fails and the step's reward is -0.1 + d / 2.
@@ -40,11 +43,13 @@ class Scoring:
         gamma: CrowdNav's discount factor, applied per second of travel at the preferred speed.
         v_pref: the preferred speed (m/s) in the discount's exponent.
         collision: two points closer than this (m) have collided.
+        distances: where d_k is measured, FRAMES or INTERPOLATED.
     """
 
     gamma: float = 0.9
     v_pref: float = 1.0
     collision: float = 0.1
+    distances: str = INTERPOLATED
 
 
 @dataclass(frozen=True)
@@ -57,7 +62,7 @@ class EpisodeScore:
         comfortable: never closer than DISCOMFORT_DISTANCE to another agent.
         collided: came closer than the collision distance at some step.
         social_score: S, the discounted return.
-        min_distance: closest approach to any other agent over the episode (m; inf if alone).
+        min_distance: the least d_k over the episode (m; inf if alone).
         time_to_goal: seconds to arrival (None if it did not arrive).
         path_length: metres walked.
         path_ratio: path length over the recorded path's length to the same goal (None if it
@@ -81,13 +86,18 @@ class EpisodeScore:
     ade: float
 
 
-def step_distances(path: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """(n,) the closest approach to any other agent during each step of a path.
+def step_distances(path: np.ndarray, others: np.ndarray, distances: str = INTERPOLATED) -> np.ndarray:
+    """(n,) each step's distance d_k to the nearest other agent: at the frame that ends the step
+    (FRAMES), or the closest approach during the step (INTERPOLATED); inf where nobody is there.
 
     Args:
         path: (n + 1, 2) the target's positions at the start and after each step.
         others: (n + 1, M, 2) the other agents' positions at the same times, NaN where absent.
+        distances: FRAMES or INTERPOLATED.
     """
+    if distances == FRAMES:
+        at_end = np.linalg.norm(others[1:] - path[1:, None], axis=-1)
+        return np.where(np.isnan(at_end), np.inf, at_end).min(axis=1, initial=np.inf)
     a0, a1 = path[:-1, None], path[1:, None]
     b0, b1 = others[:-1], others[1:]
     r0 = b0 - a0
@@ -166,7 +176,7 @@ def score_episode(
     if arrived_at is not None:
         path, others = path[: arrived_at + 1], others[: arrived_at + 1]
     n = len(path) - 1
-    distances = step_distances(path, others)
+    distances = step_distances(path, others, scoring.distances)
     walked = path_length(path)
     ratio = None
     if arrived_at is not None:

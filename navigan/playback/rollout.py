@@ -29,7 +29,8 @@ from navigan.errors import NaviganError
 from navigan.evasion import Evasion
 from navigan.generators import GoalSocialGenerator, NaviganGenerator
 from navigan.goals import toward
-from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, RECORDED, Episodes
+from navigan.playback.episodes import CUTOFF_STEPS, GOAL_RADIUS, Episodes
+from navigan.playback.protocols import RECORDED
 from navigan.shield import shielded_steps
 from robot_logs.physical import STEP_S, T_OBS, T_PRED
 

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from navigan.playback.episodes import RECORDED
 from navigan.playback.intervals import RESAMPLES, Interval, mean_interval, rate_interval
 from navigan.playback.paper import PAPER_COLUMNS, PaperTable
+from navigan.playback.protocols import FRAMES, OBSERVED, RECORDED
 from navigan.shield import HORIZON
 from robot_logs.physical import STEP_S
 
@@ -173,17 +173,17 @@ class Table:
         return "\n".join(lines) + "\n"
 
 
-def csv_text(tables: Sequence[Table], paper: PaperTable | None) -> str:
-    """All tables as one CSV: scope, metric, source (ours, ours_low, ours_high, paper), then one
-    column per model (CSV_NAMES); an undefined or untranscribed value is an empty cell."""
+def csv_text(tables: Sequence[Table], paper: PaperTable | None, protocol: str) -> str:
+    """All tables as one CSV: protocol, scope, metric, source (ours, ours_low, ours_high, paper), then
+    one column per model (CSV_NAMES); an undefined or untranscribed value is an empty cell."""
     models = list(dict.fromkeys(m for t in tables for m in t.columns))
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["scope", "metric", "source"] + [CSV_NAMES[m] for m in models])
+    writer.writerow(["protocol", "scope", "metric", "source"] + [CSV_NAMES[m] for m in models])
     for table in tables:
         for key, source, cells in table.rows(paper, missing=""):
             by_model = dict(zip(table.columns, cells))
-            writer.writerow([table.scope, key, source] + [by_model.get(m, "") for m in models])
+            writer.writerow([protocol, table.scope, key, source] + [by_model.get(m, "") for m in models])
     return out.getvalue()
 
 
@@ -217,7 +217,8 @@ def document(
     Args:
         tables: the pooled table, the mean over splits, then one per split.
         weights: (split, model) -> the checkpoint's description (None for the recordings).
-        settings: gamma, v_pref, collision, seed, limit, subgoal_speed, shield and protocol.
+        settings: gamma, v_pref, collision, distances, seed, limit, subgoal_speed, shield, protocol
+            and targets (`Settings.record`).
     """
     columns = tables[0].columns
     limit, speed = settings["limit"], settings["subgoal_speed"]
@@ -227,13 +228,17 @@ def document(
     handed = ("the goal itself" if speed is None else
               f"a sub-goal 12 steps ahead at {pace} in the goal's direction (beyond the goal once nearer), "
               "as the networks were trained with goals 12 steps ahead")
+    targets = (" (every pedestrian present for 20 consecutive frames, its goal where it leaves if sooner)"
+               if settings["targets"] == OBSERVED else " (pedestrians present for 44 consecutive frames)")
+    measured = ("the distance to the nearest other pedestrian at the recorded frame that ends step k"
+                if settings["distances"] == FRAMES else
+                "the closest approach to any other pedestrian during step k, both moving straight")
     lines = [
         "# Table I: long-term playback navigation", "",
+        f"Protocol `{settings['protocol']}`: targets `{settings['targets']}`, distances `{settings['distances']}`, "
+        f"networks handed {'the goal itself' if speed is None else 'a sub-goal at ' + pace.split(' (')[0]}.", "",
         "Each model walks as one recorded pedestrian of a split's test scene (its first 8 positions "
-        "observed) toward its recorded position 36 steps (14.4 s) later"
-        + (" (protocol `observed`: every pedestrian present for 20 consecutive frames, its goal where it "
-           "leaves if sooner)" if settings.get("protocol") == "observed" else
-           " (protocol `present`: pedestrians present for 44 consecutive frames)")
+        "observed) toward its recorded position 36 steps (14.4 s) later" + targets
         + f", among the other pedestrians as recorded; it plans 12 steps every 0.4 s toward {handed}, and walks the first. The "
         "episode ends on arrival (within 0.5 m of the goal) or at the cut-off, 60 steps (24 s). The "
         "human column is the recorded path itself."
@@ -250,9 +255,8 @@ def document(
         f"- S: mean over episodes of sum_k {settings['gamma']:g}^((k-1) * 0.4 s * {settings['v_pref']:g} m/s) "
         f"* r_k, with r_k = -0.25 if the step's closest approach d_k < {settings['collision']:g} m "
         "(collision), else +1 if the step reaches the goal, else -0.1 + d_k/2 if d_k < 0.2 m, else 0 "
-        "(CrowdNav's reward and discount; d_k is the closest approach to any other pedestrian during "
-        "step k, both moving straight).",
-        "- C: fraction of episodes never closer than 0.2 m to another pedestrian (the reading the "
+        f"(CrowdNav's reward and discount; d_k is {measured}).",
+        "- C: fraction of episodes whose d_k never falls below 0.2 m (the reading the "
         "paper's numbers need; its prose states the opposite).",
         "- A: fraction of episodes reaching the goal within 0.5 m before the cut-off.",
         "- 95 % intervals: Wilson's for C and A; for S the 2.5th and 97.5th percentiles of "
@@ -288,15 +292,15 @@ def _csv_value(value: Any) -> Any:
     return "" if value is None else value
 
 
-def episodes_csv(results: Mapping[tuple[str, str], Scores]) -> str:
-    """Every episode's scores: split, model, episode, then each score with its unit in its name
-    (EPISODE_UNITS; the walked path left out), booleans as 0/1."""
+def episodes_csv(results: Mapping[tuple[str, str], Scores], protocol: str) -> str:
+    """Every episode's scores: protocol, split, model, episode, then each score with its unit in its
+    name (EPISODE_UNITS; the walked path left out), booleans as 0/1."""
     first = next(iter(results.values()))[0]
     keys = [k for k in first if k not in ("episode", "path")]
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["split", "model", "episode", *(EPISODE_UNITS.get(k, k) for k in keys)])
+    writer.writerow(["protocol", "split", "model", "episode", *(EPISODE_UNITS.get(k, k) for k in keys)])
     for (split, model), scores in results.items():
         for r in scores:
-            writer.writerow([split, model, r["episode"]] + [_csv_value(r[k]) for k in keys])
+            writer.writerow([protocol, split, model, r["episode"]] + [_csv_value(r[k]) for k in keys])
     return out.getvalue()

@@ -47,17 +47,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="preferred speed in S's discount, m/s (default 1.0)")
     parser.add_argument("--collision", type=types.number(0, 0.2, below=True), default=0.1,
                         help="distance counted as a collision in S, m (default 0.1: pedestrians are points)")
-    parser.add_argument("--subgoal-speed", default="recorded", metavar="recorded|M/S",
+    parser.add_argument("--subgoal-speed", metavar="recorded|M/S",
                         help="hand the networks, trained with goals 4.8 s ahead, a sub-goal that far ahead toward the "
-                             "goal at the recorded pedestrian's pace (default) or at M/S; 0: the goal itself, as the "
-                             "paper describes")
+                             "goal at the recorded pedestrian's pace or at M/S; 0: the goal itself (default: the "
+                             "protocol's, the recorded pace under strict, the goal itself under paper)")
     parser.add_argument("--shield", type=types.number(0, MAX_SHIELD_M, above=True), default=0.5, metavar="M",
                         help="R+shield column: the distance (m) its first step must keep from everyone's "
                              "constant-velocity forecast over 1.6 s (default 0.5)")
     parser.add_argument("--protocol", choices=PROTOCOLS, default=DEFAULT_PROTOCOL,
-                        help="which pedestrians become episodes: observed (default), present for 20 consecutive "
-                             "frames, the goal 36 steps ahead or where they leave if sooner; present: for 44 frames, "
-                             "the goal 36 steps ahead")
+                        help="paper: as the paper's text states it (targets with a recorded position 36 steps ahead, "
+                             "distances at the recorded frames, the far goal handed to the networks); strict (default): "
+                             "every pedestrian present for 20 frames, the closest approach within each step, a "
+                             "sub-goal 12 steps ahead at the recorded pace")
     parser.add_argument("--paper", type=Path, metavar="FILE",
                         help="the paper's Table I values to print beside ours, as JSON {\"source\": text, "
                              "\"values\": {\"S\"|\"C\"|\"A\": {column: number or null}}} (default: the shipped "
@@ -102,11 +103,10 @@ def run(args: argparse.Namespace) -> int:
     from navigan.data import SPLITS, data_dir
     from navigan.errors import NaviganError
     from navigan.playback.evaluate import Playback, Settings
-    from navigan.playback.metrics import Scoring
     from navigan.playback.paper import PAPER_FILE, load_paper
     from trials.progress import Progress, numbered, piped_lines, show_bars
 
-    speed = subgoal_speed(args.subgoal_speed)
+    speed = "protocol" if args.subgoal_speed is None else subgoal_speed(args.subgoal_speed)
     out = args.out or args.study / "playback"
     torch.set_num_threads(args.threads)
     splits = list(SPLITS) if args.split == "all" else [args.split]
@@ -120,8 +120,8 @@ def run(args: argparse.Namespace) -> int:
         f"Loading the {', '.join(splits)} test scenes and the checkpoints of {', '.join(models)}")
     playback = Playback(
         data=data_dir(args.data), out=out, checkpoints=checkpoints,
-        settings=Settings(Scoring(args.gamma, args.v_pref, args.collision), args.seed, args.episodes,
-                          speed, args.shield, args.protocol),
+        settings=Settings.of(args.protocol, args.gamma, args.v_pref, args.collision, args.seed, args.episodes,
+                             speed, args.shield),
         paper=args.paper or PAPER_FILE, dpi=args.dpi,
     )
     def walked(n: int, total: int, split: str, column: str) -> None:
@@ -130,12 +130,12 @@ def run(args: argparse.Namespace) -> int:
     quiet = args.quiet or args.json
     tables = playback.evaluate(splits, models, progress=show_bars(quiet), on_walked=walked if piped_lines(quiet) else None)
     if args.json:
-        print(json.dumps({"out": str(out), "tables": [{"scope": t.scope, "values": t.values,
+        print(json.dumps({"out": str(out), "protocol": args.protocol, "tables": [{"scope": t.scope, "values": t.values,
                                                         "intervals": {m: {k: list(v) for k, v in i.items()} for m, i in t.intervals.items()}}
                                                        for t in tables]}))
         return 0
     paper = load_paper(args.paper or PAPER_FILE)
-    print("All splits pooled:")
+    print(f"Protocol {args.protocol}; all splits pooled:")
     print(tables[0].markdown(paper).rstrip())
     print("\nMean over splits (each weighted equally):")
     print(tables[1].markdown(paper).rstrip())
