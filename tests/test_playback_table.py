@@ -77,8 +77,9 @@ def test_csv_holds_both_aggregations_with_interval_rows_and_empty_cells():
     paper = PaperTable("hand copy", {"C": {"R": 0.97}})
     tables = [aggregate(scope, ["navigan-r", "navigan-r-shield"],
                         {"navigan-r": SPLITS, "navigan-r-shield": SPLITS}, seed=0) for scope in (POOLED, SPLIT_MEAN)]
-    rows = list(csv.DictReader(io.StringIO(csv_text(tables, paper))))
-    assert list(rows[0]) == ["scope", "metric", "source", "R", "R_shield"]
+    rows = list(csv.DictReader(io.StringIO(csv_text(tables, paper, "paper"))))
+    assert list(rows[0]) == ["protocol", "scope", "metric", "source", "R", "R_shield"]
+    assert {r["protocol"] for r in rows} == {"paper"}
     cells = {(r["scope"], r["metric"], r["source"]): r for r in rows}
     low, high = wilson(2, 5)
     assert cells[POOLED, "C", "ours_low"]["R"] == f"{low:.3f}" and cells[POOLED, "C", "ours_high"]["R"] == f"{high:.3f}"
