@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from analysis.plan import PlanStatus
 from designs.model import Model
 from designs.spec import StudySpec
 
@@ -155,6 +156,8 @@ class StudyData:
     #: design.json's "diagnostics": efficiencies, the bound, power (empty when the file has none).
     diagnostics: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: The analysis plan and its standing against design.json's commitment (None: the report's defaults for the spec).
+    analysis_plan: PlanStatus | None = None
 
     @property
     def finished(self) -> list[StudyRun]:

@@ -163,7 +163,8 @@ def diagnostics_lines(d: Diagnostics, bound: str = "") -> list[str]:
              f"  A-efficiency                 {d.a_efficiency:9.4f}",
              f"  G-efficiency                 {d.g_efficiency:9.4f}",
              f"  Average prediction variance  {d.average_prediction_variance:9.4f}",
-             f"Power of each term's test (alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}; {POWER_CONVENTION}):"]
+             "JMP's power of each term's least-squares F test, for a Gaussian response, not the judgments "
+             f"(alpha {d.alpha:g}, signal-to-noise {d.snr:g}, error df {d.error_df}; {POWER_CONVENTION}):"]
     width = max(len(t.term) for t in d.term_power)
     lines += [f"  {t.term:<{width}}  {t.parameters} df  power {t.power:.3f}" for t in d.term_power]
     largest = _largest_correlation(d.correlation_columns, d.correlations)

@@ -167,11 +167,12 @@ def read_spec(path: Path) -> StudySpec:
 def spec_from_dict(data: dict[str, Any], source: str, folder: Path | None = None) -> StudySpec:
     """Validate the parsed TOML tables of a spec; `folder` is where a covariate's `file` is found."""
     study = _table(data, "study", source)
-    # [run] and [robot] hold how the runs are made, not the design: trials.run_settings and trials.robot.settings read them.
-    unknown = set(data) - {"study", "factors", "anticipated", "questionnaire", "run", "robot"}
+    # [run] and [robot] hold how the runs are made, [analysis] how the results are analysed, not the design:
+    # trials.run_settings, trials.robot.settings and trials.analysis_plan read them.
+    unknown = set(data) - {"study", "factors", "anticipated", "questionnaire", "run", "robot", "analysis"}
     if unknown:
-        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} "
-                          "(expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run] and [robot])")
+        raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally "
+                          "[anticipated], [[questionnaire]], [run], [robot] and [analysis])")
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")

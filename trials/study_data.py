@@ -13,6 +13,7 @@ from typing import Any
 
 from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED_RUN, Blinding, HumanScore, Outcome, Response, StudyData, StudyRun
 from designs.spec import read_spec
+from trials.analysis_plan import plan_in_force, plan_status
 from trials.controllers import registry
 from trials.errors import StudyError
 from trials.outcomes import outcome_cells, read_outcomes
@@ -31,6 +32,9 @@ from trials.study import (
 
 UNBLINDING_FORMAT = "navtrials.unblinding/1"
 CONTROLLER_FACTOR = "Controller"
+
+#: unblinding.json's key, in each opening, for the digest of the analysis plan in force (`AnalysisPlan.digest`).
+PLAN_KEY = "analysis_plan_sha256"
 
 #: report.json's key for the digest of the files the report was made from (`StudyFolder.report_inputs`).
 INPUTS_KEY = "inputs_sha256"
@@ -83,6 +87,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
             notes.append(f"Run {run.code} has an outcome row but no log {folder.run_log(run.code).relative_to(folder.root)}; "
                          "it is scored from its outcome row only.")
     correlation = design.get("diagnostics", {}).get("correlation_map", {})
+    opened_with = _plans_at_openings(folder, blinding.commitment) if blinding.commitment else ()
     return StudyData(
         root=folder.root,
         spec=spec,
@@ -95,6 +100,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         correlations=(correlation.get("columns", []), correlation.get("matrix", [])),
         diagnostics=design.get("diagnostics", {}),
         notes=notes,
+        analysis_plan=plan_status(folder.path(SPEC), spec, design, opened_with),
     )
 
 
@@ -139,6 +145,12 @@ def _unblinding_file(folder: StudyFolder, commitment: str) -> dict[str, Any]:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise StudyError(f"{path} is damaged: {exc}") from None
     return data if isinstance(data, dict) and data.get("commitment") == commitment else {}
+
+
+def _plans_at_openings(folder: StudyFolder, commitment: str) -> tuple[str | None, ...]:
+    """The analysis plan's digest recorded at each earlier opening of the key (None where an opening recorded none)."""
+    openings = _unblinding_file(folder, commitment).get("openings", [])
+    return tuple(str(o[PLAN_KEY]) if isinstance(o, dict) and o.get(PLAN_KEY) else None for o in openings if isinstance(o, dict))
 
 
 def read_unblinding(folder: StudyFolder, commitment: str) -> tuple[str, ...]:
@@ -187,10 +199,13 @@ def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
 
 def opened_record(folder: StudyFolder, commitment: str, utc: str, opening: Opening, command: str) -> bytes:
     """report/unblinding.json with one more opening of the key: every time it was opened (`unblinded_utc`) and, for each
-    opening recorded with them, its time, how complete the study was, any interim reason and the command that opened it
-    (`openings`). Whatever command shows the key records it here, so reports and `trials status` know."""
+    opening recorded with them, its time, how complete the study was, any interim reason, the command that opened it and
+    the digest of the analysis plan in force (`openings`). Whatever command shows the key records it here, so reports and `trials status` know."""
     earlier = _unblinding_file(folder, commitment)
-    entry = {"utc": utc, "completeness": opening.completeness, "interim": opening.interim, "command": command}
+    spec_path = folder.path(SPEC)
+    plan, _ = plan_in_force(spec_path, read_spec(spec_path), folder.read_design())
+    entry = {"utc": utc, "completeness": opening.completeness, "interim": opening.interim, "command": command,
+             PLAN_KEY: plan.digest()}
     data = {"format": UNBLINDING_FORMAT, "commitment": commitment, "unblinded_utc": [*earlier.get("unblinded_utc", []), utc],
             "openings": [*earlier.get("openings", []), entry]}
     return (json.dumps(data, indent=1) + "\n").encode()

@@ -60,6 +60,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--figures", action="store_true",
                         help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG "
                              "(with --evaluate or --compare: each plan's, named PLAN.correlation_map.png and so on, in --study)")
+    parser.add_argument("--power", type=types.whole(0, 100_000), default=200, metavar="N",
+                        help="simulated data sets for the power of the planned primary test, at the plan's size and larger until "
+                             "0.8 (model-based, as `trials power`; default 200, 0: skip)")
     types.add_dpi(parser)
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
@@ -122,6 +125,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from designs.export import summary_lines
     from designs.plan import KeptRuns, build_plan
     from designs.spec import MAX_RUNS, read_spec
+    from trials.analysis_plan import analysis_table
     from trials.design_files import write_design
     from trials.errors import StudyError
     from trials.robot.settings import robot_table
@@ -148,7 +152,8 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     sealed = folder.read_sealed() if spec.blind_factor is not None else None
     plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None,
                       threads=_threads(args))
-    tables = {"run": run_table(folder.path(SPEC)), "robot": robot_table(folder.path(SPEC), args.robot)}  # they stay with the study
+    tables = {"run": run_table(folder.path(SPEC)), "robot": robot_table(folder.path(SPEC), args.robot),  # they stay with the study
+              "analysis": analysis_table(folder.path(SPEC), plan.spec, plan.seed)}
     copied = folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))
     written = write_design(folder, plan, None, tables, args.dpi if args.figures else None)
     if not args.figures:
@@ -167,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
     from designs.export import summary_lines
     from designs.plan import build_plan
     from designs.spec import read_spec
+    from trials.analysis_plan import analysis_table
     from trials.controllers import registry
     from trials.errors import StudyError
     from trials.progress import Progress
@@ -207,6 +213,7 @@ def run(args: argparse.Namespace) -> int:
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
     tables = {"run": run_table(spec_path) if spec_path is not None else {}, "robot": robot_table(spec_path, args.robot)}
+    analysis_table(spec_path, spec, 0)  # a bad [analysis] table fails before the search; its default seed is the design's
     quiet = args.quiet or args.json
     Progress("start", "design", quiet).loading(f"Searching for a {spec.criterion}-optimal design of {spec.runs} runs ({spec.starts} exchange starts)")
     follow = sys.stderr.isatty() and not quiet
@@ -214,6 +221,7 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None, threads=_threads(args))
     if follow:
         print(file=sys.stderr)
+    tables["analysis"] = analysis_table(spec_path, plan.spec, plan.seed)
     from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
@@ -221,15 +229,24 @@ def run(args: argparse.Namespace) -> int:
     moved = folder.supersede(PUBLIC_STUDY_FILES, SEALED_STUDY_FILES) if args.force else None
     written = write_design(folder, plan, original, tables, args.dpi if args.figures else None)
 
+    planned = None
+    if args.power:
+        from trials.power.planned import planned_test_power
+
+        Progress("start", "design", quiet).loading("Simulating the power of the planned primary test")
+        planned = planned_test_power(folder, plan.seed, args.power)
     if args.json:
         import json
 
         print(json.dumps({"study": str(folder.root.resolve()), "files": [str(p) for p in written],
+                          "planned_power": planned.record() if planned is not None else None,
                           "commitment": plan.sealed.commitment() if plan.sealed is not None else None,
                           "superseded": str(moved) if moved is not None else None,
                           "design": json.loads(folder.path(DESIGN).read_text(encoding="utf-8"))}))
         return 0
     print("\n".join(summary_lines(plan)))
+    if planned is not None:
+        print("\n".join(planned.lines()))
     print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
     if plan.sealed is not None:
         print("The allocation key is in sealed/, readable by you only (folder 0700, files 0600): keep it closed until "

@@ -11,8 +11,10 @@ from typing import Any
 
 from tqdm import tqdm
 
+from analysis.plan import AnalysisPlan
 from designs.diagnostics import diagnose
 from designs.spec import StudySpec
+from trials.analysis_plan import plan_in_force
 from trials.atomic import write_files, writing
 from trials.controllers import registry
 from trials.errors import StudyError
@@ -111,14 +113,15 @@ def settings_digest(seed: int, plans: list[PowerPlan], controllers: tuple[str, .
     return hashlib.sha256(json.dumps(shape, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
-def _model_based(plans: list[PowerPlan], spec: StudySpec, anticipated: model_based.Anticipated, seed: int, simulations: int) -> list[list[Any]]:
+def _model_based(plans: list[PowerPlan], spec: StudySpec, anticipated: model_based.Anticipated, seed: int, simulations: int,
+                 analysis: AnalysisPlan) -> list[list[Any]]:
     verdicts = []
     with tqdm(total=simulations * len(plans), unit="data set", desc="model-based", disable=None, leave=False) as bar:
         for plan in plans:
             beta = model_based.coefficients(plan, spec, anticipated)
             mine = []
             for index in range(simulations):
-                mine.append(model_based.simulate(plan, beta, anticipated, model_based.simulation_seed(seed, plan, index)))
+                mine.append(model_based.simulate(plan, beta, anticipated, model_based.simulation_seed(seed, plan, index), analysis))
                 bar.update()
             verdicts.append(mine)
     return verdicts
@@ -156,6 +159,7 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
         StudyError: no plan, a bad option for this study, Ray missing or unreachable; DesignError: too few runs for the model.
     """
     spec, _ = study_spec(folder)
+    analysis, _ = plan_in_force(folder.path(SPEC), spec, folder.read_design())
     seed = power_seed(out, request.seed)
     plans = plans_to_test(folder, request.sizes, seed)
     anticipated = model_based.Anticipated(request.shares[0], request.shares[1], request.run_sd, request.participants, request.terms)
@@ -172,7 +176,7 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
     with writing(out):  # a folder that cannot be made (under /proc, a read-only disk) is one line naming it
         out.mkdir(parents=True, exist_ok=True)
     settings: dict[str, Any] = {
-        "power_seed": seed, "study": spec.name, "alpha": spec.alpha,
+        "power_seed": seed, "study": spec.name, "alpha": spec.alpha, "planned_test": analysis.describe_test(),
         "model_based": {"simulations": request.simulations, "assumed": anticipated.describe(), "shares": list(request.shares),
                         "run_sd": request.run_sd, "participants": request.participants, "terms": list(request.terms) if request.terms else None,
                         "snr": spec.snr, "anticipated": dict(spec.anticipated)},
@@ -181,12 +185,12 @@ def estimate_power(folder: StudyFolder, out: Path, request: PowerRequest) -> Pow
         settings["closed_loop"] = {"campaigns": request.campaigns, "controllers": list(controllers), **asdict(options.settings),
                                    "participants": request.participants,
                                    "settings_digest": settings_digest(seed, plans, controllers, options, request.participants)}
-    model_verdicts = _model_based(plans, spec, anticipated, seed, request.simulations)
+    model_verdicts = _model_based(plans, spec, anticipated, seed, request.simulations, analysis)
     campaigns = _closed_loop(plans, controllers, options, request, settings, out, where) if request.campaigns else [[] for _ in plans]
     powers = []
     for plan, verdicts, results in zip(plans, model_verdicts, campaigns):
         analytic = {t.term: t.power for t in diagnose(plan.model, plan.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated).term_power}
-        powers.append(plan_power(plan, analytic, verdicts, results, spec.alpha))
+        powers.append(plan_power(plan, analytic, verdicts, results, spec.alpha, analysis.alpha))
     terms = focus_terms(plans[0])
     record = power_record(powers, settings, request.target, terms)
     figure = _name(out, POWER_FIGURE)
@@ -206,7 +210,10 @@ def summary_lines(record: dict[str, Any], powers: list[PlanPower], out: Path, wh
         parts = [f"{t} model-based {p.judgments[t].text()}" + (f", closed-loop {p.closed_terms[t].text()}" if p.campaigns else "") for t in terms]
         rows = [f">= {k}: {e.text()}" for k, e in p.rows.items()]
         lines.append(f"{p.runs} runs: " + "; ".join(parts) + (f"; Table II rows (model-based) {', '.join(rows)}" if rows else ""))
+    lines += [f"{p.runs} runs: planned primary test ({record['planned_test']}) model-based {p.planned.text()}"
+              for p in powers if p.planned is not None]
     found = record["smallest_runs"]
+    lines.append(f"Smallest plan reaching {record['target']:g} on the planned primary test: model-based {found['planned'] or 'none tried'}.")
     lines.append(f"Smallest plan reaching {record['target']:g} on {', '.join(terms)}: model-based {found['model_based'] or 'none tried'}"
                  + (f", closed-loop {found['closed_loop'] or 'none tried'}" if found["closed_loop"] is not None or where is not None else "") + ".")
     lines.append(f"Wrote {', '.join(Path(n).name for n in (POWER_RECORD, POWER_MARKDOWN, POWER_FIGURE) + ((POWER_CAMPAIGNS,) if where else ()))} in {out}")

@@ -93,22 +93,31 @@ class PlanPower:
     closed_rows: dict[int, PowerEstimate] = field(default_factory=dict)
     shares: dict[int, dict[str, dict[str, float]]] = field(default_factory=dict)
     statuses: dict[str, int] = field(default_factory=dict)
+    #: The planned primary test (study.toml's [analysis]), model-based; None when no data set was given a plan.
+    planned: PowerEstimate | None = None
 
 
 def plan_power(plan: PowerPlan, analytic: dict[str, float], model_based: Sequence[tuple[Verdict, Verdict]],
-               campaigns: Sequence[CampaignResult], alpha: float) -> PlanPower:
+               campaigns: Sequence[CampaignResult], alpha: float, planned_alpha: float | None = None) -> PlanPower:
     judged = [j for j, _ in model_based]
     closed = [r.verdict for r in campaigns]
     statuses = {s: sum(r.statuses[s] for r in campaigns) for s in STATUSES} if campaigns else {}
+    planned = [v.primary_p for v in judged]
     return PlanPower(plan.runs, plan.source, analytic, term_power([g for _, g in model_based], alpha), term_power(judged, alpha),
                      row_power(judged, alpha), len(campaigns), term_power(closed, alpha), row_power(closed, alpha),
-                     share_spread(campaigns), statuses)
+                     share_spread(campaigns), statuses,
+                     estimate(planned, planned_alpha or alpha) if planned and not all(math.isnan(p) for p in planned) else None)
 
 
 def focus_terms(plan: PowerPlan) -> list[str]:
     """The terms whose power decides whether a plan is big enough: the Controller term when the model has one, else all."""
     terms = plan.model.term_names[1:]
     return [CONTROLLER] if CONTROLLER in terms else terms
+
+
+def smallest_planned(powers: Sequence[PlanPower], target: float) -> int | None:
+    """The fewest runs whose planned primary test reaches `target` (model-based)."""
+    return next((p.runs for p in sorted(powers, key=lambda p: p.runs) if p.planned is not None and p.planned.power >= target), None)
 
 
 def smallest(powers: Sequence[PlanPower], terms: Sequence[str], target: float, closed: bool) -> int | None:
@@ -135,10 +144,11 @@ def power_record(powers: Sequence[PlanPower], settings: dict[str, Any], target: 
         record = asdict(p)
         for key in ("gaussian", "judgments", "rows", "closed_terms", "closed_rows"):
             record[key] = {str(k): {**asdict(e), "power": e.power} for k, e in getattr(p, key).items()}
+        record["planned"] = {**asdict(p.planned), "power": p.planned.power} if p.planned is not None else None
         plans.append(plain(record))
     has_closed = any(p.campaigns for p in powers)
     return {"format": FORMAT, **settings, "target": target, "target_terms": list(terms),
-            "smallest_runs": {"model_based": smallest(powers, terms, target, False),
+            "smallest_runs": {"planned": smallest_planned(powers, target), "model_based": smallest(powers, terms, target, False),
                               "closed_loop": smallest(powers, terms, target, True) if has_closed else None},
             "plans": plans}
 
@@ -171,8 +181,13 @@ def power_markdown(record: dict[str, Any], powers: Sequence[PlanPower], study: s
     found = record["smallest_runs"]
     terms = ", ".join(record["target_terms"])
     closed = f", closed-loop {found['closed_loop'] or 'none of those tried'}" if record.get("closed_loop") else ""
-    lines += ["", f"Smallest plan reaching power {target:g} on {terms}: model-based {found['model_based'] or 'none of those tried'}{closed}.",
-              "", f"![power]({figure})", ""]
+    lines += ["", f"Smallest plan reaching power {target:g} on {terms}: model-based {found['model_based'] or 'none of those tried'}{closed}."]
+    planned = record.get("planned_test")
+    if planned:
+        lines += ["", f"The planned primary test ({planned}): smallest plan reaching {target:g}, model-based: "
+                      f"{found['planned'] or 'none of those tried'}; "
+                      + "; ".join(f"{p.runs} runs {p.planned.text()}" for p in powers if p.planned is not None) + "."]
+    lines += ["", f"![power]({figure})", ""]
     for p in powers:
         lines += [f"## {p.runs} runs ({p.source})", ""]
         header = ["term", "analytic (Gaussian, JMP)", "Gaussian, simulated", "judgments, model-based"]

@@ -1,5 +1,6 @@
-"""One simulated data set analysed as `trials report` analyses a study: the judgments by the run-level
-GEE (`analysis.clustered`) and by Table II (`analysis.ab_table`), a continuous outcome by least squares.
+"""One simulated data set analysed as `trials report` analyses a study: the judgments by the planned primary test
+(`analysis.primary`), the run-level GEE of the design's model (`analysis.clustered`) and Table II (`analysis.ab_table`),
+a continuous outcome by least squares.
 
 A verdict keeps only what power needs: each term's p-value and each Table II row's arm shares and
 Holm-adjusted p-value. A fit that gives no test (separated judgments, too few clusters) counts as
@@ -16,6 +17,8 @@ import numpy as np
 from analysis.ab_table import RunJudgments, table_ii
 from analysis.clustered import fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares
+from analysis.plan import AnalysisPlan
+from analysis.primary import primary_p_value
 from trials.power.plans import PowerPlan
 
 
@@ -35,6 +38,22 @@ class Verdict:
 
     term_p: dict[str, float]
     rows: tuple[RowVerdict, ...] = ()
+    #: The planned primary test's p-value (NaN: no plan given, or no test).
+    primary_p: float = math.nan
+
+
+#: Monte Carlo draws of a randomization test whose allocations are too many to enumerate, per simulated data set:
+#: fewer than a report's, which costs a little power (p is never below 1 / (1 + draws)) and keeps power fast.
+POWER_DRAWS = 2000
+
+
+def planned_p(plan: PowerPlan, analysis: AnalysisPlan, yes: np.ndarray, total: np.ndarray) -> float:
+    """The planned primary test's p-value on `yes` of `total` judgments per run of `plan`."""
+    factor = next((f for f in plan.model.factors if f.name == analysis.factor), None)
+    first = str(factor.levels[0]) if factor is not None and hasattr(factor, "levels") else ""
+    arms = [row.get(analysis.factor, "") for row in plan.rows]
+    strata = [tuple(row[name] for name in analysis.strata) for row in plan.rows]
+    return primary_p_value(analysis, plan.model.factors, plan.settings, arms, first, strata, yes, total, draws=POWER_DRAWS)
 
 
 def term_p_values(fit: Fit, plan: PowerPlan) -> dict[str, float]:
@@ -43,9 +62,10 @@ def term_p_values(fit: Fit, plan: PowerPlan) -> dict[str, float]:
     return {name: float(tested.get(name, math.nan)) for name in plan.model.term_names[1:]}
 
 
-def judgments_verdict(plan: PowerPlan, yes: np.ndarray, total: np.ndarray, arm_names: list[str] | None = None) -> Verdict:
-    """The GEE term tests and Table II of `yes` of `total` judgments per run of `plan`; `arm_names`
-    names each run's arm (default: its Controller level)."""
+def judgments_verdict(plan: PowerPlan, yes: np.ndarray, total: np.ndarray, arm_names: list[str] | None = None,
+                      analysis: AnalysisPlan | None = None) -> Verdict:
+    """The GEE term tests, Table II and, with `analysis`, the planned primary test of `yes` of `total` judgments per run
+    of `plan`; `arm_names` names each run's arm (default: its Controller level)."""
     dm = DesignMatrix.from_model(plan.model, plan.settings)
     fit = fit_gee(dm, yes, total, "judged socially compliant")
     arms = arm_names if arm_names is not None else plan.arm_of_runs()
@@ -56,7 +76,7 @@ def judgments_verdict(plan: PowerPlan, yes: np.ndarray, total: np.ndarray, arm_n
         order = list(dict.fromkeys(sorted(arms)))
         rows = tuple(RowVerdict(row.min_pedestrians, {arm: share.share for arm, share in row.shares.items()}, row.holm_p)
                      for row in table_ii(judged, order))
-    return Verdict(term_p_values(fit, plan), rows)
+    return Verdict(term_p_values(fit, plan), rows, planned_p(plan, analysis, yes, total) if analysis is not None else math.nan)
 
 
 def gaussian_verdict(plan: PowerPlan, y: np.ndarray) -> Verdict:

@@ -1,0 +1,70 @@
+"""The power of a study's planned primary test, as `trials design` prints it: model-based on `trials power`'s own
+data sets (same power seed, same draws, so `trials power` gives the same figures), at the plan's size and at
+multiples of it until the target is reached."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from designs.spec import MAX_RUNS
+from trials.analysis_plan import plan_in_force
+from trials.power.model_based import Anticipated, planned_power
+from trials.power.plans import designed_plan, own_plan, study_spec
+from trials.power.summary import PowerEstimate
+from trials.study import SPEC, StudyFolder
+
+#: Data sets per plan size that `trials design` simulates by default, and the most plan sizes it tries.
+SIMULATIONS = 200
+MULTIPLES = 4
+#: `trials power`'s defaults, so that its figures and these agree.
+DEFAULT_ANTICIPATED = Anticipated()
+
+
+@dataclass(frozen=True)
+class PlannedPower:
+    """The planned test's power at each plan size tried, the fewest runs reaching `target` (None: none tried did)."""
+
+    test: str
+    assumed: str
+    seed: int
+    simulations: int
+    target: float
+    powers: dict[int, PowerEstimate]
+    needed: int | None
+
+    def lines(self) -> list[str]:
+        sizes = ",".join(map(str, self.powers))
+        found = f"{self.needed}" if self.needed is not None else f"more than {max(self.powers)}"
+        return [f"Power of the planned primary test ({self.test}), model-based with {self.simulations} simulated data sets:",
+                *(f"  {runs} runs  power {p.power:.3f} (Wilson 95 % {p.low:.3f}-{p.high:.3f})" for runs, p in self.powers.items()),
+                f"  runs needed for power {self.target:g}: {found}",
+                f"  assumed {self.assumed}; power seed {self.seed} (`trials power --seed {self.seed} --simulations {self.simulations} "
+                f"--runs {sizes}` draws the same data sets)"]
+
+    def record(self) -> dict[str, object]:
+        return {"test": self.test, "assumed": self.assumed, "power_seed": self.seed, "simulations": self.simulations,
+                "target": self.target, "needed_runs": self.needed,
+                "power": {str(runs): {"power": p.power, "low": p.low, "high": p.high} for runs, p in self.powers.items()}}
+
+
+def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULATIONS, target: float = 0.8,
+                       anticipated: Anticipated = DEFAULT_ANTICIPATED) -> PlannedPower | None:
+    """The planned test's power at the study's plan size and at 2, 3, ... times it until `target` is reached (at most
+    MULTIPLES sizes); None when the plan compares no factor's arms. Larger plans are designed from the spec as
+    `trials power --runs` designs them."""
+    spec, _ = study_spec(folder)
+    analysis, _ = plan_in_force(folder.path(SPEC), spec, folder.read_design())
+    if not analysis.factor:
+        return None
+    own = own_plan(folder)
+    powers: dict[int, PowerEstimate] = {}
+    for multiple in range(1, MULTIPLES + 1):
+        runs = own.runs * multiple
+        if runs > MAX_RUNS:
+            break
+        plan = own if multiple == 1 else designed_plan(folder, runs, seed)
+        powers[runs] = planned_power(plan, spec, analysis, anticipated, seed, simulations)
+        if powers[runs].power >= target:
+            break
+    needed = next((runs for runs, p in powers.items() if p.power >= target), None)
+    return PlannedPower(analysis.describe_test(), anticipated.describe(), seed, simulations, target, powers, needed)
