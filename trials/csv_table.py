@@ -17,8 +17,14 @@ from typing import Any, TypeVar
 
 from trials.atomic import one_writer, write_text
 from trials.errors import StudyError
+from trials.numbers import shown
 
 Row = TypeVar("Row")
+
+#: Participant and scorer codes: what a person types on a phone and the statistics group by.
+MAX_CODE = 40
+#: First characters that make a spreadsheet read a cell as a formula.
+FORMULA_STARTS = ("=", "+", "-", "@")
 
 
 def record_columns(record_type: type) -> tuple[str, ...]:
@@ -37,17 +43,37 @@ def cell(value: Any) -> str:
     return str(value)
 
 
-def utc_cell(cell: str) -> str:
-    """A recorded_utc cell: empty, or an ISO 8601 time with its UTC offset (it orders judgments
-    against the unblinding); ValueError otherwise."""
-    if not cell:
+def utc_cell(cell: str, column: str = "recorded_utc", required: bool = False) -> str:
+    """A time cell (recorded_utc, finished_utc): an ISO 8601 time with its UTC offset (it orders judgments
+    against the unblinding), or empty unless `required`; ValueError naming `column` otherwise."""
+    if not cell and not required:
         return cell
     try:
         when = datetime.fromisoformat(cell)
     except ValueError:
-        raise ValueError(f"recorded_utc must be an ISO 8601 time such as 2026-05-01T14:03:00+00:00, got {cell!r}") from None
+        raise ValueError(f"{column} must be an ISO 8601 time such as 2026-05-01T14:03:00+00:00, got {shown(cell)}") from None
     if when.tzinfo is None:
-        raise ValueError(f"recorded_utc must give its UTC offset (e.g. +00:00), got {cell!r}")
+        raise ValueError(f"{column} must give its UTC offset (e.g. +00:00), got {shown(cell)}")
+    return cell
+
+
+def code_cell(cell: str, column: str) -> str:
+    """A participant's or scorer's code: 1 to MAX_CODE printable characters, not beginning as a spreadsheet formula
+    (FORMULA_STARTS would run as one when the file is opened); ValueError naming `column` otherwise."""
+    if not cell:
+        raise ValueError(f"{column} is empty")
+    if len(cell) > MAX_CODE or not cell.isprintable():
+        raise ValueError(f"{column} must be 1 to {MAX_CODE} printable characters, got {shown(cell)}")
+    if cell.startswith(FORMULA_STARTS):
+        raise ValueError(f"{column} must not begin with =, +, - or @ (a spreadsheet would run it as a formula), got {shown(cell)}")
+    return cell
+
+
+def text_cell(cell: str, column: str, limit: int) -> str:
+    """A cell of free text (a note, a name) of at most `limit` characters, line breaks and tabs allowed but no other
+    control character; ValueError naming `column` otherwise."""
+    if len(cell) > limit or not "".join(" " if c in "\r\n\t" else c for c in cell).isprintable():
+        raise ValueError(f"{column} must be at most {limit} characters of text, got {shown(cell)}")
     return cell
 
 

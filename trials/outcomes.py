@@ -21,9 +21,11 @@ from trials.csv_table import (
     record_columns,
     record_row,
     table_text,
+    text_cell,
+    utc_cell,
 )
 from trials.errors import StudyError
-from trials.numbers import finite_number
+from trials.numbers import number_in, shown
 from trials.study import OUTCOMES, PLAN, StudyFolder
 
 CONTROLLER = "controller"
@@ -104,16 +106,30 @@ class Outcomes:
         write_text(self.path, outcomes_text(self.rows, self.blind))
 
 
+#: No run outlasts a day: a longer time in a `_s` column is damage, not data.
+MAX_RUN_S = 86_400.0
+#: The range of each number column whose range is not [0, MAX_RUN_S] (a time, `_s`) or [0, MAX_NUMBER].
+RANGES = {"dropout": (0.0, 1.0), "seed": (0.0, 2.0**64 - 1), "collisions": (0.0, 1e6)}
+#: Any other measure (a path length, a deceleration): finite and non-negative, and far below what a spreadsheet
+#: mangles.
+MAX_NUMBER = 1e9
+#: The longest text cell (run code, perception, controller, weights).
+MAX_TEXT = 1000
+
+
 def _outcome(row: dict[str, str]) -> Outcome:
-    """A row as its record, each cell checked against its field's type."""
+    """A row as its record, each cell checked against its field's type and range."""
     values: dict[str, Any] = {}
     for spec in fields(Outcome):
         cell = row.get(spec.name, "")
         kind = str(spec.type)
         if spec.name == "status" and cell not in STATUSES:
-            raise ValueError(f"status must be one of {', '.join(STATUSES)}, got {cell!r}")
-        if kind.startswith("str"):
-            values[spec.name] = (cell or None) if "None" in kind else cell
+            raise ValueError(f"status must be one of {', '.join(STATUSES)}, got {shown(cell)}")
+        if spec.name == "finished_utc":
+            values[spec.name] = utc_cell(cell, spec.name, required=True)
+        elif kind.startswith("str"):
+            text = text_cell(cell, spec.name, MAX_TEXT)
+            values[spec.name] = (text or None) if "None" in kind else text
         elif cell == "" and "None" in kind:
             values[spec.name] = None
         else:
@@ -122,11 +138,12 @@ def _outcome(row: dict[str, str]) -> Outcome:
 
 
 def _number(cell: str, column: str, whole: bool) -> int | float:
-    value = finite_number(cell, column)
+    low, high = RANGES.get(column, (0.0, MAX_RUN_S if column.endswith("_s") else MAX_NUMBER))
+    value = number_in(cell, column, low, high)
     if not whole:
         return value
-    if cell.lstrip("-").isdigit():
-        return int(cell)
+    if cell.isdigit():
+        return int(cell)  # exactly, above 2^53 too
     if value.is_integer():
         return int(value)
-    raise ValueError(f"{column} must be a whole number, got {cell!r}")
+    raise ValueError(f"{column} must be a whole number, got {shown(cell)}")

@@ -10,31 +10,32 @@ from pathlib import Path
 from analysis.records import HUMAN, SIMULATED, Response
 from designs.questionnaire import LikertItem
 from trials.csv_table import (
+    FORMULA_STARTS,
+    MAX_CODE,
     append_rows,
+    code_cell,
     parse_rows,
     read_table,
     record_cells,
     record_columns,
+    text_cell,
     utc_cell,
 )
 from trials.errors import StudyError
+from trials.numbers import shown
 from trials.outcomes import check_run_codes, finished_codes
 from trials.study import RESPONSES, StudyFolder, utc_now
 
 ANSWERS = {"yes": True, "no": False}
 #: What a file of judgments must have; source defaults to human, recorded_utc and seed may be absent.
 REQUIRED = ("run_code", "participant", "compliant")
-#: Participant codes: what a person types on a phone and the statistics group by.
-MAX_PARTICIPANT = 40
-#: First characters that make a spreadsheet read a cell as a formula.
-FORMULA_STARTS = ("=", "+", "-", "@")
 
 
 def parse_answer(cell: str) -> bool:
     """yes / no (any case) as a bool; ValueError otherwise."""
     answer = ANSWERS.get(cell.strip().lower())
     if answer is None:
-        raise ValueError(f"compliant must be yes or no, got {cell!r}")
+        raise ValueError(f"compliant must be yes or no, got {shown(cell)}")
     return answer
 
 
@@ -92,8 +93,8 @@ def record_response(folder: StudyFolder, code: str, participant: str, answer: st
 def check_participant(participant: str) -> None:
     """StudyError unless a participant code is one short line of printable text that a spreadsheet will not take for a
     formula (a leading =, +, - or @ would run as one when responses.csv is opened)."""
-    if not participant.strip() or not participant.isprintable() or len(participant) > MAX_PARTICIPANT or participant != participant.strip():
-        raise StudyError(f"a participant code must be 1 to {MAX_PARTICIPANT} printable characters without surrounding spaces, got {participant!r}")
+    if not participant.strip() or not participant.isprintable() or len(participant) > MAX_CODE or participant != participant.strip():
+        raise StudyError(f"a participant code must be 1 to {MAX_CODE} printable characters without surrounding spaces, got {shown(participant)}")
     if participant.startswith(FORMULA_STARTS):
         raise StudyError(f"a participant code must not begin with =, +, - or @ (a spreadsheet would run it as a formula), got {participant!r}")
 
@@ -111,13 +112,8 @@ def _response(row: dict[str, str]) -> Response:
     source = row.get("source") or HUMAN
     if source not in (HUMAN, SIMULATED):
         raise ValueError(f"source must be {HUMAN} or {SIMULATED}, got {source!r}")
-    if not row["participant"]:
-        raise ValueError("participant is empty")
-    if row["participant"].startswith(FORMULA_STARTS):
-        raise ValueError(f"participant must not begin with =, +, - or @ (a spreadsheet would run it as a formula), got {row['participant']!r}")
     seed = row.get("seed", "")
-    try:
-        parsed_seed = int(seed) if seed else None
-    except ValueError:
-        raise ValueError(f"seed must be an integer, got {seed!r}") from None
-    return Response(row["run_code"], row["participant"], parse_answer(row["compliant"]), source, utc_cell(row.get("recorded_utc", "")), parsed_seed)
+    if seed and not seed.isdigit():
+        raise ValueError(f"seed must be a whole number from 0, got {shown(seed)}")
+    return Response(text_cell(row["run_code"], "run_code", MAX_CODE), code_cell(row["participant"], "participant"),
+                    parse_answer(row["compliant"]), source, utc_cell(row.get("recorded_utc", "")), int(seed) if seed else None)
