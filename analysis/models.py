@@ -7,7 +7,11 @@ squares) of the term's coefficients being zero. A column the runs cannot estimat
 earlier columns, or too few runs) is left out with a note. When judgments are perfectly separated
 the maximum-likelihood estimates do not exist; the logistic fit then uses Firth's bias-reduced
 (penalized) likelihood, and its column tests and intervals come from the profile penalized
-likelihood (Heinze and Schemper 2002), since Wald ones misjudge penalized estimates.
+likelihood (Heinze and Schemper 2002), since Wald ones misjudge penalized estimates. The penalized
+likelihood can have several local maxima once a column is held away from its estimate (seen when
+one arm is all yes), so each constrained maximum is the best over continuation from the neighbouring
+profile points and seeded random starts, and each interval end is where the profile deviance first
+crosses chi-square(1, 0.95) = 3.8415, bracketed by stepping outward and found by brentq.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import brentq, linprog
+from scipy.optimize import brentq, linprog, minimize
 from scipy.special import expit
 from scipy.stats import chi2, norm
 from scipy.stats import f as f_dist
@@ -126,54 +130,135 @@ def separation(x: np.ndarray, successes: np.ndarray, trials: np.ndarray) -> np.n
     return np.asarray(result.x)
 
 
-def _logistic(
-    x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: bool, fixed: dict[int, float] | None = None
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Newton-Raphson (with step halving) for the binomial log-likelihood, or Firth's penalized one,
-    with the columns in `fixed` held at the given values (the penalty still uses every column, as
-    the profile penalized likelihood of Heinze and Schemper 2002 does).
+class _Likelihood:
+    """The binomial log-likelihood of the runs' counts, or Firth's penalized one (l(b) + log det I(b) / 2), and its
+    maximisation with some columns held at given values (the penalty still uses every column, as the profile penalized
+    likelihood of Heinze and Schemper 2002 does)."""
 
-    Returns the estimates, their covariance (inverse Fisher information) and the maximised objective.
-    """
-    fixed = fixed or {}
-    free = np.array([j not in fixed for j in range(x.shape[1])])
+    def __init__(self, x: np.ndarray, successes: np.ndarray, trials: np.ndarray, firth: bool) -> None:
+        self.x, self.successes, self.trials, self.firth = x, successes, trials, firth
 
-    def information(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        p = expit(x @ beta)
-        w = trials * p * (1.0 - p)
-        return p, w, x.T @ (w[:, None] * x)
+    def information(self, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fitted chances, binomial weights and the Fisher information X'WX at `beta`."""
+        p = expit(self.x @ beta)
+        w = self.trials * p * (1.0 - p)
+        return p, w, self.x.T @ (w[:, None] * self.x)
 
-    def objective(beta: np.ndarray) -> float:
-        eta = x @ beta
-        value = float(np.sum(successes * eta - trials * np.logaddexp(0.0, eta)))
-        if firth:
-            value += 0.5 * np.linalg.slogdet(information(beta)[2])[1]
+    def objective(self, beta: np.ndarray) -> float:
+        eta = self.x @ beta
+        value = float(np.sum(self.successes * eta - self.trials * np.logaddexp(0.0, eta)))
+        if self.firth:
+            value += 0.5 * np.linalg.slogdet(self.information(beta)[2])[1]
         return value
 
-    beta = np.zeros(x.shape[1])
-    for j, value in fixed.items():
-        beta[j] = value
-    current = objective(beta)
-    for _ in range(200):
-        p, w, info = information(beta)
-        score = x.T @ (successes - trials * p)
-        if firth:
+    def derivatives(self, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The gradient and Hessian of the objective. Firth's penalty log det I / 2 adds X'(h (1/2 - p)) to the score
+        (h the hat values) and, with Q = X I^-1 X', w' = w (1 - 2p) and w'' = w ((1 - 2p)^2 - 2p (1 - p)) the
+        derivatives of the weights, (X' diag(diag(Q) w'') X - X' diag(w') (Q o Q) diag(w') X) / 2 to the Hessian."""
+        p, w, info = self.information(beta)
+        score = self.x.T @ (self.successes - self.trials * p)
+        hessian = -info
+        if self.firth:
             # pinv: far out on a profile the fitted chances saturate and the information is numerically singular
-            leverage = w * np.einsum("ij,jk,ik->i", x, np.linalg.pinv(info), x)
-            score = score + x.T @ (leverage * (0.5 - p))
-        step = np.zeros_like(beta)
-        step[free] = np.linalg.lstsq(info[np.ix_(free, free)], score[free], rcond=None)[0]
-        scale = 1.0
-        while scale > 1e-10:
-            candidate = objective(beta + scale * step)
-            if candidate >= current - 1e-12:
+            q = self.x @ np.linalg.pinv(info) @ self.x.T
+            score = score + self.x.T @ (w * np.diag(q) * (0.5 - p))
+            first, second = w * (1.0 - 2.0 * p), w * ((1.0 - 2.0 * p) ** 2 - 2.0 * p * (1.0 - p))
+            weighted = first[:, None] * self.x
+            hessian = hessian + 0.5 * (self.x.T @ ((np.diag(q) * second)[:, None] * self.x) - weighted.T @ (q**2) @ weighted)
+        return score, hessian
+
+    def maximise(self, start: np.ndarray, fixed: dict[int, float]) -> tuple[np.ndarray, float]:
+        """A local maximum from `start` with the `fixed` columns at their values: Newton steps on the free columns (on
+        the Hessian where it is negative definite, else on the Fisher information, an ascent direction either way),
+        halved until the objective rises, until the free gradient vanishes; where Newton stalls first, scipy's
+        trust-region Newton (trust-exact) finishes from the best point reached."""
+        free = np.array([j not in fixed for j in range(self.x.shape[1])])
+        beta = np.array(start, dtype=float)
+        beta[list(fixed)] = list(fixed.values())
+        current = self.objective(beta)
+        for _ in range(_NEWTON_STEPS):
+            score, hessian = self.derivatives(beta)
+            score, curvature = score[free], -hessian[np.ix_(free, free)]
+            if np.max(np.abs(score), initial=0.0) < _GRADIENT_TOLERANCE:
+                return beta, current
+            if np.any(np.linalg.eigvalsh(curvature) <= 0.0):
+                curvature = self.information(beta)[2][np.ix_(free, free)]
+            step = np.zeros_like(beta)
+            step[free] = np.linalg.lstsq(curvature, score, rcond=None)[0]
+            scale = 1.0
+            while scale > 1e-12 and not self.objective(beta + scale * step) > current:
+                scale /= 2.0
+            if scale <= 1e-12:
                 break
-            scale /= 2.0
-        beta = beta + scale * step
-        current = objective(beta)
-        if np.max(np.abs(scale * step)) < 1e-10:
-            break
-    return beta, np.linalg.pinv(information(beta)[2]), current
+            beta = beta + scale * step
+            current = self.objective(beta)
+
+        def pieces(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            trial = beta.copy()
+            trial[free] = values
+            score, hessian = self.derivatives(trial)
+            return -score[free], -hessian[np.ix_(free, free)]
+
+        def negative(values: np.ndarray) -> float:
+            trial = beta.copy()
+            trial[free] = values
+            return -self.objective(trial)
+
+        result = minimize(negative, beta[free], jac=lambda v: pieces(v)[0], hess=lambda v: pieces(v)[1], method="trust-exact",
+                          options={"gtol": _GRADIENT_TOLERANCE, "maxiter": 500})
+        if -result.fun > current:
+            beta = beta.copy()
+            beta[free] = result.x
+            current = -float(result.fun)
+        return beta, current
+
+    def starts(self, anchor: np.ndarray) -> list[np.ndarray]:
+        """Seeded random starts around `anchor` (Firth only: the plain log-likelihood is concave, one start finds its maximum)."""
+        if not self.firth:
+            return []
+        rng = np.random.default_rng(PROFILE_SEED)
+        return [anchor + rng.normal(0.0, _START_SPREAD, len(anchor)) for _ in range(_RANDOM_STARTS)]
+
+    def best(self, fixed: dict[int, float], anchor: np.ndarray) -> float:
+        """The highest local maximum with `fixed` held, from `anchor`, from zero and from the random starts."""
+        return max(self.maximise(start, fixed)[1] for start in [anchor, np.zeros_like(anchor), *self.starts(anchor)])
+
+
+#: Firth's penalized likelihood can have several local maxima once a column is held away from its estimate, so its
+#: constrained maxima are taken over several starts, drawn with this seed (the same starts every time).
+PROFILE_SEED = 0
+_RANDOM_STARTS = 6
+_START_SPREAD = 2.0
+_NEWTON_STEPS = 100
+_GRADIENT_TOLERANCE = 1e-8
+
+
+class _Profile:
+    """The profile objective of one column: the maximum over the other columns with it held at a value. Each value
+    starts from the maxima found at the nearest values held on either side (continuation along every branch found),
+    from the estimate, and, when exploring, from the random starts, so the profile is the upper envelope of the
+    branches and continuous."""
+
+    def __init__(self, likelihood: _Likelihood, column: int, estimate: np.ndarray) -> None:
+        self.likelihood, self.column, self.estimate = likelihood, column, estimate
+        self.found: dict[float, list[np.ndarray]] = {float(estimate[column]): [estimate]}
+
+    def value(self, held: float, explore: bool = False) -> float:
+        nearest = {max((v for v in self.found if v <= held), default=None), min((v for v in self.found if v >= held), default=None)}
+        starts = [beta for v in nearest if v is not None for beta in self.found[v]]
+        if explore:
+            starts += self.likelihood.starts(self.estimate)
+        solutions = [self.likelihood.maximise(start, {self.column: held}) for start in starts]
+        solutions.sort(key=lambda solution: -solution[1])
+        distinct: list[np.ndarray] = []
+        for beta, _ in solutions:
+            if all(np.max(np.abs(beta - other)) > 1e-5 for other in distinct):
+                distinct.append(beta)
+        self.found[held] = distinct[:_BRANCHES]
+        return solutions[0][1]
+
+
+_BRANCHES = 3
 
 
 def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, response: str) -> Fit:
@@ -190,22 +275,27 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
         notes.append(
             "The judgments are perfectly separated (along " + ", ".join(involved) + "): maximum-likelihood "
             "estimates do not exist, so Firth's bias-reduced estimates are shown, with tests and intervals "
-            "from the profile penalized likelihood."
+            f"from the profile penalized likelihood (each constrained maximum the best of several starts, seed {PROFILE_SEED})."
         )
-    beta, covariance, objective = _logistic(x, successes, trials, firth)
-    se = np.sqrt(np.diag(covariance))
+    likelihood = _Likelihood(x, successes, trials, firth)
+    beta, objective = likelihood.maximise(np.zeros(x.shape[1]), {})
+    for start in likelihood.starts(beta):
+        candidate, value = likelihood.maximise(start, {})
+        if value > objective:
+            beta, objective = candidate, value
+    se = np.sqrt(np.diag(np.linalg.pinv(likelihood.information(beta)[2])))
     position = np.cumsum(keep) - 1  # column of dm -> its index among the kept columns
 
-    def constrained(columns: list[int], values: float = 0.0) -> float:
-        """The maximised objective with the given kept columns held at `values`."""
-        return _logistic(x, successes, trials, firth, {j: values for j in columns})[2]
+    def constrained(columns: list[int]) -> float:
+        """The maximised objective with the given kept columns held at zero."""
+        return likelihood.best({j: 0.0 for j in columns}, beta)
 
     if firth:
         # Wald tests understate the uncertainty of penalized estimates; the profile penalized likelihood does not.
         statistic = np.array([_chi_square_test(objective, constrained([j]), 1)[0] for j in range(len(beta))])
         p = chi2.sf(statistic, 1)
         parameters = parameter_rows(dm, keep, beta, se, statistic, p)
-        intervals = [_profile_interval(lambda b, j=j: 2.0 * (objective - constrained([j], b)), beta[j], se[j]) for j in range(len(beta))]
+        intervals = [_profile_interval(_Profile(likelihood, j, beta), objective, se[j]) for j in range(len(beta))]
         parameters = with_intervals(parameters, keep, intervals)
         label = "penalized LR chi-square"
     else:
@@ -226,21 +316,38 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
 
 _Z95 = 1.959963984540054
 _CHI2_95 = _Z95**2
+#: Where the profile is first looked at on each side of the estimate, in standard errors; beyond the last the end is infinite.
+_PROFILE_STEPS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.5, 8.0, 10.0, 13.0, 16.0, 20.0, 25.0, 32.0, 40.0, 50.0)
 
 
-def _profile_interval(deviance: Callable[[float], float], estimate: float, std_error: float) -> tuple[float, float]:
-    """The 95 % profile interval: where the deviance from the optimum crosses the chi-square(1) quantile
-    on each side of the estimate (infinite where it never does within 50 standard errors)."""
+def _profile_interval(profile: _Profile, maximum: float, std_error: float) -> tuple[float, float]:
+    """The 95 % profile interval: where the deviance 2 (maximum - profile) crosses the chi-square(1) quantile on each
+    side of the estimate. Stepping outward brackets the crossing, brentq finds it on the profile (which continuation
+    keeps continuous), and the random starts are tried at the bracket's outer end and at the root: a higher branch found
+    there moves the bracket outward. Infinite where the deviance never crosses within 50 standard errors."""
+    estimate = float(profile.estimate[profile.column])
+
+    def excess(held: float, explore: bool = False) -> float:
+        return 2.0 * (maximum - profile.value(held, explore)) - _CHI2_95
+
     ends = []
     for sign in (-1.0, 1.0):
-        inner, outer = estimate, estimate + sign * std_error
-        while deviance(outer) < _CHI2_95 and abs(outer - estimate) < 50.0 * std_error:
-            inner, outer = outer, estimate + 2.0 * (outer - estimate)
-        if deviance(outer) < _CHI2_95:
-            ends.append(sign * math.inf)
-        else:
-            ends.append(brentq(lambda b: deviance(b) - _CHI2_95, inner, outer, xtol=1e-8))
+        inner, end = estimate, sign * math.inf
+        for multiple in _PROFILE_STEPS:
+            outer = estimate + sign * multiple * std_error
+            if excess(outer) < 0.0 or excess(outer, explore=True) < 0.0:
+                inner = outer
+                continue
+            root = brentq(excess, inner, outer, xtol=1e-9)
+            while excess(root, explore=True) < -_ROOT_TOLERANCE:
+                inner, root = root, brentq(excess, root, outer, xtol=1e-9)
+            end = root
+            break
+        ends.append(end)
     return ends[0], ends[1]
+
+
+_ROOT_TOLERANCE = 1e-7
 
 
 def with_intervals(parameters: list[Parameter], keep: np.ndarray, intervals: list[tuple[float, float]]) -> list[Parameter]:

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 import pytest
 import statsmodels.api as sm
-from scipy.optimize import minimize
+from scipy.optimize import approx_fprime, minimize
 from scipy.special import logit
 from scipy.stats import chi2
 
-from analysis.models import DesignMatrix, fit_least_squares, fit_logistic, separation
+from analysis.models import DesignMatrix, _Likelihood, fit_least_squares, fit_logistic, separation
+from designs.exchange import optimal_design
 from designs.factors import CategoricalFactor, DiscreteFactor
 from designs.model import parse_model
+from designs.presets import ab
 
 
 def _design(rows: int, seed: int = 0) -> tuple[DesignMatrix, np.random.Generator]:
@@ -157,3 +160,98 @@ def test_firth_parameters_use_the_profile_penalized_likelihood() -> None:
         assert 2 * (best - _profile(x, successes, trials, 1, end)) == pytest.approx(chi2.ppf(0.95, 1), abs=1e-4)
     # The profile interval is not the symmetric Wald one.
     assert arm.high - arm.estimate > 1.2 * (arm.estimate - arm.low)
+
+
+@cache
+def _ab_all_yes() -> tuple[DesignMatrix, np.ndarray, np.ndarray]:
+    """The 18-run A/B plan and its 11-column model, 4 judgments a run: arm A all yes, arm B's drawn at 50 % (seed 0).
+    Firth's penalized likelihood has several local maxima here once a column is held away from its estimate."""
+    spec = ab(("A", "B"))
+    model = spec.build_model()
+    design = optimal_design(model, 18, seed=1, starts=spec.starts, criterion=spec.criterion, per_run=spec.per_run())
+    dm = DesignMatrix.from_model(model, design.settings)
+    arm_a = dm.x[:, dm.columns.index("Controller[A]")] > 0
+    return dm, np.where(arm_a, 4, np.random.default_rng(0).binomial(4, 0.5, 18)), np.full(18, 4)
+
+
+def _penalized_with_gradient(x: np.ndarray, k: np.ndarray, n: np.ndarray, beta: np.ndarray) -> tuple[float, np.ndarray]:
+    """Firth's penalized log-likelihood and its gradient, d log det I / d b_a = trace(I^-1 dI/db_a) / 2 written per column."""
+    eta = x @ beta
+    p = 1.0 / (1.0 + np.exp(-eta))
+    w = n * p * (1 - p)
+    information = x.T @ (w[:, None] * x)
+    inverse = np.linalg.inv(information)
+    value = float(np.sum(k * eta - n * np.logaddexp(0.0, eta)) + 0.5 * np.linalg.slogdet(information)[1])
+    penalty = [0.5 * np.trace(inverse @ (x.T @ ((w * (1 - 2 * p) * x[:, a])[:, None] * x))) for a in range(x.shape[1])]
+    return value, x.T @ (k - n * p) + np.array(penalty)
+
+
+def _multistart(x: np.ndarray, k: np.ndarray, n: np.ndarray, column: int, value: float, starts: list[np.ndarray]) -> tuple[float, np.ndarray]:
+    """The best of scipy's BFGS maxima of the penalized likelihood from `starts`, with `column` held at `value`."""
+    others = [j for j in range(x.shape[1]) if j != column]
+
+    def negative(free: np.ndarray) -> tuple[float, np.ndarray]:
+        beta = np.empty(x.shape[1])
+        beta[others], beta[column] = free, value
+        v, g = _penalized_with_gradient(x, k, n, beta)
+        return -v, -g[others]
+
+    best = max((minimize(negative, s[others], jac=True, method="BFGS", options={"gtol": 1e-9}) for s in starts), key=lambda r: -r.fun)
+    beta = np.empty(x.shape[1])
+    beta[others], beta[column] = best.x, value
+    return -float(best.fun), beta
+
+
+def test_penalized_derivatives_match_numerical_ones() -> None:
+    dm, k, n = _ab_all_yes()
+    likelihood = _Likelihood(dm.x, k.astype(float), n.astype(float), firth=True)
+    beta = np.random.default_rng(3).normal(0.0, 1.0, dm.x.shape[1])
+    score, hessian = likelihood.derivatives(beta)
+    assert score == pytest.approx(_penalized_with_gradient(dm.x, k, n, beta)[1], rel=1e-9, abs=1e-9)
+    numerical = np.array([approx_fprime(beta, lambda b, a=a: likelihood.derivatives(b)[0][a], 1e-6) for a in range(len(beta))])
+    assert hessian == pytest.approx(numerical, abs=1e-4)
+
+
+def test_constrained_fit_reaches_a_maximum_from_any_start() -> None:
+    # Far starts, with the Controller column held out on its profile: every fit ends where the free gradient vanishes
+    # and the penalized likelihood curves down, and no start finds more than the best of the others.
+    dm, k, n = _ab_all_yes()
+    x = dm.x
+    likelihood = _Likelihood(x, k.astype(float), n.astype(float), firth=True)
+    rng = np.random.default_rng(4)
+    free = [j for j in range(x.shape[1]) if j != 4]
+    values = []
+    for start in [np.zeros(x.shape[1]), *(rng.normal(0.0, 4.0, x.shape[1]) for _ in range(4))]:
+        beta, value = likelihood.maximise(start, {4: 3.0})
+        score, hessian = likelihood.derivatives(beta)
+        assert beta[4] == 3.0 and np.max(np.abs(score[free])) < 1e-7
+        assert np.all(np.linalg.eigvalsh(hessian[np.ix_(free, free)]) < 0.0)
+        assert value == pytest.approx(_penalized_with_gradient(x, k, n, beta)[0], rel=1e-12)
+        values.append(value)
+    assert max(values) >= _multistart(x, k, n, 4, 3.0, [np.zeros(x.shape[1])])[0] - 1e-9
+
+
+@pytest.mark.slow
+def test_firth_profile_ends_of_an_all_yes_study_match_a_multistart_optimiser() -> None:
+    # Every end of every interval: along a scan from the estimate to the end, each point's maximum is scipy's best from
+    # the previous point's maximum, the estimate, zero and three random starts; the deviance stays below
+    # chi-square(1, 0.95) up to 0.0005 inside the end and is above it 0.0005 outside, so the end is right to 1e-3.
+    dm, k, n = _ab_all_yes()
+    x = dm.x
+    fit = fit_logistic(dm, k, n, "yes")
+    assert "Firth" in fit.method and all(math.isfinite(p.low) and math.isfinite(p.high) for p in fit.parameters)
+    best = minimize(lambda b: tuple(-v for v in _penalized_with_gradient(x, k, n, b)), np.zeros(x.shape[1]), jac=True, method="BFGS", options={"gtol": 1e-10})
+    top, optimum = -float(best.fun), best.x
+    assert [p.estimate for p in fit.parameters] == pytest.approx(optimum, abs=1e-5)
+    rng = np.random.default_rng(2)
+    random = [optimum + rng.normal(0.0, 2.0, len(optimum)) for _ in range(3)]
+    quantile = chi2.ppf(0.95, 1)
+    for j, parameter in enumerate(fit.parameters):
+        for end in (parameter.low, parameter.high):
+            outward = np.sign(end - optimum[j])
+            held = [*np.linspace(optimum[j], end, 8)[1:-1], end - 5e-4 * outward, end + 5e-4 * outward]
+            previous, deviances = optimum, []
+            for value in held:
+                maximum, previous = _multistart(x, k, n, j, value, [previous, optimum, np.zeros(len(optimum)), *random])
+                deviances.append(2.0 * (top - maximum))
+            assert max(deviances[:-1]) < quantile < deviances[-1], (parameter.column, end, deviances)
