@@ -53,6 +53,14 @@ class ScanResult:
     tracks: list[TrackState]
 
 
+#: Seconds a confirmed track of the learned setup lives without a hit (5 scans at 10 Hz), at any scan rate.
+LEARNED_COAST_S = 0.5
+
+
+#: Change of the distance between a track's two legs (m) that the learned setup takes for a stride.
+GAIT_SPREAD = 0.07
+
+
 def still_wait(world: StaticWorldConfig) -> float:
     """How long a still, unsure track waits: half a second more than a cell needs to turn static,
     so the grid has seen it static before the track could be confirmed."""
@@ -91,7 +99,8 @@ class PersonTracker:
         return cls(
             detector,
             TrackerConfig(confirm_confidence=classifier.confirm, still_wait=still_wait(world),
-                          sure_confidence=classifier.protect),
+                          sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
+                          gait_spread=GAIT_SPREAD),
             classifier,
             world,
         )
@@ -124,10 +133,12 @@ class PersonTracker:
         world = self.world
         reject = None if world is None else (lambda legs: world.is_static(sensor_pose.apply(legs)))
         found = detect(scan, self.detector, self.classifier, reject)
-        moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence)
-        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence)
+        moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence,
+                           sensor_pose.apply(found.unsure))
+        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, unsure=moved.unsure, spread=found.spread)
         if world is not None:
             sure = world.config.protect_confidence
-            people = [t.kf.x[:2] for t in self.tracker.tracks if t.confirmed and t.confidence_sum >= sure * t.hits]
+            people = [t.kf.x[:2] for t in self.tracker.tracks
+                      if t.confirmed and (t.walked or t.confidence_sum >= sure * t.hits)]
             world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

@@ -11,6 +11,13 @@ static world counts as a miss for a tentative track), reported while it has miss
 and deleted after `death_misses` consecutive misses once confirmed. A detection beside a
 confirmed track (`birth_clearance`) starts no track: it is that person's other leg. So
 a person standing still is kept: confirmation asks for confidence, never for motion.
+
+Once confirmed, a track is evidence of its own: a confirmed track no sure detection reached takes
+the nearest unsure one (a leg-sized segment off the static world that the classifier scored low)
+inside the gate its filter predicts, so a person already followed is kept through the scans where
+the classifier doubts their legs. The gate grows with the filter's uncertainty while a track
+coasts, and a confirmed track lives `death_misses` scans and at least `death_time` seconds
+without a hit, so it outlives the same occlusion at any scan rate.
 """
 
 from __future__ import annotations
@@ -36,7 +43,9 @@ class TrackerConfig:
         initial_speed_std: velocity uncertainty of a newborn track (m/s).
         gate: largest squared Mahalanobis distance of an accepted detection.
         birth_hits: hits that confirm a tentative track (it dies at `tentative_misses` misses in a row).
-        death_misses: consecutive misses that delete a confirmed track.
+        death_misses: consecutive misses that delete a confirmed track, once it has also
+            missed for `death_time` seconds.
+        death_time: seconds without a hit a confirmed track outlives (0: scans alone count).
         report_misses: a confirmed track is reported only while it has missed at most this many
             scans in a row; it lives on unreported until `death_misses`, so a person coming out
             from behind someone keeps their track and id.
@@ -44,9 +53,13 @@ class TrackerConfig:
         birth_clearance: an unassigned detection closer than this (m) to a confirmed track starts
             no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
-        still_wait, still_distance, sure_confidence: a tentative track that has not moved
-            `still_distance` (m) from where it was born, with a mean confidence under
-            `sure_confidence`, is confirmed no earlier than `still_wait` seconds after its birth.
+        still_wait, still_distance, sure_confidence: a tentative track that has not walked
+            (moved `still_distance` (m) from where it was born, or changed its legs' spread by
+            `gait_spread`), with a mean confidence under `sure_confidence`, is confirmed no
+            earlier than `still_wait` seconds after its birth.
+        gait_spread: a change of the distance between a track's two legs (m) that shows a
+            stride, however still the person is in the output frame (someone followed by the
+            robot, tracked in the robot's frame); inf leaves strides out.
     """
 
     measurement_std: float = 0.2
@@ -55,9 +68,11 @@ class TrackerConfig:
     gate: float = CHI2_2DOF_99
     birth_hits: int = 3
     death_misses: int = 5
+    death_time: float = 0.0
     confirm_confidence: float = 0.0
     still_wait: float = 0.0
     still_distance: float = 0.3
+    gait_spread: float = np.inf
     sure_confidence: float = 1.0
     report_misses: int = 1_000_000
     tentative_misses: int = 1
@@ -90,6 +105,11 @@ class Track:
         self.birth = np.array(position[:2], dtype=float)
         self.born: float | None = None
         self.misses = 0
+        self.last_hit: float | None = None
+        #: Whether it has ever been `still_distance` from its birth place, or its legs' spread
+        #: changed by `gait_spread`: it walks.
+        self.walked = False
+        self.spreads = [np.inf, -np.inf]
         self.confidence_sum = 0.0
 
     @property
@@ -131,13 +151,17 @@ class Tracker:
         innovation = detections[None, :, :] - means[:, None, :]
         return np.einsum("tdi,tij,tdj->td", innovation, np.linalg.inv(S), innovation)
 
-    def associate(self, detections: np.ndarray) -> list[tuple[int, int]]:
-        """(track index, detection index) pairs: the Hungarian optimum inside the gate."""
+    def associate(self, detections: np.ndarray, tracks: list[int] | None = None) -> list[tuple[int, int]]:
+        """(track index, detection index) pairs: the Hungarian optimum inside the gate, over every
+        track or the given ones."""
         cost = self.distances(detections)
+        if tracks is not None:
+            cost = cost[tracks]
         if cost.size == 0:
             return []
         rows, cols = linear_sum_assignment(np.minimum(cost, 2.0 * self.config.gate))
-        return [(int(r), int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
+        index = list(range(len(self.tracks))) if tracks is None else tracks
+        return [(index[r], int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
 
     def _ready(self, track: Track, time: float) -> bool:
         """Whether a tentative track with enough hits is confident enough, or has waited enough."""
@@ -145,9 +169,8 @@ class Tracker:
         mean = track.confidence_sum / track.hits
         if mean < config.confirm_confidence:
             return False
-        moved = np.hypot(*(track.kf.x[:2] - track.birth)) >= config.still_distance
         assert track.born is not None
-        return moved or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return track.walked or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
@@ -159,7 +182,8 @@ class Tracker:
         return distance.min(axis=1) < self.config.birth_clearance
 
     def step(
-        self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None
+        self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None,
+        unsure: np.ndarray | None = None, spread: np.ndarray | None = None,
     ) -> list[TrackState]:
         """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
 
@@ -168,6 +192,8 @@ class Tracker:
             detections: (D, 2) detected people.
             confidence: (D,) the detector's confidence in each (default: 1).
             static: (D,) True for detections on the static world (default: none).
+            unsure: (U, 2) people the detector doubts, which only keep confirmed tracks (default: none).
+            spread: (D,) the distance between each detection's two legs, NaN for one (default: none).
 
         A confirmed track is reported while it coasts through up to `report_misses` misses.
         """
@@ -181,21 +207,29 @@ class Tracker:
             track = self.tracks[t]
             track.kf.update(detections[d])
             track.hits += 1
-            track.misses = 0
             track.confidence_sum += confidence[d]
+            if spread is not None and np.isfinite(spread[d]):
+                track.spreads = [min(track.spreads[0], spread[d]), max(track.spreads[1], spread[d])]
+        if unsure is not None and len(unsure):
+            waiting = [t for t, track in enumerate(self.tracks) if track.confirmed and t not in hit]
+            for t, u in self.associate(np.asarray(unsure, dtype=float).reshape(-1, 2), waiting) if waiting else []:
+                self.tracks[t].kf.update(unsure[u])
+                hit.add(t)
         for index, track in enumerate(self.tracks):
-            if index not in hit:
+            if index in hit:
+                track.misses, track.last_hit = 0, time
+                track.walked |= bool(np.hypot(*(track.kf.x[:2] - track.birth)) >= self.config.still_distance
+                                     or track.spreads[1] - track.spreads[0] >= self.config.gait_spread)
+            else:
                 track.misses += 1
-        self.tracks = [
-            t for t in self.tracks
-            if t.misses < (self.config.death_misses if t.confirmed else self.config.tentative_misses)
-        ]
+        self.tracks = [t for t in self.tracks if not self._dead(t, time)]
         used = {d for _, d in pairs}
         crowded = self._beside_confirmed(detections)
         for d in range(len(detections)):
             if d not in used and not static[d] and not crowded[d]:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
+                self.tracks[-1].last_hit = time
         for track in self.tracks:
             if track.born is None:
                 track.born = time
@@ -203,3 +237,12 @@ class Tracker:
                 track.track_id = self._next_id
                 self._next_id += 1
         return [t.state() for t in self.tracks if t.confirmed and t.misses <= self.config.report_misses]
+
+    def _dead(self, track: Track, time: float) -> bool:
+        """Whether a track has missed too long: `tentative_misses` scans while tentative;
+        `death_misses` scans and `death_time` seconds once confirmed."""
+        config = self.config
+        if not track.confirmed:
+            return track.misses >= config.tentative_misses
+        assert track.last_hit is not None
+        return track.misses >= config.death_misses and time - track.last_hit >= config.death_time
