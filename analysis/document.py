@@ -13,7 +13,9 @@ import io
 import re
 from dataclasses import dataclass, field
 
-from robot_logs.figure_files import Rendered
+from PIL import Image
+
+from robot_logs.figure_files import DEFAULT_DPI, Rendered
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,8 @@ class Figure:
     name: str
     image: Rendered
     caption: str
+    #: A few words for the report's table of contents; the file stem when empty.
+    title: str = ""
 
 
 Block = Heading | Paragraph | Bullets | Table | Figure
@@ -68,7 +72,18 @@ figure { margin: 1em 0 2em; }
 figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { font-size: .85em; color: #555; }
 code { background: #f4f4f4; padding: 0 .2em; }
+nav#contents ol { margin: .2em 0; padding-left: 1.4em; }
+@page { size: A4; margin: 20mm 25mm; }
+@media print {
+  body { font-size: 10pt; max-width: none; margin: 0; padding: 0; }
+  figure, table, tr { break-inside: avoid; }
+  h2, h3, h4 { break-after: avoid; }
+}
 """
+#: The id of the table of contents; headings never take it.
+CONTENTS = "contents"
+#: CSS pixels per inch: an image `width` of inches x this shows a figure at the size it was drawn.
+CSS_PX_PER_IN = 96
 
 
 def _inline_html(text: str) -> str:
@@ -101,18 +116,75 @@ def to_markdown(title: str, blocks: list[Block], figure_dir: str = "figures") ->
     return "\n".join(lines).rstrip() + "\n"
 
 
+def _anchors(blocks: list[Block]) -> dict[int, str]:
+    """An id for each heading (from its text, unique on the page) and each figure (`figure-<name>`), by block index."""
+    taken = {CONTENTS}
+    anchors: dict[int, str] = {}
+    for index, block in enumerate(blocks):
+        if isinstance(block, Heading | Figure):
+            base = f"figure-{block.name}" if isinstance(block, Figure) else re.sub(r"[^a-z0-9]+", "-", _plain(block.text).lower()).strip("-")
+            anchor, count = base or "section", 1
+            while anchor in taken:
+                count += 1
+                anchor = f"{base}-{count}"
+            taken.add(anchor)
+            anchors[index] = anchor
+    return anchors
+
+
+def _contents(blocks: list[Block], anchors: dict[int, str], numbers: dict[int, int]) -> str:
+    """The table of contents: every heading nested by level, each figure under the heading it follows."""
+    entries: list[tuple[int, str, str]] = []
+    level = 2
+    for index, block in enumerate(blocks):
+        if isinstance(block, Heading):
+            level = block.level
+            entries.append((level, anchors[index], _inline_html(block.text)))
+        elif isinstance(block, Figure):
+            entries.append((level + 1, anchors[index], f"Figure {numbers[index]}: {_inline_html(block.title or block.name)}"))
+    if not entries:
+        return ""
+    top = min(level for level, _, _ in entries)
+    parts, depth = [], 0
+    for level, anchor, text in entries:
+        level = min(level - top + 1, depth + 1)  # a level skipped nests one step, not an empty list
+        if level > depth:
+            parts.append("<ol>")
+        else:
+            parts.append("</li>" + "</ol></li>" * (depth - level))
+        depth = level
+        parts.append(f'<li><a href="#{anchor}">{text}</a>')
+    parts.append("</li></ol>" * depth)
+    return f'<nav id="{CONTENTS}"><h2>Contents</h2>{"".join(parts)}</nav>'
+
+
+def _figure_html(block: Figure, anchor: str, number: int) -> str:
+    """A figure as an embedded PNG shown at the width it was drawn (at most the column's), with its smallest font
+    size in `data-smallest-font-pt`, so a reader or a test can tell how large its text prints."""
+    png = block.image.png()
+    width, height = (round(size / DEFAULT_DPI * CSS_PX_PER_IN) for size in Image.open(io.BytesIO(png)).size)
+    data = base64.b64encode(png).decode("ascii")
+    return (f'<figure id="{anchor}"><img src="data:image/png;base64,{data}" width="{width}" height="{height}" '
+            f'data-smallest-font-pt="{block.image.smallest_font_pt:g}" alt="{html.escape(_plain(block.caption))}">'
+            f"<figcaption><strong>Figure {number}.</strong> {_inline_html(block.caption)}</figcaption></figure>")
+
+
 def to_html(title: str, blocks: list[Block]) -> str:
-    """The report as one HTML page with its figures embedded as base64 PNG (no outside references)."""
+    """The report as one HTML page with a table of contents linked to every heading and figure, its figures
+    embedded as base64 PNG (no outside references)."""
+    anchors = _anchors(blocks)
+    numbers = {index: n for n, index in enumerate((i for i, b in enumerate(blocks) if isinstance(b, Figure)), start=1)}
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         f"<title>{html.escape(title)}</title>",
         f"<style>{STYLE}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
+        _contents(blocks, anchors, numbers),
     ]
-    for block in blocks:
+    for index, block in enumerate(blocks):
         if isinstance(block, Heading):
-            parts.append(f"<h{block.level}>{_inline_html(block.text)}</h{block.level}>")
+            parts.append(f'<h{block.level} id="{anchors[index]}">{_inline_html(block.text)}</h{block.level}>')
         elif isinstance(block, Paragraph):
             parts.append(f"<p>{_inline_html(block.text)}</p>")
         elif isinstance(block, Bullets):
@@ -126,11 +198,7 @@ def to_html(title: str, blocks: list[Block]) -> str:
             caption = f"<caption>{_inline_html(block.caption)}</caption>" if block.caption else ""
             parts.append(f"<table>{caption}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
         else:
-            data = base64.b64encode(block.image.png()).decode("ascii")
-            parts.append(
-                f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block.caption)}">'
-                f"<figcaption>{_inline_html(block.caption)}</figcaption></figure>"
-            )
+            parts.append(_figure_html(block, anchors[index], numbers[index]))
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
 

@@ -469,7 +469,8 @@ def _models_section(a: _Analysis) -> list[Block]:
         if panels:
             blocks.append(
                 Figure("residuals", residuals_figure(panels), "Residual against fitted value of each outcome metric's least-squares fit, one point per run; "
-                       "a pattern or a funnel says the model or its constant variance does not hold. Open triangles: durations censored by the time limit.")
+                       "a pattern or a funnel says the model or its constant variance does not hold. Open triangles: durations censored by the time limit.",
+                       "residuals of the outcome metrics' fits")
             )
     return blocks
 
@@ -509,7 +510,7 @@ def _figures_section(a: _Analysis) -> list[Block]:
         groups = {arm: c for arm, c in groups.items() if sum(c)} if len(a.arms) > 1 else {"all runs": counts(a.scores[r.code].final for r in data.compared)}
         paper_shares = paper_score_shares(data.spec)
         caption = f"Share of runs scored 1, 2 and 3 by {word} (bars with Wilson 95 % intervals, counts under them)" + (" and the paper's shares for this plan (diamonds)." if paper_shares else ".")
-        blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption))
+        blocks.append(Figure("scores", score_distribution_figure(groups, paper_shares, "Score distribution"), caption, "score distribution"))
     panels = []
     for run in data.finished:
         log = a.logs.get(run.code)
@@ -519,18 +520,21 @@ def _figures_section(a: _Analysis) -> list[Block]:
         title = f"{run.order}. {run.code} | {arm}\n{a.pedestrians[run.code]} ped | score {a.scores[run.code].final}"
         panels.append((title, run.arm, log.robot[:, 1:3], [track[:, 1:3] for track in log.pedestrians.values()]))
     if panels:
-        blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order: the robot's path (colour by " + word + ") and the pedestrians' paths (grey)."))
+        blocks.append(Figure("trajectories", trajectories_figure(panels, colours, word), "Every finished run in run order, seen from above (metres): the robot's path (colour by " + word + ") and the pedestrians' paths (grey), "
+                                 "a marker where each ends; panel titles give the run's order, code, " + word + ", pedestrians and score.", "every run's paths"))
     if a.table:
         rows = [(row.min_pedestrians, {arm: (row.shares[arm].share, row.shares[arm].low, row.shares[arm].high) for arm in a.arms}) for row in a.table]
         paper = PAPER_TABLE_II if data.blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms) else None
-        blocks.append(Figure("ab_shares" if len(a.arms) > 1 else "judged_shares", shares_figure(rows, paper, "Judged socially compliant"), "Share judged socially compliant among runs with at least k pedestrians, Wilson 95 % intervals" + ("; hollow diamonds: the paper." if paper else ".")))
+        blocks.append(Figure("ab_shares" if len(a.arms) > 1 else "judged_shares", shares_figure(rows, paper, "Judged socially compliant"), "Share of judgments \"socially compliant\" by " + word + " among runs with at least k pedestrians, with Wilson 95 % intervals"
+                                 + ("; hollow diamonds: the paper's Table II." if paper else "."), "judged socially compliant"))
     points = [
         (run.arm, float(a.pedestrians[run.code]), run.outcome.min_distance_m)
         for run in data.compared
         if run.outcome is not None and run.outcome.min_distance_m is not None
     ]
     if points:
-        blocks.append(Figure("min_distance", min_distance_figure(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body; lines join the means per {word}."))
+        blocks.append(Figure("min_distance", min_distance_figure(points, a.arms, f"Minimum gap by {word} and pedestrian count", a.rubric.intimate_distance_m), f"Each run's minimum gap between the robot's footprint and a pedestrian's body against its pedestrian count, one colour per {word}; "
+                                 f"lines join the means per {word}; the dotted line is the intimate distance.", "minimum gap"))
     return blocks
 
 
@@ -573,7 +577,9 @@ def _design_section(a: _Analysis) -> list[Block]:
     if columns:
         labels = _open_labels(columns, data)
         values = np.array([[math.nan if v is None else v for v in row] for row in matrix], dtype=float)
-        blocks.append(Figure("correlation_map", correlation_map_figure(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: |r| between model columns over the plan."))
+        blocks.append(Figure("correlation_map", correlation_map_figure(labels, values, f"{data.spec.name}: correlations of model columns"), "The design's correlation map: the signed correlation r between each pair of model columns over the plan, "
+                                 "from blue (-1) through white (0) to red (+1); the off-diagonal cells show how far the effects can be told apart.",
+                                 "correlation map"))
     return blocks
 
 

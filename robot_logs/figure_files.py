@@ -19,12 +19,21 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-#: PNG resolution (dots per inch) unless a command's --dpi says otherwise; SVG has none.
-DEFAULT_DPI = 100
+#: PNG resolution (dots per inch) unless a command's --dpi says otherwise; SVG has none. 200 keeps 10 pt text
+#: sharp on paper and on high-density screens.
+DEFAULT_DPI = 200
 #: The resolutions --dpi accepts.
 MIN_DPI, MAX_DPI = 50, 1200
 #: Every saved figure is written in each of these formats, by file suffix.
 FORMATS = (".png", ".svg")
+#: The width of a report's text column printed on A4 (210 mm less 25 mm margins each side), inches.
+PRINT_COLUMN_IN = 160 / 25.4
+#: The body text of a printed report, points: no figure's text may print smaller.
+BODY_TEXT_PT = 10.0
+#: Blank border around a saved figure, inches.
+PAD_IN = 0.05
+#: The widest a figure may be drawn, inches: saved with its border, it fits the printed column at full size.
+FIGURE_WIDTH_IN = PRINT_COLUMN_IN - 2 * PAD_IN
 
 
 @contextmanager
@@ -47,7 +56,7 @@ def figure_bytes(figure: Figure, suffix: str, dpi: int = DEFAULT_DPI) -> bytes:
     metadata = {"Date": None} if suffix == ".svg" else {}
     with quiet_glyphs(), rc_context({"svg.hashsalt": "navtrials"}):  # SVG element ids from a fixed salt, not at random
         FigureCanvasAgg(figure)  # off-screen, whatever pyplot's backend is
-        figure.savefig(buffer, format=suffix[1:], dpi=dpi, bbox_inches="tight", pad_inches=0.05, metadata=metadata)
+        figure.savefig(buffer, format=suffix[1:], dpi=dpi, bbox_inches="tight", pad_inches=PAD_IN, metadata=metadata)
     return buffer.getvalue()
 
 
@@ -67,6 +76,24 @@ class Rendered:
             FigureCanvasAgg(self.figure)
             self.figure.draw_without_rendering()
         self.figure.set_layout_engine("none")
+
+    @property
+    def width_in(self) -> float:
+        """The saved figure's width, inches: what is drawn and its border."""
+        return float(self.figure.get_tightbbox().width) + 2 * PAD_IN
+
+    @property
+    def smallest_font_pt(self) -> float:
+        """The size of the smallest text drawn (tick labels, legends, annotations, titles), points."""
+        from matplotlib.text import Text
+
+        sizes = [text.get_fontsize() for text in self.figure.findobj(Text) if text.get_visible() and text.get_text().strip()]
+        return float(min(sizes, default=BODY_TEXT_PT))
+
+    @property
+    def printed_font_pt(self) -> float:
+        """The smallest text's size once the figure is scaled down to fit a report column printed on A4, points."""
+        return self.smallest_font_pt * min(1.0, PRINT_COLUMN_IN / self.width_in)
 
     def png(self, dpi: int = DEFAULT_DPI) -> bytes:
         return figure_bytes(self.figure, ".png", dpi)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import os
 import stat
+from functools import cache
 from pathlib import Path
 
 import matplotlib.image as mpimg
@@ -15,9 +16,17 @@ import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.container import ErrorbarContainer
 
-from analysis.figures import min_distance_figure, score_distribution_figure, trajectories_figure
+from analysis.figures import (
+    correlation_map_figure,
+    design_evaluation_figure,
+    min_distance_figure,
+    residuals_figure,
+    score_distribution_figure,
+    shares_figure,
+    trajectories_figure,
+)
 from analysis.intervals import wilson
-from robot_logs.figure_files import FORMATS, figure_bytes
+from robot_logs.figure_files import BODY_TEXT_PT, FORMATS, PRINT_COLUMN_IN, Rendered, figure_bytes
 from robot_logs.run_log import LoggedRun
 from tests.support.scripts import load_script
 from trials.run_figure import MARK_EVERY_S, ROBOT_COLOUR, mark_indices, run_figure
@@ -76,12 +85,12 @@ def test_the_robot_has_a_colour_no_pedestrian_gets_and_the_legend_sits_outside_t
 
     renderer = FigureCanvasAgg(figure).get_renderer()
     figure.draw(renderer)
-    (legend,) = figure.legends
-    box, data = legend.get_window_extent(renderer), axes.get_window_extent(renderer)
+    box, data = axes.get_legend().get_window_extent(renderer), axes.get_window_extent(renderer)
     assert box.x0 >= data.x1  # beside the axes: it cannot hide a path
+    assert box.x0 - data.x1 < 0.1 * figure.dpi and box.y1 == pytest.approx(data.y1, abs=1)  # against them, level with their top
 
 
-def test_trajectory_panels_read_at_8_pt_and_no_title_is_clipped():
+def test_trajectory_panels_read_at_the_body_size_and_no_title_is_clipped():
     path = np.column_stack([np.linspace(-5, 5, 50), np.zeros(50)])
     panels = [(f"{i + 1}. RUN{i:02d} | Arm {'AB'[i % 2]}\n4 ped | score 3", "AB"[i % 2], path, [path[::-1] + [0, 1]]) for i in range(14)]
     figure = trajectories_figure(panels, {"A": "#1f77b4", "B": "#d62728"}, "arm").figure
@@ -94,9 +103,9 @@ def test_trajectory_panels_read_at_8_pt_and_no_title_is_clipped():
     page = figure.bbox
     for axes in shown:
         ticks = axes.xaxis.get_major_ticks() + axes.yaxis.get_major_ticks()
-        assert ticks and min(tick.label1.get_fontsize() for tick in ticks) >= 8
+        assert ticks and min(tick.label1.get_fontsize() for tick in ticks) >= BODY_TEXT_PT
         title = axes.title.get_window_extent(renderer)
-        assert axes.title.get_fontsize() >= 8 and page.x0 <= title.x0 and title.x1 <= page.x1 and title.y1 <= page.y1
+        assert axes.title.get_fontsize() >= BODY_TEXT_PT and page.x0 <= title.x0 and title.x1 <= page.x1 and title.y1 <= page.y1
     for first, second in zip(shown, shown[1:]):  # titles never run into their neighbours
         a, b = first.title.get_window_extent(renderer), second.title.get_window_extent(renderer)
         assert not a.overlaps(b)
@@ -145,3 +154,98 @@ def test_the_screenshot_captures_a_page_taller_than_6000_px(tmp_path: Path):
     image = mpimg.imread(shot)
     assert image.shape[:2] == (9100, 400)
     assert tuple(image[8990, 200, :3]) == (1.0, 0.0, 0.0) and tuple(image[9090, 200, :3]) == (0.0, 0.0, 1.0)
+
+
+@cache
+def every_figure() -> dict[str, Rendered]:
+    """Each figure the toolkit draws, on small made-up data (the correlation map at 10 model columns, as the A/B plan's)."""
+    rng = np.random.default_rng(3)
+    columns = ["Pedestrians", "Direction[Parallel]", "Direction[ParallelCrossing]", "Controller[A]", "Pedestrians*Direction[Parallel]",
+               "Pedestrians*Direction[ParallelCrossing]", "Pedestrians*Controller[A]", "Direction[Parallel]*Controller[A]",
+               "Direction[ParallelCrossing]*Controller[A]", "Pedestrians^2"]
+    correlations = np.corrcoef(rng.normal(size=(len(columns), 30)))
+    path = np.column_stack([np.linspace(-5, 5, 50), np.zeros(50)])
+    panels = [(f"{i + 1}. RUN{i:02d} | {'AB'[i % 2]}\n4 ped | score 3", "AB"[i % 2], path, [path[::-1] + [0, 1]]) for i in range(6)]
+    fraction = (np.linspace(0, 1, 20), np.linspace(0.2, 0.9, 20))
+    profiles = [("Pedestrians", [2.0, 4.0, 6.0], [0.5, 0.3, 0.5], ["2", "4", "6"]),
+                ("Direction", [0, 1, 2], [0.4, 0.4, 0.5], ["Parallel", "Crossing", "ParallelCrossing"]),
+                ("Controller", [0, 1], [0.3, 0.3], ["A", "B"]), ("Speed", list(np.linspace(0.5, 1.5, 9)), list(np.linspace(0.3, 0.6, 9)), [])]
+    residuals = [(f"metric {k}", tuple(rng.normal(size=18)), tuple(rng.normal(size=18)), tuple([True] + [False] * 17)) for k in range(4)]
+    return {
+        "correlation_map": correlation_map_figure(columns, correlations, "ab: correlations of model columns"),
+        "design_evaluation": design_evaluation_figure(fraction, profiles, "ab: design evaluation"),
+        "scores": score_distribution_figure({"A": [1, 3, 10], "B": [0, 5, 9]}, {1: 10.0, 2: 30.0, 3: 60.0}, "Score distribution"),
+        "trajectories": trajectories_figure(panels, {"A": "#1f77b4", "B": "#d62728"}, "arm"),
+        "shares": shares_figure([(2, {"A": (0.8, 0.6, 0.9), "B": (0.6, 0.4, 0.8)}), (4, {"A": (0.7, 0.5, 0.9), "B": (0.5, 0.3, 0.7)})], None, "shares"),
+        "min_distance": min_distance_figure([("A", 2, 0.8), ("A", 6, 0.52), ("B", 2, 0.49), ("B", 6, 0.5)], ["A", "B"], "gap", 0.5),
+        "residuals": residuals_figure(residuals),
+        "run": run_figure(logged_run(12), "run X: Pedestrians 6, Direction Parallel, Controller A; goal", (5.0, 0.0), (0.0, 0.0)),
+    }
+
+
+@pytest.mark.slow  # draws every figure once, about 5 s
+@pytest.mark.parametrize("name", ["correlation_map", "design_evaluation", "scores", "trajectories", "shares", "min_distance", "residuals", "run"])
+def test_no_figure_prints_text_smaller_than_the_body_text_on_a4(name):
+    figure = every_figure()[name]
+    assert figure.width_in <= PRINT_COLUMN_IN + 1e-6 and figure.smallest_font_pt >= BODY_TEXT_PT
+    assert figure.printed_font_pt >= BODY_TEXT_PT
+    width, _ = (n / 100 for n in reversed(size(figure.png(100))))
+    assert width == pytest.approx(figure.width_in, abs=0.02)  # the saved PNG is as wide as the figure says
+
+
+def test_a_wide_figure_with_small_text_is_caught():
+    from matplotlib.figure import Figure
+
+    wide = Figure(figsize=(12.6, 3.0))
+    wide.add_subplot().set_title("title", fontsize=12)
+    figure = Rendered(wide)
+    assert figure.smallest_font_pt == 10.0  # the tick labels
+    assert figure.printed_font_pt == pytest.approx(10.0 * PRINT_COLUMN_IN / figure.width_in) and figure.printed_font_pt < 6.5
+
+
+def test_the_correlation_map_is_signed_and_writes_each_r_at_the_body_size():
+    columns = ["a", "b", "c"]
+    correlations = np.array([[1.0, -0.5, 0.08], [-0.5, 1.0, 0.0], [0.08, 0.0, 1.0]])
+    axes = correlation_map_figure(columns, correlations, "map").figure.axes[0]
+    image = axes.get_images()[0]
+    assert image.get_clim() == (-1.0, 1.0)
+    cells = {(round(t.get_position()[1]), round(t.get_position()[0])): t for t in axes.texts}
+    assert cells[(0, 1)].get_text() == "-.50" and cells[(0, 2)].get_text() == ".08" and cells[(2, 2)].get_text() == "1"
+    assert {t.get_fontsize() for t in axes.texts} == {BODY_TEXT_PT}
+    many = correlation_map_figure([f"column {i}" for i in range(30)], np.eye(30), "map").figure.axes[0]
+    assert len(many.texts) == 0  # cells too narrow for a readable number show colour only
+
+
+@pytest.mark.slow  # shares every_figure's drawing
+def test_min_distance_names_the_intimate_distance_in_the_legend_where_no_point_covers_it():
+    figure = every_figure()["min_distance"].figure
+    axes = figure.axes[0]
+    assert [t.get_text() for t in axes.get_legend().get_texts()] == ["A", "B", "intimate distance 0.5 m"]
+    assert len(axes.texts) == 0
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    figure.draw(renderer)
+    assert axes.get_legend().get_window_extent(renderer).y0 >= axes.get_window_extent(renderer).y1  # above the data
+
+
+@pytest.mark.slow  # two figures of two panels laid out, about 4 s
+def test_the_power_figure_names_only_what_it_draws_and_keeps_its_legend_off_the_data():
+    from trials.power.figure import power_rendered
+    from trials.power.summary import PlanPower, PowerEstimate
+
+    def plans(campaigns: int) -> list[PlanPower]:
+        estimate = PowerEstimate(20, 40, 0.35, 0.65)
+        return [PlanPower(runs, "d-optimal", {}, {}, {"Pedestrians": estimate, "Controller": estimate}, {}, campaigns,
+                          {"Pedestrians": estimate, "Controller": estimate} if campaigns else {}) for runs in (18, 36)]
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    for campaigns, title in ((0, "Power by term: model-based (lines)"), (4, "Power by term: model-based (lines), closed-loop (open squares)")):
+        rendered = power_rendered(plans(campaigns), 0.8)
+        figure = rendered.figure
+        assert figure.get_suptitle() == title and rendered.printed_font_pt >= BODY_TEXT_PT
+        renderer = FigureCanvasAgg(figure).get_renderer()
+        figure.draw(renderer)
+        axes = figure.axes[0]
+        assert axes.get_legend().get_window_extent(renderer).y0 >= axes.get_window_extent(renderer).y1

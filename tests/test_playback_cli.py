@@ -14,6 +14,7 @@ import pytest
 import torch
 
 from navigan.playback.table import METRICS
+from robot_logs.figure_files import DEFAULT_DPI
 from trials.cli import main
 
 QUICK = ["--split", "zara1", "--episodes", "3", "--threads", "1", "--quiet"]
@@ -175,7 +176,7 @@ def test_the_evasion_column_walks_the_networks_its_checkpoint_holds_and_refuses_
 
 def test_figures_are_png_at_the_dpi_asked_and_svg_that_a_redraw_keeps_byte_for_byte(eth_ucy_dir, tmp_path):
     out = tmp_path / "pb"
-    assert playback(eth_ucy_dir, out, "--models", "navigan-r,human", "--dpi", "200") == 0
+    assert playback(eth_ucy_dir, out, "--models", "navigan-r,human", "--dpi", str(2 * DEFAULT_DPI)) == 0
     figures = out / "figures"
     names = {"fig4_zara1", "forces_zara1", "min_distance"}
     assert {p.name for p in figures.iterdir()} == {n + s for n in names for s in (".png", ".svg")}

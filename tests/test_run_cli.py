@@ -13,6 +13,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
+from robot_logs.figure_files import DEFAULT_DPI
 from robot_logs.foxglove_log import FoxgloveReader
 from tests.support.run_studies import design_small_study
 from trials.cli import main
@@ -122,7 +123,7 @@ def test_log_show_prints_the_runs_metrics_and_draws_it(finished, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and b"<svg" in svg.read_bytes()
     assert f"trajectories: {png}, {svg}" in out
     width = mpimg.imread(png).shape[1]
-    assert main(["log", "show", row["run_code"], "--study", str(study), "--dpi", "200"]) == 0
+    assert main(["log", "show", row["run_code"], "--study", str(study), "--dpi", str(2 * DEFAULT_DPI)]) == 0
     assert mpimg.imread(png).shape[1] == pytest.approx(2 * width, abs=4)  # the same picture at twice the resolution
 
 

@@ -7,7 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from robot_logs.figure_files import Rendered
+from robot_logs.figure_files import BODY_TEXT_PT, FIGURE_WIDTH_IN, Rendered
 from robot_logs.physical import GOAL_TOLERANCE_M, PEDESTRIAN_RADIUS_M
 from robot_logs.run_log import LoggedRun
 from trials.scenario import CONE, GOAL
@@ -43,13 +43,13 @@ def mark_indices(time: np.ndarray, every_s: float = MARK_EVERY_S) -> np.ndarray:
 
 def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tuple[float, float] | None,
                limits: RobotLimits = RobotLimits()) -> Rendered:
-    """The run's trajectories (a logged trial has no cone, and its people come and go), with the legend
-    beside the axes so it never hides a path."""
+    """The run's trajectories (a logged trial has no cone, and its people come and go), a report column wide with its
+    text at the body text's size, the legend against the axes' right side so it never hides a path."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
 
-    figure = Figure(figsize=(9, 6), layout="constrained")
+    figure = Figure(figsize=(FIGURE_WIDTH_IN, 4.8), layout="constrained")
     axes = figure.add_subplot()
     step = max(int(round(OUTLINE_EVERY_S / max(np.median(np.diff(run.time)), 1e-3))), 1) if len(run.time) > 1 else 1
     for k in range(0, len(run.time), step):
@@ -59,8 +59,8 @@ def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tupl
     marks = mark_indices(run.time)
     axes.plot(run.pose[marks, 0], run.pose[marks, 1], "o", color=ROBOT_COLOUR, markersize=4, zorder=4)
     for k in marks[1:]:
-        axes.annotate(f"{run.time[k] - run.time[0]:.0f}", tuple(run.pose[k, :2]), textcoords="offset points", xytext=(3, -9),
-                      fontsize=7, color=ROBOT_COLOUR)
+        axes.annotate(f"{run.time[k] - run.time[0]:.0f}", tuple(run.pose[k, :2]), textcoords="offset points", xytext=(3, -11),
+                      fontsize=BODY_TEXT_PT, color=ROBOT_COLOUR)
     colours = colormaps[PEDESTRIAN_COLOURS]
     for j, pid in enumerate(run.ids):
         colour = colours(j % colours.N)
@@ -72,7 +72,7 @@ def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tupl
         path = path[seen]
         axes.plot(*path[0], marker="^", color=colour, markersize=5)
         axes.add_patch(Circle(tuple(path[-1]), PEDESTRIAN_RADIUS_M, color=colour, alpha=0.5))
-        axes.annotate(str(pid), tuple(path[0]), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        axes.annotate(str(pid), tuple(path[0]), textcoords="offset points", xytext=(4, 4), fontsize=BODY_TEXT_PT)
     axes.add_patch(Circle(goal, GOAL_TOLERANCE_M, color="green", alpha=0.25, label=f"goal ({GOAL_TOLERANCE_M:g} m)"))
     if cone is not None:
         axes.plot(*cone, marker="^", color="orangered", markersize=9, linestyle="none", label="cone")
@@ -83,11 +83,12 @@ def run_figure(run: LoggedRun, title: str, goal: tuple[float, float], cone: tupl
     axes.plot([], [], "o", color="0.3", markersize=4, label=f"every {MARK_EVERY_S:g} s (robot: s)")
     axes.plot([], [], "^", color="0.3", markersize=5, linestyle="none", label="pedestrian's start")
     axes.set_aspect("equal")
-    axes.set_xlabel("x (m)")
-    axes.set_ylabel("y (m)")
-    axes.set_title(title, fontsize=10, wrap=True)
+    axes.set_xlabel("x (m)", fontsize=BODY_TEXT_PT)
+    axes.set_ylabel("y (m)", fontsize=BODY_TEXT_PT)
+    axes.tick_params(labelsize=BODY_TEXT_PT)
+    axes.set_title(title, fontsize=BODY_TEXT_PT, wrap=True)
     axes.grid(alpha=0.3)
-    figure.legend(loc="outside right upper", fontsize=8)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=BODY_TEXT_PT)
     return Rendered(figure)
 
 
