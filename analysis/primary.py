@@ -6,15 +6,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from analysis.clustered import fit_gee
-from analysis.models import DesignMatrix
+from analysis.ab_table import RunJudgments
+from analysis.clustered import GeeOptions, fit_gee
+from analysis.models import DesignMatrix, Fit, fit_logistic, parameter_rows
 from analysis.plan import RANDOMIZATION, AnalysisPlan
 from analysis.randomization import RandomizationTest, randomization_test
-from designs.factors import DesignFactor
+from analysis.records import StudyData, StudyRun
+from analysis.study_fits import JUDGED, relabel, settings
+from designs.factors import CategoricalFactor, DesignFactor
 from designs.model import Model, parse_model
 
 
@@ -46,5 +49,110 @@ def primary_p_value(plan: AnalysisPlan, factors: tuple[DesignFactor, ...], setti
         return run_randomization(use, arms, first_arm, strata, yes, total, None).p_value
     judged = np.asarray(total) > 0
     dm = DesignMatrix.from_model(primary_model(plan, factors), np.asarray(settings)[judged])
-    fit = fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], "judged socially compliant")
+    fit = fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], JUDGED)
     return next((e.p_value for e in fit.effects if e.term == plan.factor), math.nan)
+
+
+#: How each sensitivity analysis of the plan is named in the report.
+SENSITIVITY_NAMES = {
+    "gee-small-sample": "GEE, exchangeable, small-sample errors",
+    "gee-independence": "GEE, independence working correlation",
+    "random-intercept": "random-intercept logistic mixed model",
+    "firth": "Firth's penalized logistic regression",
+}
+
+
+@dataclass(frozen=True)
+class OddsRatio:
+    """The first arm's odds of yes over the second's, from one fit of the primary model, with its 95 % interval."""
+
+    estimate: float
+    low: float
+    high: float
+    p_value: float
+    source: str
+
+
+@dataclass(frozen=True)
+class PrimaryResult:
+    """The planned primary analysis of a study's judgments: the test, the effect estimates and the sensitivity fits."""
+
+    plan: AnalysisPlan
+    #: The two arms compared, first arm first (empty when the plan compares none).
+    arms: tuple[str, ...]
+    runs: int
+    judgments: int
+    #: Each arm's mean of its runs' shares of yes, and its number of runs with judgments.
+    mean_shares: dict[str, float]
+    arm_runs: dict[str, int]
+    randomization: RandomizationTest | None
+    #: The planned test's p-value (the randomization test's, or the GEE's test of the factor's term).
+    p_value: float
+    odds_ratio: OddsRatio | None
+    #: (plan name, fit) of each sensitivity analysis, on the primary model.
+    sensitivity: tuple[tuple[str, Fit], ...]
+    notes: tuple[str, ...] = ()
+
+
+def arm_effect(fit: Fit, factor: str) -> OddsRatio | None:
+    """The two-arm factor's effect in a fit as an odds ratio of the first arm to the second (effect coding: the
+    first level's column is +1, the second's -1, so the log odds ratio is twice the coefficient); None when not estimated."""
+    column = next((p for p in fit.parameters if p.column.startswith(f"{factor}[") and "*" not in p.column), None)
+    if column is None or not math.isfinite(column.estimate):
+        return None
+    ends = [math.exp(2.0 * v) if math.isfinite(v) else (0.0 if v < 0 else math.inf) for v in (column.low, column.high)]
+    return OddsRatio(math.exp(2.0 * column.estimate), ends[0], ends[1], column.p_value, fit.method)
+
+
+def sensitivity_fit(name: str, dm: DesignMatrix, yes: np.ndarray, total: np.ndarray) -> Fit:
+    """One named sensitivity analysis of the judgments on the primary model's rows `dm`."""
+    if name == "gee-small-sample":
+        return fit_gee(dm, yes, total, JUDGED)
+    if name == "gee-independence":
+        return fit_gee(dm, yes, total, JUDGED, GeeOptions(correlation="independence"))
+    if name == "firth":
+        return fit_logistic(dm, yes, total, JUDGED)
+    missing = np.full(dm.x.shape[1], math.nan)
+    keep = np.ones(dm.x.shape[1], dtype=bool)
+    return Fit(JUDGED, SENSITIVITY_NAMES[name], len(total), int(np.sum(total)), "z", "", parameter_rows(dm, keep, *(missing,) * 4), [],
+               ["This release does not fit the random-intercept model yet."])
+
+
+def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: AnalysisPlan) -> PrimaryResult:
+    """The plan's primary test, effect estimates and sensitivity fits on the judged runs of `data`."""
+    by_code = {run.code: run for run in data.runs}
+    runs = [by_code[j.code] for j in judged]
+    yes = np.array([j.yes for j in judged], dtype=float)
+    total = np.array([j.total for j in judged], dtype=float)
+    dm = DesignMatrix.from_model(primary_model(plan, data.model.factors), settings(data, runs))
+    fits = tuple((name, relabel(sensitivity_fit(name, dm, yes, total), data.blinding)) for name in plan.sensitivity)
+    arms = _arms(data, plan)
+    arm_of = [_arm(data, plan, run) for run in runs]
+    shares = yes / np.where(total > 0, total, 1.0)
+    mean_shares = {arm: float(np.mean([s for s, a in zip(shares, arm_of) if a == arm])) if arm in arm_of else math.nan for arm in arms}
+    arm_runs = {arm: arm_of.count(arm) for arm in arms}
+    base = PrimaryResult(plan, arms, len(judged), int(total.sum()), mean_shares, arm_runs, None, math.nan, None, fits)
+    if len(arms) != 2 or min(arm_runs.values()) == 0:
+        return replace(base, notes=("The plan's test compares two arms; these judgments do not hold runs of both.",) if plan.factor else ())
+    strata = [tuple(str(run.values[name]) for name in plan.strata) for run in runs]
+    effect = next((replace(e, source=SENSITIVITY_NAMES[name]) for name, fit in fits for e in [arm_effect(fit, plan.factor)] if e is not None), None)
+    if plan.test == RANDOMIZATION:
+        test = run_randomization(plan, arm_of, arms[0], strata, yes, total, 1.0 - plan.alpha)
+        return replace(base, randomization=test, p_value=test.p_value, odds_ratio=effect)
+    gee = fits[0][1] if fits and fits[0][0] == "gee-small-sample" else relabel(fit_gee(dm, yes, total, JUDGED), data.blinding)
+    p = next((e.p_value for e in gee.effects if e.term == plan.factor), math.nan)
+    return replace(base, p_value=p, odds_ratio=effect)
+
+
+def _arms(data: StudyData, plan: AnalysisPlan) -> tuple[str, ...]:
+    """The compared factor's levels as the report names them (arm labels, or controllers once unblinded)."""
+    factor = next((f for f in data.spec.factors if f.name == plan.factor), None)
+    if not isinstance(factor, CategoricalFactor):
+        return ()
+    if plan.factor == data.blinding.factor:
+        return tuple(data.blinding.labels.get(level, level) for level in factor.levels)
+    return tuple(factor.levels)
+
+
+def _arm(data: StudyData, plan: AnalysisPlan, run: StudyRun) -> str:
+    return run.arm if plan.factor == data.blinding.factor else str(run.values.get(plan.factor, ""))

@@ -7,8 +7,10 @@ study is not unblinded, every arm is named by its label and no controller is nam
 
 from __future__ import annotations
 
+import csv
+import io
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,6 +29,8 @@ from analysis.figures import (
 from analysis.intervals import Interval, wilson
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
+from analysis.plan import PlanStatus, default_plan
+from analysis.primary import SENSITIVITY_NAMES, OddsRatio, PrimaryResult, arm_effect, primary_analysis
 from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, Response, StudyData
 from analysis.run_log import RunLog
 from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
@@ -43,16 +47,38 @@ INTERVALS = {
     "t": "t intervals and t tests on the residual df.",
     "penalized LR chi-square": "Profile penalized-likelihood intervals and penalized likelihood-ratio tests (Heinze and Schemper, Statistics in Medicine 2002).",
 }
-#: Why the clustered fit is the primary analysis, said once in the report.
-PRIMARY_WHY = (
+#: Why the full design model's clustered fit is exploratory, said once in the report.
+EXPLORATORY_WHY = (
     "The experimental unit is the run: its judgments share one robot behaviour, so they are correlated, and a run with more "
-    "pedestrians would otherwise weigh more. The primary analysis fits the plan's logistic model to every judgment by "
-    "generalized estimating equations with each run a cluster (Liang and Zeger, Biometrika 1986), exchangeable within a run, "
-    "with sandwich standard errors corrected for few clusters (Mancl and DeRouen, Biometrics 2001). Participants are not "
-    "modelled as a second cluster."
+    "pedestrians would otherwise weigh more. This fits the design's whole logistic model to every judgment by generalized "
+    "estimating equations with each run a cluster (Liang and Zeger, Biometrika 1986), exchangeable within a run, with "
+    "sandwich standard errors corrected for few clusters and t / F references on the cluster degrees of freedom. With as "
+    "many columns as a small plan has, few degrees of freedom are left, so the fit is exploratory: the planned primary "
+    "analysis above answers the study's question. Participants are not modelled as a second cluster."
 )
 PEDESTRIANS = "Pedestrians"
 NOT_AVAILABLE = "n/a"
+
+
+@dataclass(frozen=True)
+class DataTable(Table):
+    """A table whose CSV file holds `data_rows` under `data_header`: every number in its own column as a number, an
+    empty cell where there is none, instead of the text the report shows (percentages, intervals, "< 0.001")."""
+
+    data_header: list[str] = field(default_factory=list)
+    data_rows: list[list[Any]] = field(default_factory=list)
+
+    def csv(self) -> str:
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(self.data_header)
+        writer.writerows([["" if cell is None else cell for cell in row] for row in self.data_rows])
+        return buffer.getvalue()
+
+
+def _value(value: float | None) -> float | None:
+    """A number for report.json and the CSV tables: None for NaN or an infinite value."""
+    return None if value is None or math.isnan(value) or math.isinf(value) else float(value)
 
 
 @dataclass(frozen=True)
@@ -70,7 +96,7 @@ class Report:
 
     def tables(self) -> dict[str, str]:
         """Every table as CSV text, by file stem."""
-        return {name: to_csv(table) for name, table in table_names(self.blocks)}
+        return {name: table.csv() if isinstance(table, DataTable) else to_csv(table) for name, table in table_names(self.blocks)}
 
     def markdown(self) -> str:
         return to_markdown(self.title, self.blocks)
@@ -116,6 +142,9 @@ class _Analysis:
     notes: list[str]
     #: Finished runs played from external robot logs: left out of every comparison of arms and factors.
     left_out: list[str]
+    #: The analysis plan in force and its standing; the planned primary analysis (None without judgments).
+    plan: PlanStatus
+    primary: PrimaryResult | None
 
 
 def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_utc: str, participants: ParticipantModel = ParticipantModel()) -> Report:
@@ -126,6 +155,7 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
         *_overview(analysis, generated_utc),
         *_design_section(analysis),
         *_scores_section(analysis),
+        *_primary_section(analysis),
         *_ab_section(analysis),
         *_figures_section(analysis),
         *_models_section(analysis),
@@ -170,7 +200,10 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     table = table_ii(judged, arms) if judged else []
     judgment_fits = [fit(data, judged) for fit in (fit_judgments_by_run, fit_run_shares, fit_judgments)] if judged else []
     metric_fits = fit_metrics(data) if data.compared else []
-    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes, left_out)
+    plan = data.analysis_plan or PlanStatus(default_plan(data.spec, data.seed or 0), False, None)
+    primary = primary_analysis(data, judged, plan.plan) if judged else None
+    return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes,
+                     left_out, plan, primary)
 
 
 def _left_out_note(data: StudyData, codes: list[str]) -> str:
@@ -250,9 +283,10 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     human = {s.run_code for s in data.scores if s.run_code in a.scores}
     items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
     items.append(_judgment_line(a))
+    items.append(a.plan.describe())
     primary = _primary_result(a)
     if primary:
-        items.append(primary.replace(" The table below counts judgments and is descriptive.", " Table II below is descriptive."))
+        items.append(primary)
     if blinding.unblinded_utc:
         late = [s for s in data.scores if s.recorded_utc and s.recorded_utc > blinding.unblinded_utc[0]]
         if late:
@@ -288,36 +322,45 @@ def _scores_section(a: _Analysis) -> list[Block]:
     for score, count in zip(SCORES, total):
         interval = wilson(count, n)
         rows.append([str(score), str(count), percent(interval.share), f"{percent(interval.low)} - {percent(interval.high)}", *([f"{paper[score]:.1f} %"] if paper else [])])
+    data_rows = [[score, count, *(_value(v) for v in _share_interval(count, n)), *([paper[score] / 100.0] if paper else [])]
+                 for score, count in zip(SCORES, total)]
     rubric_only = counts(s.auto.score for code, s in a.scores.items() if code in final)
     blocks: list[Block] = [
         Heading("Scores"),
         Paragraph("1 = collision, 2 = no collision but unnatural (turning in place, backing up, stopping or hesitating, passing within intimate distance), 3 = natural and comfortable."),
-        Table(
+        DataTable(
             ["Score", "Runs", "Share", "Wilson 95 %", *(["Paper (Tsai & Oh)"] if paper else [])],
             rows + [["all", str(n), "", "", *([""] if paper else [])]],
             f"Final scores (a human score overrides the rubric's). The rubric alone: {rubric_only[0]} x 1, {rubric_only[1]} x 2, {rubric_only[2]} x 3."
             + (f" Runs played from an external robot log ({len(a.left_out)}) are left out." if a.left_out else ""),
             {1, 2},
+            ["score", "runs", "share", "share_low", "share_high", *(["paper_share"] if paper else [])],
+            data_rows + [["all", n, None, None, None, *([None] if paper else [])]],
         ),
     ]
     arm_runs = {arm: [final[r.code] for r in a.data.compared if r.arm == arm] for arm in a.arms}
     if len(a.arms) > 1:
         word = a.data.blinding.arm_word
         blocks.append(
-            Table(
+            DataTable(
                 [word, "Runs", "Score 1", "Score 2", "Score 3", "Share scored 3"],
                 [[arm, str(len(v)), *map(str, counts(v)), percent(counts(v)[2] / len(v) if v else math.nan)] for arm, v in arm_runs.items()],
                 f"Scores by {word.lower()}.",
                 {1, 2, 3, 4, 5},
+                [word.lower(), "runs", "score_1", "score_2", "score_3", "share_scored_3"],
+                [[arm, len(v), *counts(v), counts(v)[2] / len(v) if v else None] for arm, v in arm_runs.items()],
             )
         )
     level_rows = by_factor(a.data.spec, a.data.compared, final, a.data.blinding.factor)
     blocks.append(Heading("Scores against each factor", 3))
+    factor_name = {a.data.blinding.factor: a.data.blinding.arm_word}
     blocks.append(
-        Table(
+        DataTable(
             ["Factor", "Level", "Runs", "Score 1", "Score 2", "Score 3", "Mean score"],
-            [[row.factor if row.factor != a.data.blinding.factor else a.data.blinding.arm_word, row.level, str(sum(row.counts)), *map(str, row.counts), number(row.mean, 2)] for row in level_rows],
+            [[factor_name.get(row.factor, row.factor), row.level, str(sum(row.counts)), *map(str, row.counts), number(row.mean, 2)] for row in level_rows],
             align_right={2, 3, 4, 5, 6},
+            data_header=["factor", "level", "runs", "score_1", "score_2", "score_3", "mean_score"],
+            data_rows=[[factor_name.get(row.factor, row.factor), row.level, sum(row.counts), *row.counts, _value(row.mean)] for row in level_rows],
         )
     )
     blocks += [Heading("Every run", 3), _runs_table(a)]
@@ -329,19 +372,23 @@ def _runs_table(a: _Analysis) -> Table:
     shown = [f.name for f in data.spec.factors if not isinstance(f, FixedFactor) and f.name != data.blinding.factor]
     header = ["Order", "Run", *shown, data.blinding.arm_word, "Status", "Min gap (m)", "Rubric", "Human scores", "Score"]
     rows = []
+    data_rows: list[list[Any]] = []
     for run in data.runs:
         cells = [str(run.order), run.code, *(run.values[name] for name in shown), run.arm]
         scored = a.scores.get(run.code)
         if run.outcome is None or scored is None:
             rows.append(cells + ["not run yet", "", "", "", ""])
+            data_rows.append([run.order, *cells[1:], "not run yet", None, None, "", None])
             continue
         rubric = f"{scored.auto.score}" + (f" ({'; '.join(scored.auto.reasons)})" if scored.auto.reasons else "")
         human = "; ".join(f"{s.score} by {s.scorer or 'unnamed'}" + (f" ({s.note})" if s.note else "") for s in scored.human)
         gap = run.outcome.min_distance_m
         status = run.outcome.status if run.origin == SIMULATED_RUN else f"{run.outcome.status} ({run.origin})"
         rows.append(cells + [status, NOT_AVAILABLE if gap is None else f"{gap:.2f}", rubric, human, f"**{scored.final}**"])
-    return Table(header, rows, "In run order. Score: the latest human score, else the rubric's. A run played from an external robot log "
-                 "is listed here and left out of every comparison.", {0, len(shown) + 4})
+        data_rows.append([run.order, *cells[1:], status, gap, scored.auto.score, human, scored.final])
+    return DataTable(header, rows, "In run order. Score: the latest human score, else the rubric's. A run played from an external robot log "
+                     "is listed here and left out of every comparison.", {0, len(shown) + 4},
+                     ["order", "run", *shown, data.blinding.arm_word.lower(), "status", "min_gap_m", "rubric_score", "human_scores", "score"], data_rows)
 
 
 def _ab_section(a: _Analysis) -> list[Block]:
@@ -354,9 +401,6 @@ def _ab_section(a: _Analysis) -> list[Block]:
         return blocks + [Paragraph("No judgments of runs the toolkit drove yet; those of runs played from an external robot log are left out (see the notes).")]
     if not a.table:
         return blocks + [Paragraph("No judgments of finished runs yet: record them with `trials respond` (or `trials respond --simulate` for simulated runs).")]
-    primary = _primary_result(a)
-    if primary:
-        blocks.append(Paragraph(primary))
     paper = blinding.open and all(arm in PAPER_TABLE_II for arm in a.arms)
     header = ["Runs with"]
     for arm in a.arms:
@@ -367,13 +411,23 @@ def _ab_section(a: _Analysis) -> list[Block]:
     if two:
         header += ["Difference (95 % CI)", "Odds ratio (95 % CI)", "Fisher's exact p", "Holm p"]
     rows = []
+    data_header = ["min_pedestrians"]
+    for arm in a.arms:
+        data_header += [f"{arm}_runs", f"{arm}_yes", f"{arm}_judged", f"{arm}_share", f"{arm}_share_low", f"{arm}_share_high"]
+        data_header += [f"{arm}_paper_share"] if paper else []
+    if two:
+        data_header += ["difference", "difference_low", "difference_high", "odds_ratio", "odds_ratio_low", "odds_ratio_high", "fisher_p", "holm_p"]
+    data_rows: list[list[Any]] = []
     for row in a.table:
         cells = [f">= {row.min_pedestrians} pedestrians"]
+        numbers: list[Any] = [row.min_pedestrians]
         for arm in a.arms:
             share = row.shares[arm]
             cells += [str(row.runs[arm]), f"{share.k} / {share.n}", f"{percent(share.share)} ({percent(share.low)} - {percent(share.high)})"]
+            numbers += [row.runs[arm], share.k, share.n, _value(share.share), _value(share.low), _value(share.high)]
             if paper:
                 cells.append(f"{PAPER_TABLE_II[arm].get(row.min_pedestrians, math.nan):.0f} %")
+                numbers.append(_value(PAPER_TABLE_II[arm].get(row.min_pedestrians, math.nan) / 100.0))
         if two:
             d, r = row.difference, row.odds_ratio
             cells += [
@@ -382,7 +436,9 @@ def _ab_section(a: _Analysis) -> list[Block]:
                 p_text(row.p_value),
                 p_text(row.holm_p),
             ]
+            numbers += [_value(v) for v in (d.estimate, d.low, d.high, r.estimate, r.low, r.high, row.p_value, row.holm_p)]
         rows.append(cells)
+        data_rows.append(numbers)
     source = "simulated participants" if a.judgment_source == SIMULATED else "participants"
     caption = f"Share of judgments \"socially compliant\" by {source}, among runs with at least k pedestrians, with Wilson 95 % intervals"
     if two:
@@ -393,10 +449,10 @@ def _ab_section(a: _Analysis) -> list[Block]:
             "which are nested"
         )
     caption += (
-        ". Every judgment counts as independent here, so the intervals are narrower than the runs support: the table is descriptive, "
-        "the run-level analysis is the primary one."
+        ". Every judgment counts as independent here, so the intervals are narrower than the runs support: the table is descriptive; "
+        "the planned run-level analysis above is the primary one."
     )
-    blocks.append(Table(header, rows, caption, set(range(1, len(header)))))
+    blocks.append(DataTable(header, rows, caption, set(range(1, len(header))), data_header, data_rows))
     if blinding.blinded and not blinding.revealed:
         blocks.append(Paragraph("The paper's values are per controller; they appear beside these once the study is unblinded (`trials report --unblind`)."))
     elif not paper and len(a.arms) > 1:
@@ -405,24 +461,103 @@ def _ab_section(a: _Analysis) -> list[Block]:
 
 
 def _primary_result(a: _Analysis) -> str | None:
-    """The arm effect of the primary (run-level) analysis in one sentence, when there are two arms."""
-    factor = a.data.blinding.factor
-    if len(a.arms) != 2 or not a.judgment_fits or factor is None:
+    """The planned primary result in one sentence, when the plan compares two arms: never missing when an arm is all yes."""
+    r = a.primary
+    if r is None or len(r.arms) != 2:
         return None
-    fit = a.judgment_fits[0]
-    effect = next((e for e in fit.effects if e.term == factor), None)
-    column = next((p for p in fit.parameters if p.column.startswith(f"{factor}[") and "*" not in p.column), None)
-    if effect is None or column is None or math.isnan(column.estimate):
-        return "**Primary result** (run as the unit): not estimable from these judgments; see the notes under the model fits."
-    z = 1.959963984540054
-    ratio = [math.exp(2.0 * (column.estimate + k * z * column.std_error)) for k in (0.0, -1.0, 1.0)]
-    first, second = a.arms
-    return (
-        f"**Primary result** (run as the unit, {fit.runs} runs, {fit.observations} judgments): {first} against {second}, odds ratio "
-        f"{ratio[0]:.2f} (95 % CI {ratio[1]:.2f} - {ratio[2]:.2f}) at the centre of the design; effect test of {a.data.blinding.arm_word} "
-        f"chi-square {number(effect.statistic, 2)} on {effect.df} df, p {_equals(p_text(effect.p_value))} (logistic GEE clustered by run; "
-        "see the model fits). The table below counts judgments and is descriptive."
-    )
+    first, second = r.arms
+    if r.randomization is None and math.isnan(r.p_value):
+        return (f"**Primary result** ({r.plan.describe_test()}): no test from these judgments ({'; '.join(r.notes) or 'see the notes'}).")
+    shares = f"mean run share of yes {percent(r.mean_shares[first])} for {first} against {percent(r.mean_shares[second])} for {second}"
+    if r.randomization is not None:
+        t = r.randomization
+        effect = (f"difference {_points(t.difference)} points ({100 * (1 - r.plan.alpha):g} % CI {_points(t.low)} to {_points(t.high)}), "
+                  f"p {_equals(p_text(t.p_value))} ({t.describe()})")
+    else:
+        effect = f"p {_equals(p_text(r.p_value))}"
+    ratio = (f"; odds ratio {first} to {second} {_ratio(r.odds_ratio.estimate)} (95 % CI {_ratio(r.odds_ratio.low)} - "
+             f"{_ratio(r.odds_ratio.high)}, {r.odds_ratio.source})" if r.odds_ratio is not None else "")
+    return (f"**Primary result** ({r.plan.describe_test()}; {r.runs} runs, {r.judgments} judgments): {shares}; {effect}{ratio}.")
+
+
+def _ratio(value: float) -> str:
+    return "inf" if math.isinf(value) else number(value, 2)
+
+
+def _share_interval(k: int, n: int) -> tuple[float, float, float]:
+    interval = wilson(k, n)
+    return interval.share, interval.low, interval.high
+
+
+def _primary_section(a: _Analysis) -> list[Block]:
+    """The analysis plan, the planned primary test with its effect estimates, and the sensitivity analyses below it."""
+    r, plan = a.primary, a.plan.plan
+    blocks: list[Block] = [Heading("Primary analysis (the analysis plan)"), Paragraph(a.plan.describe())]
+    strata = f", re-randomized within {', '.join(plan.strata)}" if plan.strata else ""
+    items = [
+        f"Outcome: each judgment's answer to \"socially compliant?\" ({plan.outcome}); the run is the unit.",
+        f"Primary test: {plan.describe_test()}{strata}." + (f" Factor compared: {plan.factor}." if plan.factor else ""),
+        f"Primary model: `{plan.model}`; sensitivity analyses on it: {', '.join(SENSITIVITY_NAMES[n] for n in plan.sensitivity) or 'none'}.",
+        f"Exploratory: the design's full model `{plan.exploratory}` (below, under the model fits)." if plan.exploratory else "No exploratory model.",
+    ]
+    if plan.test == "randomization":
+        items.append(f"Randomization test: exact when at most 1,000,000 allocations, else {plan.draws:,} Monte Carlo draws from seed {plan.seed}.")
+    blocks.append(Bullets(items))
+    if r is None:
+        return blocks + [Paragraph("No judgments yet: nothing to test.")]
+    line = _primary_result(a)
+    if line:
+        blocks.append(Paragraph(line))
+    if len(r.arms) == 2:
+        blocks.append(_primary_table(r))
+    rows, data_rows = [], []
+    for name, fit in r.sensitivity:
+        effect = next((e for e in fit.effects if e.term == plan.factor), None)
+        ratio = _arm_ratio(fit, plan.factor)
+        rows.append([SENSITIVITY_NAMES[name], _ratio(ratio.estimate) if ratio else NOT_AVAILABLE,
+                     f"{_ratio(ratio.low)} - {_ratio(ratio.high)}" if ratio else NOT_AVAILABLE,
+                     p_text(effect.p_value) if effect else NOT_AVAILABLE, fit.method + "".join(f" {note}" for note in fit.notes)])
+        data_rows.append([name, *((_value(ratio.estimate), _value(ratio.low), _value(ratio.high)) if ratio else (None, None, None)),
+                          _value(effect.p_value) if effect else None, fit.method])
+    if rows:
+        first = f" of {r.arms[0]} to {r.arms[1]}" if len(r.arms) == 2 else ""
+        blocks += [Heading("Sensitivity analyses", 3), DataTable(
+            ["Analysis", f"Odds ratio{first}", "95 % CI", f"p ({plan.factor or 'term'})", "Method and notes"], rows,
+            f"The primary model `{plan.model}` fitted to every judgment in other ways: the same question under other assumptions. "
+            "An analysis that cannot be fitted on these judgments (separation, too few runs) says why; the primary test above stands.",
+            {1, 2, 3}, ["analysis", "odds_ratio", "odds_ratio_low", "odds_ratio_high", "p", "method"], data_rows)]
+    return blocks
+
+
+def _arm_ratio(fit: Fit, factor: str) -> OddsRatio | None:
+    return arm_effect(fit, factor) if factor else None
+
+
+def _primary_table(r: PrimaryResult) -> DataTable:
+    first, second = r.arms
+    rows: list[list[str]] = []
+    data_rows: list[list[Any]] = []
+    for arm in r.arms:
+        rows.append([f"{arm}: mean run share of yes", percent(r.mean_shares[arm]), "", "", "", f"{r.arm_runs[arm]} runs"])
+        data_rows.append([f"{arm}: mean run share", _value(r.mean_shares[arm]), None, None, None, f"{r.arm_runs[arm]} runs"])
+    t = r.randomization
+    if t is not None:
+        level = f"{100 * (1 - r.plan.alpha):g} %"
+        rows.append([f"Difference {first} - {second} (points)", _points(t.difference), _points(t.low), _points(t.high), p_text(t.p_value),
+                     f"randomization test, {t.describe()}; {level} interval by inverting it"])
+        data_rows.append([f"difference {first} - {second}", _value(t.difference), _value(t.low), _value(t.high), _value(t.p_value),
+                          t.describe()])
+    elif not math.isnan(r.p_value):
+        rows.append([f"Test of {r.plan.factor}", "", "", "", p_text(r.p_value), r.plan.describe_test()])
+        data_rows.append([f"test of {r.plan.factor}", None, None, None, _value(r.p_value), r.plan.describe_test()])
+    if r.odds_ratio is not None:
+        o = r.odds_ratio
+        rows.append([f"Odds ratio {first} to {second}", _ratio(o.estimate), _ratio(o.low), _ratio(o.high), p_text(o.p_value), o.source])
+        data_rows.append([f"odds ratio {first} to {second}", _value(o.estimate), _value(o.low), _value(o.high), _value(o.p_value), o.source])
+    return DataTable(["Quantity", "Estimate", "Lower", "Upper", "p", "How"], rows,
+                     "The planned primary result. Shares are each run's share of yes, averaged over the arm's runs (every run weighs the "
+                     "same); the odds ratio is from the first sensitivity fit that estimates it.", {1, 2, 3, 4},
+                     ["quantity", "estimate", "lower", "upper", "p", "how"], data_rows)
 
 
 def _interval_text(low: float, high: float) -> str:
@@ -443,11 +578,11 @@ def _models_section(a: _Analysis) -> list[Block]:
     if a.judgment_fits:
         primary, shares, naive = a.judgment_fits
         blocks += [
-            Heading("Judgments: the run as the unit (primary analysis)", 3),
-            Paragraph(PRIMARY_WHY),
+            Heading("Judgments: the design's full model by run-level GEE (exploratory)", 3),
+            Paragraph(EXPLORATORY_WHY),
             *_fit_blocks(primary),
             Heading("Judgments: each run's share of yes (least squares)", 3),
-            Paragraph("Every run counts once, whatever its number of judgments; a check on the primary analysis that needs no model of the correlation."),
+            Paragraph("Every run counts once, whatever its number of judgments; a check on the GEE fit that needs no model of the correlation."),
             *_fit_blocks(shares),
             Heading("Judgments: logistic regression on every judgment (descriptive)", 3),
             Paragraph("Treats the judgments as independent, as the paper's percentages do: its standard errors are too small when judgments of one run agree."),
@@ -458,10 +593,13 @@ def _models_section(a: _Analysis) -> list[Block]:
     if a.metric_fits:
         blocks.append(Heading("Outcome metrics: least squares", 3))
         terms_rows = []
+        terms_data: list[list[Any]] = []
         for index, effect in enumerate(a.metric_fits[0].effects):
             terms_rows.append([effect.term, str(effect.df), *(p_text(fit.effects[index].p_value) for fit in a.metric_fits)])
+            terms_data.append([effect.term, effect.df, *(_value(fit.effects[index].p_value) for fit in a.metric_fits)])
         blocks.append(
-            Table(["Term", "df", *(f"p: {fit.response}" for fit in a.metric_fits)], terms_rows, "Partial F tests of each term (effect tests), per metric.", set(range(1, 2 + len(a.metric_fits))))
+            DataTable(["Term", "df", *(f"p: {fit.response}" for fit in a.metric_fits)], terms_rows, "Partial F tests of each term (effect tests), per metric.",
+                      set(range(1, 2 + len(a.metric_fits))), ["term", "df", *(f"p: {fit.response}" for fit in a.metric_fits)], terms_data)
         )
         for fit in a.metric_fits:
             blocks += [Heading(f"{fit.response}", 4), *_fit_blocks(fit, effects=False)]
@@ -480,19 +618,23 @@ def _fit_blocks(fit: Fit, effects: bool = True) -> list[Block]:
     blocks: list[Block] = [Paragraph(f"{fit.method}: {fit.runs} runs, {fit.observations} observations{figures}.")]
     if effects:
         blocks.append(
-            Table(
+            DataTable(
                 ["Term", "df", fit.test, "p"],
                 [[e.term, str(e.df), number(e.statistic), p_text(e.p_value)] for e in fit.effects],
                 "Effect tests: dropping all of a term's columns.",
                 {1, 2, 3},
+                ["term", "df", "statistic", "p"],
+                [[e.term, e.df, _value(e.statistic), _value(e.p_value)] for e in fit.effects],
             )
         )
     blocks.append(
-        Table(
+        DataTable(
             ["Column", "Estimate", "Std error", "95 % CI", fit.statistic, "p"],
             [[p.column, number(p.estimate), number(p.std_error), _interval_text(p.low, p.high), number(p.statistic, 2), p_text(p.p_value)] for p in fit.parameters],
             "Parameter estimates (n/a: not estimable from these runs, or no interval). " + INTERVALS.get(fit.statistic, ""),
             {1, 2, 3, 4, 5},
+            ["column", "estimate", "std_error", "low", "high", "statistic", "p"],
+            [[p.column, *(_value(v) for v in (p.estimate, p.std_error, p.low, p.high, p.statistic, p.p_value))] for p in fit.parameters],
         )
     )
     if fit.notes:
@@ -553,24 +695,28 @@ def _design_section(a: _Analysis) -> list[Block]:
         ("Average prediction variance", d.get("average_prediction_variance")),
     ]
     blocks.append(
-        Table(
+        DataTable(
             ["Measure", "Value"],
             [[name, number(float(value), 3)] for name, value in efficiencies if value is not None],
             f"{d.get('n', len(data.runs))} runs, {d.get('p', data.model.p)} model columns; JMP's conventions (coded factors, sigma = 1).",
             {1},
+            ["measure", "value"],
+            [[name, _value(float(value))] for name, value in efficiencies if value is not None],
         )
     )
     power = d.get("power")
     if power:
         convention = power.get("convention", "every anticipated coefficient +1 (a design.json made before JMP's convention was adopted)")
         blocks.append(
-            Table(
+            DataTable(
                 ["Term", "df", "Power"],
                 [[t["term"], str(t["parameters"]), number(float(t["power"]), 3)] for t in power.get("terms", [])],
                 f"Power of each term's F test at alpha {power.get('alpha')} with signal-to-noise {power.get('snr')} and error df "
-                f"{power.get('error_df')}; anticipated coefficients by {convention}. This is the power of the least-squares fits of the "
-                "outcome metrics; the judgments are binary and their power is lower.",
+                f"{power.get('error_df')}; anticipated coefficients by {convention}. This is JMP's power for a Gaussian response: the "
+                "power of the least-squares fits of the outcome metrics, not of the judgments' planned test (`trials power`).",
                 {1, 2},
+                ["term", "df", "power"],
+                [[t["term"], t["parameters"], _value(float(t["power"]))] for t in power.get("terms", [])],
             )
         )
     columns, matrix = data.correlations
@@ -613,9 +759,15 @@ def _statistics(a: _Analysis) -> list[str]:
     items = ["Shares: Wilson score intervals at 95 %."]
     if a.judged:
         items.append(
-            "Primary analysis of the judgments: the plan's logistic model by GEE with each run a cluster (statsmodels; exchangeable "
-            "working correlation; sandwich errors with Mancl and DeRouen's small-sample correction); Wald z tests and intervals per "
-            "column, Wald chi-square tests per term. Beside it, least squares on each run's share of yes."
+            "Primary analysis of the judgments: the analysis plan's test (study.toml [analysis]). The randomization test compares the "
+            "arms' mean run shares of yes, re-drawing the arm labels as the design allocated them (the same number of runs per arm, "
+            "within strata when the plan names them) over every allocation, or a seeded Monte Carlo sample of them with its standard "
+            "error; its interval inverts the test under a constant shift of the shares."
+        )
+        items.append(
+            "Exploratory: the design's full logistic model by GEE with each run a cluster (statsmodels; exchangeable working "
+            "correlation; small-sample sandwich errors; t tests and intervals, F tests per term on the cluster degrees of freedom). "
+            "Beside it, least squares on each run's share of yes."
         )
         if len(a.arms) == 2:
             items.append(
@@ -640,6 +792,7 @@ def _statistics(a: _Analysis) -> list[str]:
 
 def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, Any]:
     data, blinding = a.data, a.data.blinding
+    total = counts(s.final for code, s in a.scores.items() if code not in a.left_out)
     return {
         "format": FORMAT,
         "generated_utc": generated_utc,
@@ -679,8 +832,35 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             }
             for row in a.table
         ],
+        "score_shares": {str(score): dict(zip(("share", "low", "high"), map(_json_number, _share_interval(count, sum(total)))))
+                         for score, count in zip(SCORES, total)} if sum(total) else {},
+        "analysis_plan": {"table": a.plan.plan.table(), "sha256": a.plan.plan.digest(), "declared": a.plan.declared,
+                          "committed_sha256": a.plan.committed, "matches_commitment": a.plan.matches,
+                          "changed_after_key_opened": a.plan.changed_after_opening, "statement": a.plan.describe()},
+        "primary": _primary_record(a.primary),
         "fits": [_fit_record(fit) for fit in a.judgment_fits + a.metric_fits],
         "notes": a.notes,
+    }
+
+
+def _primary_record(r: PrimaryResult | None) -> dict[str, Any] | None:
+    """Every number of the primary section: the test, the effect estimates, the sensitivity fits."""
+    if r is None:
+        return None
+    t = r.randomization
+    return {
+        "test": r.plan.describe_test(), "arms": list(r.arms), "runs": r.runs, "judgments": r.judgments,
+        "mean_run_share": {arm: _json_number(v) for arm, v in r.mean_shares.items()}, "arm_runs": r.arm_runs,
+        "p": _json_number(r.p_value),
+        "randomization": None if t is None else {
+            "difference": _json_number(t.difference), "low": _json_number(t.low), "high": _json_number(t.high), "level": t.level,
+            "p": t.p_value, "allocations": t.allocations, "exact": t.exact, "draws": t.draws, "mc_standard_error": t.mc_error,
+            "seed": t.seed, "strata": t.strata},
+        "odds_ratio": None if r.odds_ratio is None else {"estimate": _json_number(r.odds_ratio.estimate), "low": _json_number(r.odds_ratio.low),
+                                                          "high": _json_number(r.odds_ratio.high), "p": _json_number(r.odds_ratio.p_value),
+                                                          "source": r.odds_ratio.source},
+        "sensitivity": [{"analysis": name, **_fit_record(fit)} for name, fit in r.sensitivity],
+        "notes": list(r.notes),
     }
 
 
@@ -720,9 +900,10 @@ def _summary(a: _Analysis) -> list[str]:
         shares = ", ".join(f"{s}: {c} ({100.0 * c / n:.1f} %)" for s, c in zip(SCORES, total))
         paper = paper_score_shares(data.spec)
         lines.append(f"Scores {shares}" + (f"   [paper: 3: {paper[3]:.1f} %, 1: {paper[1]:.0f} %]" if paper else ""))
+    lines.append(a.plan.describe().replace("**", ""))
     primary = _primary_result(a)
     if primary:
-        lines.append(primary.replace("**", "").replace(" The table below counts judgments and is descriptive.", ""))
+        lines.append(primary.replace("**", ""))
     if a.table:
         lines.append(f"Judged socially compliant ({a.judgment_source}):")
         for row in a.table:

@@ -74,9 +74,12 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     # Every table is also a CSV file: Table II's rows, with runs and judgments per arm.
     with (ab_study / "report" / "tables" / "a_b_comparison_table_ii.csv").open() as handle:
         table = list(csv.DictReader(handle))
-    assert [row["Runs with"] for row in table] == [">= 2 pedestrians", ">= 4 pedestrians", ">= 6 pedestrians"]
-    assert [int(row["A: runs"]) + int(row["B: runs"]) for row in table] == [18, 12, 7]
-    assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("Measure,Value\nD-efficiency,55.871\n")
+    assert [row["min_pedestrians"] for row in table] == ["2", "4", "6"]
+    assert [int(row["A_runs"]) + int(row["B_runs"]) for row in table] == [18, 12, 7]
+    # Numbers in their own columns, as numbers: shares as fractions, interval ends and p-values apart, no "%" or "< 0.001".
+    assert all(cell == "" or float(cell) == float(cell) for row in table for cell in row.values())
+    assert float(table[0]["A_share_low"]) < float(table[0]["A_share"]) < float(table[0]["A_share_high"]) <= 1.0
+    assert (ab_study / "report" / "tables" / "the_design.csv").read_text().startswith("measure,value\nD-efficiency,55.87")
 
 
 def test_dpi_sets_the_png_resolution_and_the_html_keeps_its_own(ab_study: Path) -> None:
@@ -128,7 +131,23 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
     runs = sorted([row["arms"][arm]["runs"] for row in record["table_ii"]] for arm in ("NaviGAN-R", "Lattice"))
     assert runs == [[9, 6, 3], [9, 6, 4]]
     assert record["fits"][0]["method"].startswith("logistic GEE clustered by run")
-    assert out.index("Primary result (run as the unit") < out.index("Judged socially compliant")
+    assert out.index("Primary result (run-level randomization test of Controller") < out.index("Judged socially compliant")
+    # The primary result's numbers, in report.json: the mean run shares counted here from responses.csv and the key.
+    with (ab_study / "responses.csv").open() as handle:
+        judged: dict[str, list[int]] = {}
+        for r in csv.DictReader(handle):
+            judged.setdefault(r["run_code"], []).append(r["compliant"] == "yes")
+    with (ab_study / "plan.csv").open() as handle:
+        arm_of = {row["run_code"]: key[row["Controller"]] for row in csv.DictReader(handle)}
+    primary = record["primary"]
+    for name in key.values():
+        shares = [sum(v) / len(v) for code, v in judged.items() if arm_of[code] == name]
+        assert primary["mean_run_share"][name] == pytest.approx(sum(shares) / len(shares))
+    first, second = primary["arms"]
+    assert primary["randomization"]["difference"] == pytest.approx(primary["mean_run_share"][first] - primary["mean_run_share"][second])
+    assert primary["randomization"]["exact"] and primary["randomization"]["allocations"] == 48_620
+    assert primary["odds_ratio"]["low"] < primary["odds_ratio"]["estimate"] < primary["odds_ratio"]["high"]
+    assert f"odds ratio {first} to {second} {primary['odds_ratio']['estimate']:.2f}" in out
     markdown = (ab_study / "report" / "report.md").read_text()
     assert markdown.index("**Primary result**") < markdown.index("| Runs with |")
     assert "SBPL (paper)" in markdown and "| >= 6 pedestrians |" in markdown
@@ -365,4 +384,8 @@ def test_all_yes_against_all_no_arms_report_without_crashing(ab_study: Path, cap
     assert all(p["estimate"] is None for p in primary["parameters"]) and any("separated" in n for n in primary["notes"])
     assert "Firth" in judgment_level["method"]
     assert (ab_study / "report" / "figures" / "ab_shares.svg").exists()
-    assert "**Primary result** (run as the unit): not estimable" in (ab_study / "report" / "report.md").read_text()
+    # The planned primary result stands: nine runs all yes against nine all no, of 48,620 allocations only this one
+    # and its mirror image are as far apart.
+    assert record["primary"]["randomization"]["difference"] == 1.0
+    assert record["primary"]["p"] == pytest.approx(2 / 48_620)
+    assert "**Primary result** (run-level randomization test of Controller" in (ab_study / "report" / "report.md").read_text()

@@ -60,9 +60,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--figures", action="store_true",
                         help="also draw the design evaluation figures, correlation_map and design_evaluation, as PNG and SVG "
                              "(with --evaluate or --compare: each plan's, named PLAN.correlation_map.png and so on, in --study)")
-    parser.add_argument("--power", type=types.whole(0, 100_000), default=200, metavar="N",
-                        help="simulated data sets for the power of the planned primary test, at the plan's size and larger until "
-                             "0.8 (model-based, as `trials power`; default 200, 0: skip)")
+    parser.add_argument("--power", type=types.whole(0, 100_000), metavar="N",
+                        help="the power of the planned primary test from N simulated data sets per plan size, at the plan's size and "
+                             "at 2 to 4 times it until 0.8, for the runs needed (model-based, as `trials power`; default: 200 data "
+                             "sets at the plan's size only; 0: none)")
     types.add_dpi(parser)
     add_quiet(parser)
     parser.add_argument("--json", action="store_true", help="print the files written and design.json's record as one JSON object")
@@ -230,11 +231,11 @@ def run(args: argparse.Namespace) -> int:
     written = write_design(folder, plan, original, tables, args.dpi if args.figures else None)
 
     planned = None
-    if args.power:
-        from trials.power.planned import planned_test_power
+    if args.power != 0:
+        from trials.power.planned import SIMULATIONS, planned_test_power
 
         Progress("start", "design", quiet).loading("Simulating the power of the planned primary test")
-        planned = planned_test_power(folder, plan.seed, args.power)
+        planned = planned_test_power(folder, plan.seed, args.power or SIMULATIONS, search=args.power is not None)
     if args.json:
         import json
 

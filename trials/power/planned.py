@@ -1,6 +1,6 @@
 """The power of a study's planned primary test, as `trials design` prints it: model-based on `trials power`'s own
-data sets (same power seed, same draws, so `trials power` gives the same figures), at the plan's size and at
-multiples of it until the target is reached."""
+data sets (same power seed, same draws, so `trials power` gives the same figures), at the plan's size and, when
+asked, at multiples of it until the target is reached."""
 
 from __future__ import annotations
 
@@ -31,10 +31,17 @@ class PlannedPower:
     target: float
     powers: dict[int, PowerEstimate]
     needed: int | None
+    #: Whether larger plans were tried (`trials design --power N`).
+    searched: bool = True
 
     def lines(self) -> list[str]:
         sizes = ",".join(map(str, self.powers))
-        found = f"{self.needed}" if self.needed is not None else f"more than {max(self.powers)}"
+        if self.needed is not None:
+            found = f"{self.needed}"
+        elif self.searched:
+            found = f"more than {max(self.powers)}"
+        else:
+            found = f"more than {max(self.powers)}; `trials design --power {self.simulations}` tries plans up to {MULTIPLES} times as large"
         return [f"Power of the planned primary test ({self.test}), model-based with {self.simulations} simulated data sets:",
                 *(f"  {runs} runs  power {p.power:.3f} (Wilson 95 % {p.low:.3f}-{p.high:.3f})" for runs, p in self.powers.items()),
                 f"  runs needed for power {self.target:g}: {found}",
@@ -43,22 +50,22 @@ class PlannedPower:
 
     def record(self) -> dict[str, object]:
         return {"test": self.test, "assumed": self.assumed, "power_seed": self.seed, "simulations": self.simulations,
-                "target": self.target, "needed_runs": self.needed,
+                "target": self.target, "needed_runs": self.needed, "searched": self.searched,
                 "power": {str(runs): {"power": p.power, "low": p.low, "high": p.high} for runs, p in self.powers.items()}}
 
 
-def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULATIONS, target: float = 0.8,
+def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULATIONS, search: bool = True, target: float = 0.8,
                        anticipated: Anticipated = DEFAULT_ANTICIPATED) -> PlannedPower | None:
-    """The planned test's power at the study's plan size and at 2, 3, ... times it until `target` is reached (at most
-    MULTIPLES sizes); None when the plan compares no factor's arms. Larger plans are designed from the spec as
-    `trials power --runs` designs them."""
+    """The planned test's power at the study's plan size and, with `search`, at 2, 3, ... times it until `target` is
+    reached (at most MULTIPLES sizes); None when the plan compares no factor's arms. Larger plans are designed from the
+    spec as `trials power --runs` designs them."""
     spec, _ = study_spec(folder)
     analysis, _ = plan_in_force(folder.path(SPEC), spec, folder.read_design())
     if not analysis.factor:
         return None
     own = own_plan(folder)
     powers: dict[int, PowerEstimate] = {}
-    for multiple in range(1, MULTIPLES + 1):
+    for multiple in range(1, (MULTIPLES if search else 1) + 1):
         runs = own.runs * multiple
         if runs > MAX_RUNS:
             break
@@ -67,4 +74,4 @@ def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULA
         if powers[runs].power >= target:
             break
     needed = next((runs for runs, p in powers.items() if p.power >= target), None)
-    return PlannedPower(analysis.describe_test(), anticipated.describe(), seed, simulations, target, powers, needed)
+    return PlannedPower(analysis.describe_test(), anticipated.describe(), seed, simulations, target, powers, needed, search)

@@ -1,0 +1,110 @@
+"""The analysis plan: study.toml's [analysis] table as `trials design` writes and commits to it, its one-line errors,
+its standing in the report's words, the digest recorded at each opening of the key, and its power at design time."""
+
+from __future__ import annotations
+
+import json
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from analysis.plan import SENSITIVITY, AnalysisPlan, PlanStatus
+from tests.support.run_studies import SMALL_SPEC
+from trials.analysis_plan import committed_digest
+from trials.cli import main
+from trials.study import StudyFolder
+from trials.study_data import PLAN_KEY, Opening, opened_record
+
+
+@pytest.fixture(scope="module")
+def ab(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("plan") / "ab"
+    assert main(["design", "--ab", "--seed", "3", "--power", "0", "--study", str(root)]) == 0
+    return root
+
+
+def table(root: Path) -> dict[str, object]:
+    return tomllib.loads((root / "study.toml").read_text())["analysis"]
+
+
+def test_design_writes_the_default_plan_and_commits_to_it(ab: Path) -> None:
+    written = table(ab)
+    assert written == {"outcome": "compliant", "factor": "Controller", "test": "randomization", "model": "Controller", "strata": [],
+                       "exploratory": "main + interactions + Pedestrians^2", "alpha": 0.05, "sensitivity": list(SENSITIVITY),
+                       "draws": 20000, "seed": 3}
+    plan = AnalysisPlan(**{**written, "strata": (), "sensitivity": SENSITIVITY})  # type: ignore[arg-type]
+    assert committed_digest(json.loads((ab / "design.json").read_text())) == plan.digest()
+
+
+def test_a_study_without_arms_plans_the_gee_of_its_model(tmp_path: Path) -> None:
+    assert main(["design", "--seed", "2", "--runs", "8", "--starts", "5", "--study", str(tmp_path)]) == 0
+    written = table(tmp_path)
+    assert (written["factor"], written["test"], written["model"], written["exploratory"]) == ("", "gee", "main", "")
+
+
+def test_a_blocked_study_re_randomizes_within_its_blocks(tmp_path: Path) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[study]\nname = "b"\nruns = 8\nmodel = "main"\nblocks = 2\n\n[[factors]]\nname = "Controller"\ntype = "categorical"\n'
+                    'levels = ["NaviGAN-R", "Lattice"]\n\n[[factors]]\nname = "Pedestrians"\ntype = "discrete"\nlevels = [2, 4]\n')
+    assert main(["design", "--spec", str(spec), "--seed", "1", "--power", "0", "--study", str(tmp_path / "s")]) == 0
+    written = table(tmp_path / "s")
+    assert (written["model"], written["strata"], written["exploratory"]) == ("Controller + Block", ["Block"], "main + Block")
+
+
+@pytest.mark.parametrize(("line", "message"), [
+    ('test = "t"', "[analysis]: test must be one of 'randomization', 'gee', got 't'"),
+    ('factor = "Pedestrians"', "[analysis]: factor must be \"\" or a categorical factor of the study (Direction, Controller), got 'Pedestrians'"),
+    ('model = "Pedestrians"', "[analysis]: model 'Pedestrians' must hold the compared factor 'Controller'"),
+    ('strata = ["Controller"]', "[analysis]: strata must be a list of distinct names from Pedestrians, Direction, got ['Controller']"),
+    ("alpha = 0.9", "[analysis]: alpha must be a number in (0, 0.5], got 0.9"),
+    ('sensitivity = ["gee", "firth"]', "[analysis]: sensitivity must be a list of distinct names from gee-small-sample"),
+    ("draws = 10", "[analysis]: draws must be a whole number in [100, 1000000], got 10"),
+    ("colour = 1", "[analysis]: unknown key 'colour' (expected outcome, factor, test"),
+])
+def test_a_bad_key_is_one_line_naming_file_table_and_key(ab: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                         line: str, message: str) -> None:
+    spec = tmp_path / "spec.toml"
+    text = re.sub(r"\[analysis\].*", "", (ab / "study.toml").read_text(), flags=re.S)
+    spec.write_text(text.replace('arms = [\n    "A",\n    "B",\n]', 'levels = ["NaviGAN-R", "Lattice"]') + f"[analysis]\n{line}\n")
+    assert main(["design", "--spec", str(spec), "--study", str(tmp_path / "new")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"spec.toml {message}" in err
+    assert not (tmp_path / "new" / "plan.csv").exists()
+
+
+def test_the_report_says_how_the_plan_stands(ab: Path) -> None:
+    plan = AnalysisPlan("compliant", "Controller", "randomization", "Controller", (), "main", 0.05, SENSITIVITY, 20000, 3)
+    changed = AnalysisPlan("compliant", "Controller", "gee", "Controller", (), "main", 0.05, SENSITIVITY, 20000, 3)
+    assert "the one committed to in design.json" in PlanStatus(plan, True, plan.digest()).describe()
+    assert PlanStatus(changed, True, plan.digest()).describe().startswith("**The analysis plan changed while the sealed key is closed")
+    after = PlanStatus(changed, True, plan.digest(), (plan.digest(),))
+    assert after.changed_after_opening and "it was changed after the sealed key was opened" in after.describe()
+    before = PlanStatus(changed, True, plan.digest(), (changed.digest(),))
+    assert not before.changed_after_opening and "before the sealed key was first opened" in before.describe()
+    unknown = PlanStatus(changed, True, plan.digest(), (None,))
+    assert unknown.changed_after_opening and "cannot be ruled out" in unknown.describe()
+    assert "commits to no plan" in PlanStatus(plan, False, None).describe()
+
+
+def test_each_opening_of_the_key_records_the_plan_in_force(ab: Path) -> None:
+    folder = StudyFolder(ab)
+    record = json.loads(opened_record(folder, "c" * 64, "2026-01-01T00:00:00+00:00", Opening("18 of 18 runs finished", None), "test"))
+    assert record["openings"][0][PLAN_KEY] == committed_digest(folder.read_design())
+
+
+@pytest.mark.slow  # a design's power search and `trials power` on the same seeds, about 20 s
+def test_design_time_power_of_the_planned_test_is_trials_powers(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    root, spec = tmp_path / "small", tmp_path / "spec.toml"
+    spec.write_text(SMALL_SPEC.format(name="small-ab", blind="true"))
+    assert main(["design", "--spec", str(spec), "--study", str(root), "--seed", "4", "--power", "12"]) == 0
+    printed = capsys.readouterr().out
+    at_design = dict(re.findall(r"^  (\d+) runs  power (\d\.\d{3})", printed, flags=re.M))
+    assert list(at_design) == ["6", "12", "18", "24"][:len(at_design)] and len(at_design) >= 2
+    sizes = ",".join(at_design)
+    assert main(["power", "--study", str(root), "--out", str(tmp_path / "out"), "--seed", "4", "--simulations", "12", "--runs", sizes]) == 0
+    record = json.loads((tmp_path / "out" / "power.json").read_text())
+    by_power = {str(plan["runs"]): f"{plan['planned']['power']:.3f}" for plan in record["plans"]}
+    assert by_power == at_design  # the same data sets: identical, not just within Monte Carlo error
+    assert record["planned_test"] == "run-level randomization test of Controller, alpha 0.05"
