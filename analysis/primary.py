@@ -58,7 +58,7 @@ SENSITIVITY_NAMES = {
     "gee-small-sample": "GEE, exchangeable, small-sample errors",
     "gee-independence": "GEE, independence working correlation",
     "random-intercept": "random-intercept logistic mixed model",
-    "firth": "Firth's penalized logistic regression",
+    "firth": "logistic regression of every judgment (Firth's penalized likelihood when separated)",
 }
 
 

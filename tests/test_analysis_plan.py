@@ -39,7 +39,7 @@ def test_design_writes_the_default_plan_and_commits_to_it(ab: Path) -> None:
 
 
 def test_a_study_without_arms_plans_the_gee_of_its_model(tmp_path: Path) -> None:
-    assert main(["design", "--seed", "2", "--runs", "8", "--starts", "5", "--study", str(tmp_path)]) == 0
+    assert main(["design", "--seed", "2", "--runs", "8", "--starts", "5", "--power", "0", "--study", str(tmp_path)]) == 0
     written = table(tmp_path)
     assert (written["factor"], written["test"], written["model"], written["exploratory"]) == ("", "gee", "main", "")
 
