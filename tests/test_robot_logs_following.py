@@ -4,34 +4,9 @@ and in the laser's own frame (a log without odometry)."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
-from robot_logs.clear_mot import ClearMot, ScoredScan
-from robot_logs.frames import Pose2D
-from robot_logs.pipeline import PersonTracker
-from tests.support.following import following_walk
-
-#: Beams on the walker's legs for them to count as seen (a segment's minimum).
-VISIBLE_BEAMS = 3
-
-
-def follow(rate_hz: float, odometry: bool, seed: int = 0) -> tuple[ClearMot, int]:
-    """CLEAR-MOT of the walker (0.75 m match radius) over 60 s, and how many scans found the
-    walker's place on the static world."""
-    walk = following_walk(60.0, rate_hz, seed)
-    tracker = PersonTracker.learned()
-    score, absorbed = ClearMot(), 0
-    for pose, scan, world, local, beams in zip(walk.poses, walk.scans, walk.walker, walk.walker_in_laser, walk.beams):
-        result = tracker.process(scan, pose if odometry else Pose2D())
-        truth = (world if odometry else local)[None, :]
-        assert tracker.world is not None
-        absorbed += int(tracker.world.is_static(truth)[0])
-        ids = np.array([t.track_id for t in result.tracks], dtype=int)
-        where = np.array([[t.x, t.y] for t in result.tracks]).reshape(-1, 2)
-        seen = int(beams >= VISIBLE_BEAMS)
-        score.update(ScoredScan(np.array([1])[:seen], truth[:seen], ids, where, hidden=truth[seen:]))
-    return score, absorbed
+from tests.support.following import follow
 
 
 @pytest.mark.slow

@@ -3,7 +3,8 @@ walks 1 to 3 m ahead of it, with walls and posts along the way.
 
 The lidar is one like the person-following benchmark log's (245 beams over 86 degrees, 5.6 m),
 the legs those fitted to the labelled sample bags. The ground truth is the walker's position in
-the world (the odometry frame) and in the laser's frame at each scan.
+the world (the odometry frame) and in the laser's frame at each scan; `follow` scores the learned
+tracking setup on it (the following test and benchmarks/bench_tracking.py).
 """
 
 from __future__ import annotations
@@ -13,8 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robot_logs.clear_mot import ClearMot, ScoredScan
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
+from robot_logs.pipeline import PersonTracker
 
 #: A narrow outdoor lidar like the following log's: 245 beams over 86 degrees, 0.05-5.6 m, 1 cm noise.
 FOLLOWING_LIDAR = LidarSpec(angle_min=math.radians(-43.0), angle_max=math.radians(43.0),
@@ -79,3 +82,25 @@ def following_walk(duration: float = 60.0, rate_hz: float = 10.0, seed: int = 0,
     seen = [lidar.observe(float(when), pose, p[None, :], v[None, :]) for when, pose, p, v in zip(t, poses, walker, velocity)]
     in_laser = np.array([pose.inverse().apply(p[None, :])[0] for pose, p in zip(poses, walker)])
     return FollowingWalk(poses, [scan for scan, _ in seen], walker, in_laser, np.array([b[0] for _, b in seen]), seed)
+
+
+#: Beams on the walker's legs for them to count as seen (a segment's minimum).
+VISIBLE_BEAMS = 3
+
+
+def follow(rate_hz: float, odometry: bool, seed: int = 0) -> tuple[ClearMot, int]:
+    """CLEAR-MOT of the walker (0.75 m match radius) over 60 s, and how many scans found the
+    walker's place on the static world."""
+    walk = following_walk(60.0, rate_hz, seed)
+    tracker = PersonTracker.learned()
+    score, absorbed = ClearMot(), 0
+    for pose, scan, world, local, beams in zip(walk.poses, walk.scans, walk.walker, walk.walker_in_laser, walk.beams):
+        result = tracker.process(scan, pose if odometry else Pose2D())
+        truth = (world if odometry else local)[None, :]
+        assert tracker.world is not None
+        absorbed += int(tracker.world.is_static(truth)[0])
+        ids = np.array([t.track_id for t in result.tracks], dtype=int)
+        where = np.array([[t.x, t.y] for t in result.tracks]).reshape(-1, 2)
+        seen = int(beams >= VISIBLE_BEAMS)
+        score.update(ScoredScan(np.array([1])[:seen], truth[:seen], ids, where, hidden=truth[seen:]))
+    return score, absorbed
