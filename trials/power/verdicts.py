@@ -19,6 +19,7 @@ from analysis.clustered import fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares
 from analysis.plan import AnalysisPlan
 from analysis.primary import primary_p_value
+from designs.factors import CategoricalFactor
 from trials.power.plans import PowerPlan
 
 
@@ -48,9 +49,12 @@ POWER_DRAWS = 2000
 
 
 def planned_p(plan: PowerPlan, analysis: AnalysisPlan, yes: np.ndarray, total: np.ndarray) -> float:
-    """The planned primary test's p-value on `yes` of `total` judgments per run of `plan`."""
+    """The planned primary test's p-value on `yes` of `total` judgments per run of `plan` (NaN for a plan that compares
+    no factor: its GEE test is the term tests' own)."""
+    if not analysis.factor:
+        return math.nan
     factor = next((f for f in plan.model.factors if f.name == analysis.factor), None)
-    first = str(factor.levels[0]) if factor is not None and hasattr(factor, "levels") else ""
+    first = str(factor.levels[0]) if isinstance(factor, CategoricalFactor) else ""
     arms = [row.get(analysis.factor, "") for row in plan.rows]
     strata = [tuple(row[name] for name in analysis.strata) for row in plan.rows]
     return primary_p_value(analysis, plan.model.factors, plan.settings, arms, first, strata, yes, total, draws=POWER_DRAWS)
