@@ -10,11 +10,13 @@ the static-world grid and confirmation by the classifier's mean confidence;
 The rule for a person: a tentative track is confirmed after 3 consecutive hits once the mean leg
 probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
 labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
-early loses its detections once its cells turn static and dies; a track whose mean probability
-reaches the `protect` level (what half the labelled legs reach) keeps its cells out of the grid,
-so a person standing still stays a person. A tentative track below `protect` that has not
-moved 0.3 m waits 2 s (`still_wait`) before it is confirmed, so furniture in view from the start
-turns static before it is ever reported.
+early loses its detections once its cells turn static and dies. A tentative track below the
+`protect` level (what half the labelled legs reach) that has not walked (moved 0.3 m, or changed
+its legs' spread by a stride) waits 2 s (`still_wait`) before it is confirmed, so furniture in view
+from the start turns static before it is ever reported. Once confirmed, a track keeps itself
+through the scans where the classifier doubts the legs (`robot_logs.tracking`), and a track that
+walked or reaches `protect` keeps its cells out of the grid, so neither a person standing still
+nor one walking at a steady distance ahead of a moving robot turns into static world.
 """
 
 from __future__ import annotations
