@@ -33,6 +33,8 @@ kernel = njit(cache=True, nogil=True)
 _FINE_POINTS = 201
 _ZOOM_POINTS = 21
 _ZOOMS = 5
+#: X'X whose condition number passes this is singular to working precision (`_singular`).
+_SINGULAR_CONDITION = 1e12
 
 
 @kernel
@@ -240,14 +242,39 @@ def _poly(coefficients, t):
 
 
 @kernel
+def _singular(info):
+    """Whether X'X is singular to working precision. Its condition number decides, not its determinant: X'X of a
+    singular design with integer codes comes out of the factorization with a tiny positive determinant, whose
+    inverse is then all rounding error (a saturated plan's random start, say)."""
+    sign, _ = np.linalg.slogdet(info)
+    return sign <= 0 or np.linalg.cond(info) > _SINGULAR_CONDITION
+
+
+@kernel
+def _inverse(x):
+    """V = (X'X)^-1 of the model rows `x`, with a small ridge on the diagonal when X'X is singular, so the
+    exchange can still move a singular start towards a design that estimates every term."""
+    info = x.T @ x
+    if _singular(info):
+        ridge = 1e-6 * max(1.0, np.trace(info) / info.shape[0])
+        for r in range(info.shape[0]):
+            info[r, r] += ridge
+    return np.linalg.inv(info)
+
+
+@kernel
 def _exchange_row(inv, x_old, y, b, a):
-    """V = (X'X)^-1 in place after the row x_old is replaced by y (rank-two Woodbury update)."""
+    """V = (X'X)^-1 in place after the row x_old is replaced by y (rank-two Woodbury update); False, V untouched,
+    when the update's 2 x 2 core is singular to working precision (its determinant lost in rounding), so the
+    caller inverts X'X afresh instead."""
     _mat_vec(inv, y, a)
     _mat_vec(inv, x_old, b)
     dy = _dot(y, a)
     dx = _dot(x_old, b)
     dxy = _dot(b, y)
     det = (1.0 + dy) * (dx - 1.0) - dxy * dxy
+    if abs(det) <= 1e-8 * max(abs((1.0 + dy) * (dx - 1.0)), dxy * dxy, 1.0):
+        return False
     s11 = (dx - 1.0) / det
     s12 = -dxy / det
     s22 = (1.0 + dy) / det
@@ -255,6 +282,7 @@ def _exchange_row(inv, x_old, y, b, a):
     for r in range(p):
         for c in range(p):
             inv[r, c] -= s11 * a[r] * a[c] + s12 * (a[r] * b[c] + b[r] * a[c]) + s22 * b[r] * b[c]
+    return True
 
 
 @kernel
@@ -296,13 +324,7 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
     passes = 0
     for _ in range(max_passes):
         passes += 1
-        info = x.T @ x
-        sign, log_det = np.linalg.slogdet(info)
-        if sign <= 0 or log_det < -30.0:
-            ridge = 1e-6 * max(1.0, np.trace(info) / p)
-            for r in range(p):
-                info[r, r] += ridge
-        inv = np.linalg.inv(info)
+        inv = _inverse(x)
         tolerance = 1e-10
         if trace:
             tolerance = 1e-10 * max(np.sum(weight * inv), 1e-300)
@@ -424,7 +446,8 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
                 for r in range(p):
                     x_old[r] = x[i, r]
                 model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
-                _exchange_row(inv, x_old, x[i], b, a)
+                if not _exchange_row(inv, x_old, x[i], b, a):
+                    inv = _inverse(x)
         if not improved:
             break
     return passes
@@ -440,12 +463,11 @@ def criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace):
     for i in range(n):
         model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
     info = x.T @ x
-    sign, log_det = np.linalg.slogdet(info)
-    if sign <= 0 or log_det < -30.0:
+    if _singular(info):
         return -np.inf
     if trace:
         return -np.sum(weight * np.linalg.inv(info))
-    return log_det
+    return np.linalg.slogdet(info)[1]
 
 
 @kernel
