@@ -12,7 +12,8 @@ import numpy as np
 
 from analysis.ab_table import RunJudgments
 from analysis.clustered import GeeOptions, fit_gee
-from analysis.models import DesignMatrix, Fit, fit_logistic, parameter_rows
+from analysis.mixed import fit_mixed
+from analysis.models import DesignMatrix, Fit, fit_logistic
 from analysis.plan import RANDOMIZATION, AnalysisPlan
 from analysis.randomization import RandomizationTest, randomization_test
 from analysis.records import StudyData, StudyRun
@@ -110,12 +111,9 @@ def sensitivity_fit(name: str, dm: DesignMatrix, yes: np.ndarray, total: np.ndar
         return fit_gee(dm, yes, total, JUDGED)
     if name == "gee-independence":
         return fit_gee(dm, yes, total, JUDGED, GeeOptions(correlation="independence"))
-    if name == "firth":
-        return fit_logistic(dm, yes, total, JUDGED)
-    missing = np.full(dm.x.shape[1], math.nan)
-    keep = np.ones(dm.x.shape[1], dtype=bool)
-    return Fit(JUDGED, SENSITIVITY_NAMES[name], len(total), int(np.sum(total)), "z", "", parameter_rows(dm, keep, *(missing,) * 4), [],
-               ["This release does not fit the random-intercept model yet."])
+    if name == "random-intercept":
+        return fit_mixed(dm, yes, total, JUDGED)
+    return fit_logistic(dm, yes, total, JUDGED)
 
 
 def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: AnalysisPlan) -> PrimaryResult:
