@@ -832,6 +832,13 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             }
             for row in a.table
         ],
+        "scores_by_arm": {arm: dict(zip(map(str, SCORES), counts(a.scores[r.code].final for r in data.compared if r.arm == arm)))
+                          for arm in a.arms} if len(a.arms) > 1 else {},
+        "scores_by_factor": [{"factor": row.factor, "level": row.level, "counts": dict(zip(map(str, SCORES), row.counts)),
+                              "mean": _json_number(row.mean)}
+                             for row in by_factor(data.spec, data.compared, {r.code: a.scores[r.code].final for r in data.compared},
+                                                  blinding.factor)] if data.compared else [],
+        "design": {key: value for key, value in data.diagnostics.items() if key != "correlation_map"},
         "score_shares": {str(score): dict(zip(("share", "low", "high"), map(_json_number, _share_interval(count, sum(total)))))
                          for score, count in zip(SCORES, total)} if sum(total) else {},
         "analysis_plan": {"table": a.plan.plan.table(), "sha256": a.plan.plan.digest(), "declared": a.plan.declared,
