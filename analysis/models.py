@@ -235,9 +235,9 @@ _GRADIENT_TOLERANCE = 1e-8
 
 class _Profile:
     """The profile objective of one column: the maximum over the other columns with it held at a value. Each value
-    starts from the maxima found at the nearest values held on either side (continuation along every branch found),
-    from the estimate, and, when exploring, from the random starts, so the profile is the upper envelope of the
-    branches and continuous."""
+    starts from the maxima found at the nearest values held on either side (continuation along every branch found,
+    beginning at the estimate) and, when exploring, from the random starts, so the profile is the upper envelope of
+    the branches found, and continuous."""
 
     def __init__(self, likelihood: _Likelihood, column: int, estimate: np.ndarray) -> None:
         self.likelihood, self.column, self.estimate = likelihood, column, estimate
@@ -330,19 +330,26 @@ def _profile_interval(profile: _Profile, maximum: float, std_error: float) -> tu
     def excess(held: float, explore: bool = False) -> float:
         return 2.0 * (maximum - profile.value(held, explore)) - _CHI2_95
 
+    def crossing(inner: float, outer: float) -> float | None:
+        """The crossing between `inner` (below the quantile) and `outer` (at or above it), or None when the random
+        starts find a higher branch at the root that carries the profile past `outer` as well."""
+        while True:
+            root = brentq(excess, inner, outer, xtol=1e-9)
+            if excess(root, explore=True) >= -_ROOT_TOLERANCE:
+                return root
+            if excess(outer) < 0.0:
+                return None
+            inner = root
+
     ends = []
     for sign in (-1.0, 1.0):
         inner, end = estimate, sign * math.inf
         for multiple in _PROFILE_STEPS:
             outer = estimate + sign * multiple * std_error
-            if excess(outer) < 0.0 or excess(outer, explore=True) < 0.0:
-                inner = outer
-                continue
-            root = brentq(excess, inner, outer, xtol=1e-9)
-            while excess(root, explore=True) < -_ROOT_TOLERANCE:
-                inner, root = root, brentq(excess, root, outer, xtol=1e-9)
-            end = root
-            break
+            if excess(outer) >= 0.0 and excess(outer, explore=True) >= 0.0 and (root := crossing(inner, outer)) is not None:
+                end = root
+                break
+            inner = outer
         ends.append(end)
     return ends[0], ends[1]
 
