@@ -151,6 +151,9 @@ def fit_mixed(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respo
     test = "likelihood-ratio chi-square"
     missing = np.full(x.shape[1], math.nan)
     empty = Fit(response, method, len(trials), int(trials.sum()), "z", test, parameter_rows(dm, keep, missing, missing, missing, missing), [], notes)
+    if len(k) == 0:
+        notes.append("No run has judgments: nothing to fit.")
+        return empty
     if separation(x, k, n) is not None:
         notes.append("The judgments are perfectly separated: the mixed model's maximum-likelihood estimates do not exist.")
         return empty

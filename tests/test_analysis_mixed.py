@@ -108,3 +108,5 @@ def test_separated_judgments_give_no_mixed_estimates() -> None:
     dm = DesignMatrix(np.column_stack([np.ones(6), np.repeat([1.0, -1.0], 3)]), COLUMNS[:2], TERMS[:2])
     fit = fit_mixed(dm, np.array([4, 4, 4, 0, 0, 0]), np.full(6, 4), "yes")
     assert all(math.isnan(p.estimate) for p in fit.parameters) and any("separated" in note for note in fit.notes)
+    unjudged = fit_mixed(dm, np.zeros(6), np.zeros(6), "yes")
+    assert all(math.isnan(p.estimate) for p in unjudged.parameters) and unjudged.notes[-1] == "No run has judgments: nothing to fit."
