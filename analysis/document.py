@@ -10,6 +10,7 @@ import base64
 import csv
 import html
 import io
+import math
 import re
 from dataclasses import dataclass, field
 
@@ -58,6 +59,13 @@ Block = Heading | Paragraph | Bullets | Table | Figure
 _CODE = re.compile(r"`([^`]+)`")
 _BOLD = re.compile(r"\*\*([^*]+)\*\*")
 _NUMBER = ' class="num"'
+#: What Markdown (CommonMark, GitHub's tables) may read as markup within a line, escaped in literal text: an
+#: underscore only where it could open or close emphasis (not inside a word such as noise_std_m).
+_MARKDOWN_PUNCTUATION = re.compile(r"[\\`*\[\]#|~]|(?<![0-9A-Za-z])_|_(?![0-9A-Za-z])")
+#: What opens a list, a quote or a thematic break at the start of a block: - + >, or a number and . or ).
+_BLOCK_START = re.compile(r"^(\d+(?=[.)])|(?=[-+>]))")
+#: First characters that make a spreadsheet read a cell as a formula (OWASP's list).
+_FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 
 STYLE = """
 body { font-family: "DejaVu Sans", Arial, sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.4; }
@@ -91,28 +99,44 @@ def _inline_html(text: str) -> str:
     return _BOLD.sub(r"<strong>\1</strong>", _CODE.sub(r"<code>\1</code>", escaped))
 
 
-def _cell_markdown(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
+def _inline_markdown(text: str, cell: bool = False, block: bool = False) -> str:
+    """Inline text as Markdown that shows what `_inline_html` shows: `code` and **bold** stay markup, the rest is
+    literal (& and < as entities, so no HTML; Markdown's punctuation backslash-escaped; line breaks as spaces), so
+    text people typed (a scorer's note, a study's name, a level) neither injects HTML nor restyles the report. In a
+    table `cell` a code span's | is escaped too; a `block` (heading, paragraph, list item, caption) loses the spaces
+    around it and has what would open a list, a quote or a code block at its start escaped."""
+    text = " ".join(text.splitlines())
+    parts = []
+    for k, piece in enumerate(_CODE.split(text.strip() if block else text)):
+        if k % 2:  # a code span: literal to Markdown already
+            parts.append("`" + (piece.replace("|", "\\|") if cell else piece) + "`")
+            continue
+        for j, plain in enumerate(_BOLD.split(piece)):
+            plain = _MARKDOWN_PUNCTUATION.sub(r"\\\g<0>", plain.replace("&", "&amp;").replace("<", "&lt;"))
+            parts.append(f"**{plain}**" if j % 2 else plain)
+    written = "".join(parts)
+    return _BLOCK_START.sub(r"\1\\", written, count=1) if block else written
 
 
 def to_markdown(title: str, blocks: list[Block], figure_dir: str = "figures") -> str:
     """The report as Markdown; figures are linked as `figure_dir/name`."""
-    lines = [f"# {title}", ""]
+    lines = [f"# {_inline_markdown(title, block=True)}", ""]
     for block in blocks:
         if isinstance(block, Heading):
-            lines += ["#" * block.level + " " + block.text, ""]
+            lines += ["#" * block.level + " " + _inline_markdown(block.text, block=True), ""]
         elif isinstance(block, Paragraph):
-            lines += [block.text, ""]
+            lines += [_inline_markdown(block.text, block=True), ""]
         elif isinstance(block, Bullets):
-            lines += [f"- {item}" for item in block.items] + [""]
+            lines += [f"- {_inline_markdown(item, block=True)}" for item in block.items] + [""]
         elif isinstance(block, Table):
             rule = ["---:" if i in block.align_right else "---" for i in range(len(block.header))]
-            lines.append("| " + " | ".join(_cell_markdown(h) for h in block.header) + " |")
+            lines.append("| " + " | ".join(_inline_markdown(h, cell=True) for h in block.header) + " |")
             lines.append("| " + " | ".join(rule) + " |")
-            lines += ["| " + " | ".join(_cell_markdown(c) for c in row) + " |" for row in block.rows]
-            lines += ([""] + [f"*{block.caption}*"] if block.caption else []) + [""]
+            lines += ["| " + " | ".join(_inline_markdown(c, cell=True) for c in row) + " |" for row in block.rows]
+            lines += ([""] + [f"*{_inline_markdown(block.caption, block=True)}*"] if block.caption else []) + [""]
         else:
-            lines += [f"![{block.caption}]({figure_dir}/{block.name}.png)", "", f"*{block.caption}*", ""]
+            caption = _inline_markdown(block.caption, block=True)
+            lines += [f"![{caption}]({figure_dir}/{block.name}.png)", "", f"*{caption}*", ""]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -208,12 +232,27 @@ def _plain(text: str) -> str:
     return _BOLD.sub(r"\1", _CODE.sub(r"\1", text))
 
 
+def _csv_cell(text: str) -> str:
+    """A CSV cell: markup removed, and text a spreadsheet would run as a formula (a leading =, +, -, @, tab or
+    carriage return, not a number) shown as text by a leading apostrophe, as OWASP advises."""
+    cell = _plain(text)
+    if cell.startswith(_FORMULA_STARTS):
+        try:
+            if math.isfinite(float(cell)):
+                return cell
+        except ValueError:
+            pass
+        return "'" + cell
+    return cell
+
+
 def to_csv(table: Table) -> str:
-    """A table as CSV: its header and rows, markup removed (the caption stays in the report)."""
+    """A table as CSV: its header and rows, markup removed and safe for spreadsheets (the caption stays in the
+    report)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow([_plain(h) for h in table.header])
-    writer.writerows([[_plain(c) for c in row] for row in table.rows])
+    writer.writerow([_csv_cell(h) for h in table.header])
+    writer.writerows([[_csv_cell(c) for c in row] for row in table.rows])
     return buffer.getvalue()
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import matplotlib.image as mpimg
 import pytest
+from markdown_it import MarkdownIt
 from scipy.stats import fisher_exact
 
 from robot_logs.figure_files import DEFAULT_DPI
@@ -21,6 +22,9 @@ from tests.support.synthetic_study import Behaviour, design, run_all, write_run
 from trials.cli import main
 
 pytestmark = pytest.mark.slow  # whole study folders synthesised and reported
+
+#: A scorer's note that would be markup: report.md must show it as text.
+NOTE = "<img src=x onerror=alert(1)> [a](b) | _c_"
 
 screenshot_report = load_script("screenshot_report")
 
@@ -154,7 +158,7 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
     row_four = next(line for line in markdown.splitlines() if line.startswith("| >= 4 pedestrians |"))
     assert "| 64 % |" in row_four and "| 75 % |" in row_four  # the paper's SBPL and NaviGAN-R
     assert "Lattice" in out and "NaviGAN-R" in out
-    assert "Controller[Lattice]" in markdown or "Controller[NaviGAN-R]" in markdown
+    assert "Controller\\[Lattice\\]" in markdown or "Controller\\[NaviGAN-R\\]" in markdown  # brackets escaped in Markdown
     first = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
     assert len(first) == 1
     # Unblinding again keeps the first time; a blinded report afterwards still names no controller.
@@ -274,7 +278,7 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     assert collided["status"] == "collision"
     root = str(folder.root)
     assert main(["score", collided["run_code"], "3", "--by", "ana", "--note", "brushed, no harm", "--study", root]) == 0
-    assert main(["score", collided["run_code"], "2", "--by", "ben", "--study", root]) == 0
+    assert main(["score", collided["run_code"], "2", "--by", "ben", "--note", NOTE, "--study", root]) == 0
     early = tmp_path / "early.csv"
     early.write_text(f"run_code,score,scorer,recorded_utc\n{backed['run_code']},2,cem,2025-06-01T00:00:00+00:00\n")
     assert main(["score", "--import", str(early), "--study", root]) == 0
@@ -293,7 +297,9 @@ def test_human_scores_override_and_qualitative_plan(tmp_path: Path, capsys: pyte
     markdown = (folder.root / "report" / "report.md").read_text()
     assert "| 3 | 25 | 92.6 % |" in markdown and "86.7 %" in markdown
     assert "### Scores against each factor" in markdown and "| CrossingDistance |" in markdown
-    assert "3 by ana (brushed, no harm); 2 by ben" in markdown
+    assert "3 by ana (brushed, no harm); 2 by ben (&lt;img src=x onerror=alert(1)> \\[a\\](b) \\| \\_c\\_)" in markdown
+    shown = MarkdownIt("commonmark").enable("table").render(markdown)  # the note as text, in its one cell
+    assert "<img src=x" not in shown and "3 by ana (brushed, no harm); 2 by ben (&lt;img src=x onerror=alert(1)&gt; [a](b) | _c_)</td>" in shown
     assert f"Run {backed['run_code']} finished again (2026-01-01T00:00:00+00:00) after 1 of its scores or judgments were recorded" in markdown
     assert record["table_ii"] == [] and "Table II" not in markdown
 
