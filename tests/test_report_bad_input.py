@@ -164,8 +164,9 @@ def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(stud
     assert main(["report", "--study", str(study), "--unblind", "--commitment", digest, "--interim", reason]) == 0
     record = json.loads((study / "report" / "unblinding.json").read_text())
     (opening,) = record["openings"]
+    plan = json.loads((study / "design.json").read_text())["analysis_plan"]["sha256"]  # the plan in force, as committed
     assert opening == {"utc": record["unblinded_utc"][0], "completeness": f"{len(finished)} of 18 runs finished", "interim": reason,
-                       "command": "trials report --unblind"}
+                       "command": "trials report --unblind", "analysis_plan_sha256": plan}
     blinding = json.loads((study / "report" / "report.json").read_text())["blinding"]
     assert (blinding["completeness"], blinding["interim"]) == (opening["completeness"], reason)
     assert f"**Interim unblinding** with {len(finished)} of 18 runs finished, for this reason: {reason}" in (study / "report" / "report.md").read_text()
