@@ -80,21 +80,48 @@ def _raise(failure: Failure) -> None:
     raise RuntimeError(f"a campaign failed: {failure.kind}: {failure.message}\n{failure.details}")
 
 
+#: How long a Ray cluster's address may take to answer the handshake of its gRPC server before it is called not Ray.
+HANDSHAKE_TIMEOUT_S = 5.0
+#: HTTP/2's client connection preface and an empty SETTINGS frame (RFC 9113, section 3.4). Ray's GCS (and its client
+#: server, `ray://`) speak gRPC over HTTP/2 and answer with a SETTINGS frame of their own; a silent listener or an
+#: HTTP/1 server does not, where `ray.init` would wait minutes. Plain `ray` ships no gRPC client for Python, so the
+#: nine bytes of the answer are read here.
+_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+_SETTINGS = 4
+
+
 def check_reachable(address: str) -> None:
-    """Fail fast, in one line, when nothing answers at a Ray cluster's HOST:PORT (Ray itself waits long).
+    """Fail fast, in one line, when nothing answers at a Ray cluster's HOST:PORT, or what answers does not speak gRPC
+    as Ray does (Ray itself waits long).
 
     Raises:
-        StudyError: a malformed address, or no answer within CONNECT_TIMEOUT_S.
+        StudyError: a malformed address, no answer within CONNECT_TIMEOUT_S, or no HTTP/2 answer within
+            HANDSHAKE_TIMEOUT_S.
     """
     host, _, port = address.removeprefix("ray://").rpartition(":")
     if not host or not port.isdigit():
         raise StudyError(f"--ray: expected HOST:PORT of a Ray cluster (or `local`), got {address!r}")
     try:
-        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S):
-            pass
+        connection = socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S)
     except OSError as exc:
         raise StudyError(f"--ray {address}: no Ray cluster answers there ({exc.strerror or exc}); start one with "
                          "`ray start --head` or check the address") from None
+    with connection:
+        connection.settimeout(HANDSHAKE_TIMEOUT_S)
+        answer = b""
+        try:
+            connection.sendall(_PREFACE)
+            while len(answer) < 9 and (chunk := connection.recv(9 - len(answer))):
+                answer += chunk
+        except TimeoutError:
+            why = f"it did not answer Ray's handshake within {HANDSHAKE_TIMEOUT_S:g} s"
+        except OSError as exc:
+            why = f"it broke off Ray's handshake ({exc.strerror or exc})"
+        else:
+            why = "" if len(answer) == 9 and answer[3] == _SETTINGS else "it does not speak gRPC as Ray's head node does"
+    if why:
+        raise StudyError(f"--ray {address}: something listens there, but not a Ray cluster ({why}); give the head node's "
+                         "GCS address (`ray start --head` prints it; port 6379 by default)")
 
 
 #: How many times Ray restarts a dead actor and reruns the batches it lost.
@@ -127,7 +154,6 @@ def check_ray(address: str) -> None:
 
 def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_batch: Callable[[list[CampaignResult]], None]) -> None:
     import ray
-    from ray.util import ActorPool
 
     assert where.ray is not None
     check_ray(where.ray)
@@ -140,14 +166,48 @@ def _on_ray(work: list[CampaignBatch], setup: tuple[Any, ...], where: Where, on_
         # A batch is a pure function of its seeds, so one whose actor died (a worker lost on a busy or failing node)
         # is safely run again on the actor Ray restarts; errors the batch itself raises are never retried.
         actor = ray.remote(num_cpus=1, max_restarts=RAY_RETRIES, max_task_retries=RAY_RETRIES)(RayWorker)
-        pool = ActorPool([actor.remote(*setup) for _ in range(min(cpus, len(work)))])
+        _run_on_actors(ray, lambda: actor.remote(*setup), min(cpus, len(work)), work, on_batch)
+    finally:
+        ray.shutdown()
+
+
+def _run_on_actors(ray: Any, start: Callable[[], Any], count: int, work: list[CampaignBatch],
+                   on_batch: Callable[[list[CampaignResult]], None]) -> None:
+    """Each batch on one of `count` actors made by `start`, a batch at a time each, results handed on as they come.
+
+    An actor Ray gave up on (one whose start was cancelled on a busy node, or that died past its restarts) is
+    replaced by a fresh one, and its batch run again, up to RAY_RETRIES times a batch: without that one slow start
+    failed the whole run (`ActorDiedError: ... it was cancelled before it started running`).
+    """
+    actors = [start() for _ in range(count)]
+    waiting = list(range(len(work)))
+    lost = [0] * len(work)
+    running: dict[Any, tuple[int, int]] = {}  # the task's reference -> (actor, batch)
+
+    def submit(slot: int) -> None:
+        index = waiting.pop(0)
+        running[actors[slot].run.remote(work[index])] = (slot, index)
+
+    for slot in range(min(count, len(waiting))):
+        submit(slot)
+    while running:
+        (done,), _ = ray.wait(list(running), num_returns=1)
+        slot, index = running.pop(done)
         try:
-            for results in pool.map_unordered(lambda a, batch: a.run.remote(batch), work):
-                on_batch(results)
+            results = ray.get(done)
         except ray.exceptions.RayTaskError as exc:
             cause = exc.cause if isinstance(exc.cause, BaseException) else None
             if isinstance(cause, USER_ERRORS):
                 raise StudyError(str(cause).splitlines()[0]) from None
             raise
-    finally:
-        ray.shutdown()
+        except ray.exceptions.RayActorError as exc:
+            lost[index] += 1
+            if exc.actor_init_failed or lost[index] > RAY_RETRIES:
+                raise
+            ray.kill(actors[slot], no_restart=True)
+            actors[slot] = start()
+            waiting.insert(0, index)
+        else:
+            on_batch(results)
+        if waiting:
+            submit(slot)
