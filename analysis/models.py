@@ -170,7 +170,7 @@ class _Likelihood:
     def maximise(self, start: np.ndarray, fixed: dict[int, float]) -> tuple[np.ndarray, float]:
         """A local maximum from `start` with the `fixed` columns at their values: Newton steps on the free columns (on
         the Hessian where it is negative definite, else on the Fisher information, an ascent direction either way),
-        halved until the objective rises, until the free gradient vanishes; where Newton stalls first, scipy's
+        halved until the objective does not fall, until the free gradient vanishes; where Newton stalls first, scipy's
         trust-region Newton (trust-exact) finishes from the best point reached."""
         free = np.array([j not in fixed for j in range(self.x.shape[1])])
         beta = np.array(start, dtype=float)
@@ -186,12 +186,15 @@ class _Likelihood:
             step = np.zeros_like(beta)
             step[free] = np.linalg.lstsq(curvature, score, rcond=None)[0]
             scale = 1.0
-            while scale > 1e-12 and not self.objective(beta + scale * step) > current:
+            # a fall within rounding of the objective is no fall: next to the maximum the objective cannot see the step
+            while scale > 1e-12 and not self.objective(beta + scale * step) >= current - 1e-12 * (1.0 + abs(current)):
                 scale /= 2.0
             if scale <= 1e-12:
                 break
             beta = beta + scale * step
             current = self.objective(beta)
+        if not math.isfinite(current):  # still where the information is singular: a start that leads nowhere
+            return beta, -math.inf
 
         def pieces(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             trial = beta.copy()
