@@ -17,7 +17,9 @@ statsmodels does the fitting. A study has few runs (18 in the A/B plan), so by d
 The exchangeable correlation alpha is a moment estimate from the Pearson residuals r: statsmodels
 (the default here) divides the sum of within-run products by (pairs - p) and the scale sum r^2 by
 (N - p); geepack's geeglm (its default scale.fix = FALSE) divides them by pairs and N, with no p.
-The convention in use is stated in the fit's method text; GeeOptions chooses it.
+The convention in use is stated in the fit's method text; GeeOptions chooses it. With geepack's convention the
+estimates and alpha are geeglm's; its default errors (std.err = "san.se") are the uncorrected sandwich, so they
+differ from these by the small-sample correction.
 """
 
 from __future__ import annotations
