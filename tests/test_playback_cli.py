@@ -132,7 +132,7 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", "navigan-r,navigan-r-shield", "--shield", "0.6") == 0
     with (out / "table1.csv").open() as f:
-        assert list(next(csv.DictReader(f)))[3:] == ["R", "R_shield"]
+        assert list(next(csv.DictReader(f)))[4:] == ["R", "R_shield"]
     assert "it would come within 0.6 m of anyone's constant-velocity forecast" in (out / "table1.md").read_text()
     record = json.loads((out / "episodes" / "zara1" / "navigan-r-shield.json").read_text())
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and record["identity"]["settings"]["shield"] == 0.6
@@ -168,7 +168,7 @@ def test_the_evasion_column_walks_the_networks_its_checkpoint_holds_and_refuses_
     train_evasion(ckpt.load(mine), mine, episodes, config, save=lambda r: ckpt.save(r, mine))
     assert playback(eth_ucy_dir, out, "--checkpoints", str(weights), "--models", "navigan-r,navigan-r-evasion") == 0
     with (out / "table1.csv").open() as f:
-        assert list(next(csv.DictReader(f)))[3:] == ["R", "R_evasion"]
+        assert list(next(csv.DictReader(f)))[4:] == ["R", "R_evasion"]
     assert "R+evasion walks NaviGAN-R with its evasion networks" in (out / "table1.md").read_text()
     record = json.loads((out / "episodes" / "zara1" / "navigan-r-evasion.json").read_text())
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and len(record["results"]) == 3
