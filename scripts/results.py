@@ -322,12 +322,12 @@ def table1_text(data: Cells) -> str:
         for metric in "SCA":
             for protocol in PROTOCOLS:
                 cells = data[protocol][scope]
-                body.append([f"{metric}, {protocol}", *(cells[metric, "ours"][c] for c in labels)])
+                body.append([f"{metric}, ours (`{protocol}`)", *(cells[metric, "ours"][c] for c in labels)])
                 body.append(["95 %", *(f"{cells[metric, 'ours_low'][c]}-{cells[metric, 'ours_high'][c]}" for c in labels)])
                 for c in labels:
                     if not inside(cells, metric, c):
                         outside.setdefault((protocol, cause(data, protocol, scope, metric, c)), []).append((title, metric, c))
-            body.append([f"{metric}, the paper's", *(data[PROTOCOLS[0]][scope][metric, "paper"][c] for c in labels)])
+            body.append([f"{metric}, the paper's Table I", *(data[PROTOCOLS[0]][scope][metric, "paper"][c] for c in labels)])
         lines += ["", f"### {title[0].upper()}{title[1:]}", "", table(["", *labels], body)]
     lines += ["", "### Cells reproduced, and why the others differ", "",
               "The paper's value lies inside our 95 % interval in "
