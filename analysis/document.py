@@ -157,15 +157,16 @@ def _anchors(blocks: list[Block]) -> dict[int, str]:
 
 
 def _contents(blocks: list[Block], anchors: dict[int, str], numbers: dict[int, int]) -> str:
-    """The table of contents: every heading nested by level, each figure under the heading it follows."""
+    """The table of contents: every heading nested by level, each figure under the section (h2 or h3) it is in,
+    after that section's own subsections."""
     entries: list[tuple[int, str, str]] = []
-    level = 2
+    section = 2
     for index, block in enumerate(blocks):
         if isinstance(block, Heading):
-            level = block.level
-            entries.append((level, anchors[index], _inline_html(block.text)))
+            section = min(block.level, 3)
+            entries.append((block.level, anchors[index], _inline_html(block.text)))
         elif isinstance(block, Figure):
-            entries.append((level + 1, anchors[index], f"Figure {numbers[index]}: {_inline_html(block.title or block.name)}"))
+            entries.append((section + 1, anchors[index], f"Figure {numbers[index]}: {_inline_html(block.title or block.name)}"))
     if not entries:
         return ""
     top = min(level for level, _, _ in entries)
