@@ -21,7 +21,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -57,6 +57,8 @@ SHIELD_MARGIN = 0.5
 DAGGER, SHIELDED, EVADING = "-dagger", "-shield", "-evasion"
 #: Which model's full and dagger paths Fig. 4 shows: the first of these that a requested column walks with.
 FIGURE_MODELS = ("navigan-r", "navigan", "navil2")
+#: `Settings.of`'s sub-goal pace meaning "the protocol's own".
+PROTOCOL_GOAL = "protocol"
 
 
 @dataclass(frozen=True)
@@ -89,12 +91,12 @@ class Settings:
 
     @classmethod
     def of(cls, protocol: str, gamma: float = 0.9, v_pref: float = 1.0, collision: float = 0.1, seed: int = 0,
-           limit: int | None = None, subgoal_speed: float | str | None | Literal["protocol"] = "protocol",
+           limit: int | None = None, subgoal_speed: float | str | None = PROTOCOL_GOAL,
            shield: float = SHIELD_MARGIN) -> Settings:
         """The settings of a named protocol: its targets, distances and (unless `subgoal_speed` says
         otherwise) its goal handed to the networks."""
         chosen = PROTOCOLS[protocol]
-        speed = chosen.subgoal_speed if subgoal_speed == "protocol" else subgoal_speed
+        speed = chosen.subgoal_speed if subgoal_speed == PROTOCOL_GOAL else subgoal_speed
         return cls(Scoring(gamma, v_pref, collision, chosen.distances), seed, limit, speed, shield, protocol)
 
     def policy(self, model: str, record: ckpt.Checkpoint, path: Path) -> Policy:

@@ -102,11 +102,11 @@ def run(args: argparse.Namespace) -> int:
     from navigan import checkpoint as ckpt
     from navigan.data import SPLITS, data_dir
     from navigan.errors import NaviganError
-    from navigan.playback.evaluate import Playback, Settings
+    from navigan.playback.evaluate import PROTOCOL_GOAL, Playback, Settings
     from navigan.playback.paper import PAPER_FILE, load_paper
     from trials.progress import Progress, numbered, piped_lines, show_bars
 
-    speed = "protocol" if args.subgoal_speed is None else subgoal_speed(args.subgoal_speed)
+    speed = PROTOCOL_GOAL if args.subgoal_speed is None else subgoal_speed(args.subgoal_speed)
     out = args.out or args.study / "playback"
     torch.set_num_threads(args.threads)
     splits = list(SPLITS) if args.split == "all" else [args.split]
