@@ -26,11 +26,12 @@ import numpy as np
 
 from analysis.errors import AnalysisError
 
-#: Complete enumeration up to this many allocations (C(18, 9) = 48,620 is well inside).
-MAX_ALLOCATIONS = 1_000_000
+#: Complete enumeration up to this many allocations (C(18, 9) = 48,620 and C(20, 10) = 184,756 are inside; the
+#: matrix of allocations holds 8 bytes per run and allocation).
+MAX_ALLOCATIONS = 200_000
 #: Monte Carlo draws when the allocations are too many to enumerate.
 DRAWS = 20_000
-#: Allocations handled at once, so memory stays small whatever the count.
+#: Allocations multiplied at once, which bounds the temporaries of one product.
 _CHUNK = 100_000
 #: Statistics closer than this count as equal (sums of the same shares in another order).
 _TIE = 1e-9
@@ -97,7 +98,7 @@ def _layout(first: np.ndarray, strata: np.ndarray | None) -> _Layout:
     return _Layout(labels, sizes, firsts)
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=2)
 def _enumerated(stratum: tuple[int, ...], sizes: tuple[int, ...], firsts: tuple[int, ...]) -> np.ndarray:
     """Every allocation of the layout as rows of a (count, runs) matrix: 1 for the first arm, 0 for the second."""
     members = [np.flatnonzero(np.array(stratum) == s) for s in range(len(sizes))]

@@ -31,6 +31,7 @@ from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.plan import PlanStatus, default_plan
 from analysis.primary import SENSITIVITY_NAMES, OddsRatio, PrimaryResult, arm_effect, primary_analysis
+from analysis.randomization import MAX_ALLOCATIONS
 from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, Response, StudyData
 from analysis.run_log import RunLog
 from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
@@ -501,7 +502,7 @@ def _primary_section(a: _Analysis) -> list[Block]:
         f"Exploratory: the design's full model `{plan.exploratory}` (below, under the model fits)." if plan.exploratory else "No exploratory model.",
     ]
     if plan.test == "randomization":
-        items.append(f"Randomization test: exact when at most 1,000,000 allocations, else {plan.draws:,} Monte Carlo draws from seed {plan.seed}.")
+        items.append(f"Randomization test: exact when at most {MAX_ALLOCATIONS:,} allocations, else {plan.draws:,} Monte Carlo draws from seed {plan.seed}.")
     blocks.append(Bullets(items))
     if r is None:
         return blocks + [Paragraph("No judgments yet: nothing to test.")]

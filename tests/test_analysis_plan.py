@@ -60,7 +60,7 @@ def test_a_blocked_study_re_randomizes_within_its_blocks(tmp_path: Path) -> None
     ('strata = ["Controller"]', "[analysis]: strata must be a list of distinct names from Pedestrians, Direction, got ['Controller']"),
     ("alpha = 0.9", "[analysis]: alpha must be a number in (0, 0.5], got 0.9"),
     ('sensitivity = ["gee", "firth"]', "[analysis]: sensitivity must be a list of distinct names from gee-small-sample"),
-    ("draws = 10", "[analysis]: draws must be a whole number in [100, 1000000], got 10"),
+    ("draws = 10", "[analysis]: draws must be a whole number in [100, 200000], got 10"),
     ("colour = 1", "[analysis]: unknown key 'colour' (expected outcome, factor, test"),
 ])
 def test_a_bad_key_is_one_line_naming_file_table_and_key(ab: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],

@@ -36,7 +36,7 @@ from trials.errors import StudyError
 #: The study.toml table this module reads.
 TABLE = "analysis"
 KEYS = ("outcome", "factor", "test", "model", "strata", "exploratory", "alpha", "sensitivity", "draws", "seed")
-MAX_DRAWS = 1_000_000
+MAX_DRAWS = 200_000  # the drawn allocations are held at once: 8 bytes per run and draw
 MAX_SEED = 2**53 - 1
 
 
