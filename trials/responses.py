@@ -113,7 +113,7 @@ def _response(row: dict[str, str]) -> Response:
     if source not in (HUMAN, SIMULATED):
         raise ValueError(f"source must be {HUMAN} or {SIMULATED}, got {source!r}")
     seed = row.get("seed", "")
-    if seed and not seed.isdigit():
+    if seed and not (seed.isascii() and seed.isdigit()):
         raise ValueError(f"seed must be a whole number from 0, got {shown(seed)}")
     return Response(text_cell(row["run_code"], "run_code", MAX_CODE), code_cell(row["participant"], "participant"),
                     parse_answer(row["compliant"]), source, utc_cell(row.get("recorded_utc", "")), int(seed) if seed else None)
