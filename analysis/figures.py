@@ -16,8 +16,9 @@ WIDTH_IN = FIGURE_WIDTH_IN
 TEXT_PT = BODY_TEXT_PT
 #: Titles, a little larger than the labels.
 TITLE_PT = TEXT_PT + 1
-#: Panels a row in the report's trajectory figure.
+#: Panels a row in the report's trajectory figure, and in the design evaluation's variance profile.
 TRAJECTORY_COLUMNS = 4
+PROFILE_COLUMNS = 3
 #: The narrowest cell of the correlation map that holds its value ("-.08") at TEXT_PT, inches; narrower cells
 #: show colour only (the values are in design.json).
 CELL_FOR_NUMBERS_IN = 0.34
@@ -53,10 +54,11 @@ def correlation_map_figure(columns: list[str], correlations: np.ndarray, title: 
 def design_evaluation_figure(fraction: tuple[np.ndarray, np.ndarray], profiles: list[tuple[str, list[float], list[float], list[str]]],
                              title: str) -> Rendered:
     """JMP's design evaluation views: the fraction of design space plot (top) and the prediction variance
-    profile, one panel per factor (below); variances relative to sigma^2, on one scale."""
-    columns = max(len(profiles), 1)
-    figure = Figure(figsize=(WIDTH_IN, 5.8), layout="constrained")
-    top_row, bottom_row = figure.subfigures(2, 1, height_ratios=[1.0, 1.1])
+    profile, one panel per factor, PROFILE_COLUMNS a row (below); variances relative to sigma^2, on one scale."""
+    columns = min(max(len(profiles), 1), PROFILE_COLUMNS)
+    rows = max(1, -(-len(profiles) // columns))
+    figure = Figure(figsize=(WIDTH_IN, 3.0 + 2.8 * rows), layout="constrained")
+    top_row, bottom_row = figure.subfigures(2, 1, height_ratios=[3.0, 2.8 * rows])
     fds = top_row.add_subplot()
     fds.plot(fraction[0], fraction[1], color="#1f77b4")
     fds.set_xlabel("fraction of design space", fontsize=TEXT_PT)
@@ -66,8 +68,10 @@ def design_evaluation_figure(fraction: tuple[np.ndarray, np.ndarray], profiles: 
     fds.tick_params(labelsize=TEXT_PT)
     top = 1.05 * max(float(np.max(fraction[1])), *(max(v) for _, _, v, _ in profiles))
     fds.set_ylim(0.0, top)
-    panels = bottom_row.subplots(1, columns, sharey=True, squeeze=False)[0]
+    panels = bottom_row.subplots(rows, columns, sharey=True, squeeze=False).flat
     bottom_row.suptitle("Prediction variance profile", fontsize=TEXT_PT)
+    for axes in panels[len(profiles):]:
+        axes.set_visible(False)
     for axes, (name, x, variance, labels) in zip(panels, profiles):
         if labels:
             axes.plot(range(len(labels)), variance, "o-", color="#d62728")
