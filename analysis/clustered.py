@@ -43,6 +43,9 @@ Covariance = Literal["mancl-derouen", "kauermann-carroll"]
 Reference = Literal["t", "z"]
 Correlation = Literal["exchangeable", "independence"]
 AlphaEstimator = Literal["statsmodels", "geepack"]
+#: The small-sample sandwich corrections, and the conventions of the exchangeable correlation's moment estimate.
+COVARIANCES: tuple[Covariance, ...] = ("mancl-derouen", "kauermann-carroll")
+ALPHA_ESTIMATORS: tuple[AlphaEstimator, ...] = ("statsmodels", "geepack")
 
 
 @dataclass(frozen=True)
@@ -55,12 +58,8 @@ class GeeOptions:
     alpha_estimator: AlphaEstimator = "statsmodels"
 
     def __post_init__(self) -> None:
-        allowed = {
-            "covariance": ("mancl-derouen", "kauermann-carroll"),
-            "reference": ("t", "z"),
-            "correlation": ("exchangeable", "independence"),
-            "alpha_estimator": ("statsmodels", "geepack"),
-        }
+        allowed = {"covariance": COVARIANCES, "reference": ("t", "z"), "correlation": ("exchangeable", "independence"),
+                   "alpha_estimator": ALPHA_ESTIMATORS}
         for name, values in allowed.items():
             if getattr(self, name) not in values:
                 raise AnalysisError(f"GEE option {name} is {getattr(self, name)!r}; expected one of {', '.join(values)}")

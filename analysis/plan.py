@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import asdict, dataclass
 
+from analysis.clustered import GeeOptions
 from designs.blinding import canonical_bytes
 from designs.factors import BlockFactor, CategoricalFactor
 from designs.spec import BLOCK_COLUMN, StudySpec
@@ -43,6 +44,14 @@ class AnalysisPlan:
     sensitivity: tuple[str, ...]
     draws: int
     seed: int
+    #: The GEE fits' conventions (`analysis.clustered.GeeOptions`): the sandwich's small-sample correction and the
+    #: exchangeable correlation's estimator ("geepack" to match R's geeglm).
+    gee_covariance: str = "mancl-derouen"
+    gee_alpha: str = "statsmodels"
+
+    def gee_options(self, correlation: str = "exchangeable") -> GeeOptions:
+        """The GEE options the plan's fits use (`correlation` "independence" for the check fit)."""
+        return GeeOptions(covariance=self.gee_covariance, correlation=correlation, alpha_estimator=self.gee_alpha)  # type: ignore[arg-type]
 
     def describe_test(self) -> str:
         """The primary test in a phrase, e.g. `run-level randomization test of Controller, alpha 0.05`."""

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from analysis.ab_table import RunJudgments
-from analysis.clustered import GeeOptions, fit_gee
+from analysis.clustered import fit_gee
 from analysis.mixed import fit_mixed
 from analysis.models import DesignMatrix, Fit, fit_logistic
 from analysis.plan import RANDOMIZATION, AnalysisPlan
@@ -50,7 +50,7 @@ def primary_p_value(plan: AnalysisPlan, factors: tuple[DesignFactor, ...], setti
         return run_randomization(use, arms, first_arm, strata, yes, total, None).p_value
     judged = np.asarray(total) > 0
     dm = DesignMatrix.from_model(primary_model(plan, factors), np.asarray(settings)[judged])
-    fit = fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], JUDGED)
+    fit = fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], JUDGED, plan.gee_options())
     return next((e.p_value for e in fit.effects if e.term == plan.factor), math.nan)
 
 
@@ -105,12 +105,12 @@ def arm_effect(fit: Fit, factor: str) -> OddsRatio | None:
     return OddsRatio(math.exp(2.0 * column.estimate), ends[0], ends[1], column.p_value, fit.method)
 
 
-def sensitivity_fit(name: str, dm: DesignMatrix, yes: np.ndarray, total: np.ndarray) -> Fit:
-    """One named sensitivity analysis of the judgments on the primary model's rows `dm`."""
+def sensitivity_fit(plan: AnalysisPlan, name: str, dm: DesignMatrix, yes: np.ndarray, total: np.ndarray) -> Fit:
+    """One named sensitivity analysis of the judgments on the primary model's rows `dm`, GEE fits by the plan's conventions."""
     if name == "gee-small-sample":
-        return fit_gee(dm, yes, total, JUDGED)
+        return fit_gee(dm, yes, total, JUDGED, plan.gee_options())
     if name == "gee-independence":
-        return fit_gee(dm, yes, total, JUDGED, GeeOptions(correlation="independence"))
+        return fit_gee(dm, yes, total, JUDGED, plan.gee_options("independence"))
     if name == "random-intercept":
         return fit_mixed(dm, yes, total, JUDGED)
     return fit_logistic(dm, yes, total, JUDGED)
@@ -123,7 +123,7 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
     yes = np.array([j.yes for j in judged], dtype=float)
     total = np.array([j.total for j in judged], dtype=float)
     dm = DesignMatrix.from_model(primary_model(plan, data.model.factors), settings(data, runs))
-    fits = tuple((name, relabel(sensitivity_fit(name, dm, yes, total), data.blinding)) for name in plan.sensitivity)
+    fits = tuple((name, relabel(sensitivity_fit(plan, name, dm, yes, total), data.blinding)) for name in plan.sensitivity)
     arms = _arms(data, plan)
     arm_of = [_arm(data, plan, run) for run in runs]
     shares = yes / np.where(total > 0, total, 1.0)
@@ -137,7 +137,7 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
     if plan.test == RANDOMIZATION:
         test = run_randomization(plan, arm_of, arms[0], strata, yes, total, 1.0 - plan.alpha)
         return replace(base, randomization=test, p_value=test.p_value, odds_ratio=effect)
-    gee = fits[0][1] if fits and fits[0][0] == "gee-small-sample" else relabel(fit_gee(dm, yes, total, JUDGED), data.blinding)
+    gee = fits[0][1] if fits and fits[0][0] == "gee-small-sample" else relabel(fit_gee(dm, yes, total, JUDGED, plan.gee_options()), data.blinding)
     p = next((e.p_value for e in gee.effects if e.term == plan.factor), math.nan)
     return replace(base, p_value=p, odds_ratio=effect)
 

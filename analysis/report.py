@@ -199,9 +199,10 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     arms = _arm_order(data)
     judged = count_judgments(judgments, arm_of, pedestrians)
     table = table_ii(judged, arms) if judged else []
-    judgment_fits = [fit(data, judged) for fit in (fit_judgments_by_run, fit_run_shares, fit_judgments)] if judged else []
-    metric_fits = fit_metrics(data) if data.compared else []
     plan = data.analysis_plan or PlanStatus(default_plan(data.spec, data.seed or 0), False, None)
+    judgment_fits = ([fit_judgments_by_run(data, judged, plan.plan.gee_options()), fit_run_shares(data, judged), fit_judgments(data, judged)]
+                     if judged else [])
+    metric_fits = fit_metrics(data) if data.compared else []
     primary = primary_analysis(data, judged, plan.plan) if judged else None
     return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes,
                      left_out, plan, primary)

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.ab_table import RunJudgments
-from analysis.clustered import fit_gee
+from analysis.clustered import DEFAULT, GeeOptions, fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares, fit_logistic
 from analysis.records import Blinding, StudyData, StudyRun
 from designs.factors import CategoricalFactor
@@ -62,10 +62,10 @@ def fit_judgments(data: StudyData, judged: list[RunJudgments]) -> Fit:
     return relabel(fit_logistic(dm, yes, total, JUDGED), data.blinding)
 
 
-def fit_judgments_by_run(data: StudyData, judged: list[RunJudgments]) -> Fit:
-    """The primary analysis: the same logistic model by GEE, each run a cluster of judgments."""
+def fit_judgments_by_run(data: StudyData, judged: list[RunJudgments], options: GeeOptions = DEFAULT) -> Fit:
+    """The design's logistic model by GEE, each run a cluster of judgments (the plan's exploratory fit)."""
     dm, yes, total = _judged_matrix(data, judged)
-    return relabel(fit_gee(dm, yes, total, JUDGED), data.blinding)
+    return relabel(fit_gee(dm, yes, total, JUDGED, options), data.blinding)
 
 
 def fit_run_shares(data: StudyData, judged: list[RunJudgments]) -> Fit:

@@ -8,9 +8,12 @@ import re
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from analysis.models import DesignMatrix
 from analysis.plan import SENSITIVITY, AnalysisPlan, PlanStatus
+from analysis.primary import sensitivity_fit
 from tests.support.run_studies import SMALL_SPEC
 from trials.analysis_plan import committed_digest
 from trials.cli import main
@@ -33,7 +36,7 @@ def test_design_writes_the_default_plan_and_commits_to_it(ab: Path) -> None:
     written = table(ab)
     assert written == {"outcome": "compliant", "factor": "Controller", "test": "randomization", "model": "Controller", "strata": [],
                        "exploratory": "main + interactions + Pedestrians^2", "alpha": 0.05, "sensitivity": list(SENSITIVITY),
-                       "draws": 20000, "seed": 3}
+                       "draws": 20000, "seed": 3, "gee_covariance": "mancl-derouen", "gee_alpha": "statsmodels"}
     plan = AnalysisPlan(**{**written, "strata": (), "sensitivity": SENSITIVITY})  # type: ignore[arg-type]
     assert committed_digest(json.loads((ab / "design.json").read_text())) == plan.digest()
 
@@ -61,6 +64,7 @@ def test_a_blocked_study_re_randomizes_within_its_blocks(tmp_path: Path) -> None
     ("alpha = 0.9", "[analysis]: alpha must be a number in (0, 0.5], got 0.9"),
     ('sensitivity = ["gee", "firth"]', "[analysis]: sensitivity must be a list of distinct names from gee-small-sample"),
     ("draws = 10", "[analysis]: draws must be a whole number in [100, 200000], got 10"),
+    ('gee_alpha = "R"', "[analysis]: gee_alpha must be one of 'statsmodels', 'geepack', got 'R'"),
     ("colour = 1", "[analysis]: unknown key 'colour' (expected outcome, factor, test"),
 ])
 def test_a_bad_key_is_one_line_naming_file_table_and_key(ab: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
@@ -108,3 +112,19 @@ def test_design_time_power_of_the_planned_test_is_trials_powers(tmp_path: Path, 
     by_power = {str(plan["runs"]): f"{plan['planned']['power']:.3f}" for plan in record["plans"]}
     assert by_power == at_design  # the same data sets: identical, not just within Monte Carlo error
     assert record["planned_test"] == "run-level randomization test of Controller, alpha 0.05"
+
+
+def test_the_plans_gee_conventions_reach_its_gee_fits() -> None:
+    plan = AnalysisPlan("compliant", "Controller", "randomization", "Controller", (), "", 0.05, SENSITIVITY, 20000, 3)
+    geepack = AnalysisPlan(**{**plan.table(), "strata": (), "sensitivity": SENSITIVITY, "gee_alpha": "geepack",  # type: ignore[arg-type]
+                              "gee_covariance": "kauermann-carroll"})
+    arm = np.repeat([1.0, -1.0], 6)
+    dm = DesignMatrix(np.column_stack([np.ones(12), arm]), ["Intercept", "Controller[A]"], [("Intercept", [0]), ("Controller", [1])])
+    yes, total = np.array([4, 5, 3, 5, 4, 2, 2, 1, 3, 0, 2, 1.0]), np.full(12, 5.0)
+    ours, theirs = (sensitivity_fit(p, "gee-small-sample", dm, yes, total) for p in (plan, geepack))
+    assert "Mancl" in ours.method and "geepack" not in ours.method
+    assert "geepack" in theirs.method and "Kauermann" in theirs.method
+    # geepack's moment estimate divides by the plain counts, statsmodels' by the counts less the 2 columns.
+    assert theirs.summary["within-run correlation"] != pytest.approx(ours.summary["within-run correlation"], rel=1e-4)
+    independence = sensitivity_fit(geepack, "gee-independence", dm, yes, total)
+    assert "independence" in independence.method and "Kauermann" in independence.method

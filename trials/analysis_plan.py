@@ -15,6 +15,8 @@ key is optional; a missing one takes its default:
     sensitivity = ["gee-small-sample", "gee-independence", "random-intercept", "firth"]
     draws = 20000                  # Monte Carlo draws when the allocations are too many to enumerate
     seed = 7                       # their seed (default: the design's seed)
+    gee_covariance = "mancl-derouen"   # or "kauermann-carroll": the GEE sandwich's small-sample correction
+    gee_alpha = "statsmodels"      # or "geepack": the exchangeable correlation's estimate as R's geeglm makes it
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from analysis.clustered import ALPHA_ESTIMATORS, COVARIANCES
 from analysis.plan import OUTCOMES, RANDOMIZATION, SENSITIVITY, TESTS, AnalysisPlan, PlanStatus, default_plan
 from designs.blinding import canonical_bytes
 from designs.errors import DesignError
@@ -35,7 +38,7 @@ from trials.errors import StudyError
 
 #: The study.toml table this module reads.
 TABLE = "analysis"
-KEYS = ("outcome", "factor", "test", "model", "strata", "exploratory", "alpha", "sensitivity", "draws", "seed")
+KEYS = ("outcome", "factor", "test", "model", "strata", "exploratory", "alpha", "sensitivity", "draws", "seed", "gee_covariance", "gee_alpha")
 MAX_DRAWS = 200_000  # the drawn allocations are held at once: 8 bytes per run and draw
 MAX_SEED = 2**53 - 1
 
@@ -128,7 +131,8 @@ def plan_from_table(table: dict[str, Any], spec: StudySpec, seed: int, where: st
     if not isinstance(alpha, int | float) or isinstance(alpha, bool) or not (math.isfinite(alpha) and 0.0 < alpha <= 0.5):
         raise StudyError(f"{where}: alpha must be a number in (0, 0.5], got {alpha!r}")
     return AnalysisPlan(text("outcome", OUTCOMES), factor, test, values["model"], strata, values["exploratory"], float(alpha),
-                        names_list("sensitivity", SENSITIVITY), whole("draws", 100, MAX_DRAWS), whole("seed", 0, MAX_SEED))
+                        names_list("sensitivity", SENSITIVITY), whole("draws", 100, MAX_DRAWS), whole("seed", 0, MAX_SEED),
+                        text("gee_covariance", COVARIANCES), text("gee_alpha", ALPHA_ESTIMATORS))
 
 
 #: design.json's field committing to the analysis plan written with the design.
