@@ -285,8 +285,9 @@ def test_blocks_and_a_covariate_file_reach_the_plan(tmp_path):
     rows = _plan_rows(study)
     assert [r["Block"] for r in rows] == ["1"] * 4 + ["2"] * 4 + ["3"] * 4
     assert [int(r["Age"]) for r in rows] == [20 + 3 * i for i in range(12)]
-    text = (study / "study.toml").read_text()
-    assert "blocks = 3" in text and "values = [" in text and "Block" not in text
+    text, _, analysis = (study / "study.toml").read_text().partition("[analysis]")
+    assert "blocks = 3" in text and "values = [" in text and "Block" not in text  # the spec keeps blocks as a count
+    assert 'model = "main + Block"' in analysis  # no arms to compare: the GEE of the design's model and its blocks
     record = json.loads((study / "design.json").read_text())
     assert record["model"]["terms"] == ["Intercept", "Speed", "Age", "Block"]
     # the written spec reads back to the same plan checks
