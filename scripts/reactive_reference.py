@@ -69,14 +69,15 @@ def main() -> None:
     parser.add_argument("--split", default="all", help="a split or all five (default)")
     parser.add_argument("--margin", type=float, default=0.5, help="predicted distance kept from others (m)")
     parser.add_argument("--protocol", choices=PROTOCOLS, default=DEFAULT_PROTOCOL,
-                        help=f"which pedestrians become episodes, as trials playback --protocol (default {DEFAULT_PROTOCOL})")
+                        help=f"targets and where distances are measured, as trials playback --protocol (default {DEFAULT_PROTOCOL})")
     parser.add_argument("--horizon", type=int, default=3, help="steps of 0.4 s the prediction looks ahead")
     args = parser.parse_args()
     splits = [s for s in SPLITS if s != "all"] if args.split == "all" else [args.split]
     pooled: list[tuple[bool, bool, float]] = []
     for split in splits:
         episodes = load_episodes(load_split(args.data, split).test, args.protocol)
-        records = score_rollout(episodes, walk_all(episodes, args.margin, args.horizon), Scoring())
+        scoring = Scoring(distances=PROTOCOLS[args.protocol].distances)
+        records = score_rollout(episodes, walk_all(episodes, args.margin, args.horizon), scoring)
         scores = [(r["comfortable"], r["arrived"], r["social_score"]) for r in records]
         table = np.array(scores, dtype=float)
         print(f"{split}: {len(table)} episodes  S {table[:, 2].mean():.3f}  C {table[:, 0].mean():.3f}  "
