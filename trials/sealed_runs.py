@@ -25,7 +25,7 @@ from trials.study import StudyFolder, private_folder
 
 #: The size every sealed record is padded to (or a multiple of it).
 SEALED_BLOCK = 256 * 1024
-#: Format of a run's sealed record (its keys: docs/study_folder.md).
+#: Format of a run's sealed record (its keys: docs/run_logs.md).
 SEALED_RUN_FORMAT = "navtrials.sealed-run/2"
 
 
