@@ -80,8 +80,8 @@ class Detections:
     legs: np.ndarray
     people: np.ndarray
     confidence: np.ndarray
-    unsure: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     spread: np.ndarray | None = None
+    unsure: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def scan_points(scan: Scan) -> np.ndarray:
@@ -157,66 +157,44 @@ def detect(
 ) -> Detections:
     """Legs and people in one scan (scan frame); a single unpaired leg counts as a person.
 
-    With a classifier, legs are the segments it scores at or above its threshold, and a lone leg
-    pairs with an unsure leg-sized segment beside it (its other leg, scored low); without,
+    With a classifier, legs are the segments it scores at or above its threshold; without,
     legs and bodies are told by width. `reject` maps (K, 2) segment middle points to (K,) True
     for segments to leave out before pairing (those on the static world). The people are as many as the
     leg pairs, lone legs and (by width rules) body-wide segments together.
     """
     segments = segment(scan, config.jump_distance)
     centres = segments.centres()
-    leg_sized = (segments.counts >= config.min_points) & (segments.widths >= config.leg_width[0]) & (
-        segments.widths < config.leg_width[1])
+    enough = segments.counts >= config.min_points
+    widths = segments.widths
+    leg_sized = enough & (widths >= config.leg_width[0]) & (widths < config.leg_width[1])
     if classifier is not None:
         probability = leg_probabilities(segments, config, classifier)
         is_leg = probability >= classifier.threshold
         is_body = np.zeros_like(is_leg)
         is_unsure = leg_sized & ~is_leg
+        leg_scores = probability[is_leg]
     else:
-        probability = np.ones(len(centres))
         is_leg = leg_sized
-        is_body = (segments.counts >= config.min_points) & (segments.widths >= config.body_width[0]) & (
-            segments.widths <= config.body_width[1])
+        is_body = enough & (widths >= config.body_width[0]) & (widths <= config.body_width[1])
         is_unsure = np.zeros_like(is_leg)
+        leg_scores = np.ones(int(is_leg.sum()))
     if reject is not None and (is_leg | is_body | is_unsure).any():
         rejected = reject(segments.middles())
+        leg_scores = leg_scores[~rejected[is_leg]]
         is_leg, is_body, is_unsure = is_leg & ~rejected, is_body & ~rejected, is_unsure & ~rejected
-    legs, leg_scores = centres[is_leg], probability[is_leg]
+    legs = centres[is_leg]
     pairs, singles = pair_legs(legs, config.pair_distance)
     people = [legs[[i, j]].mean(axis=0) for i, j in pairs]
-    confidence = [leg_scores[[i, j]].mean() for i, j in pairs]
-    spread = [float(np.hypot(*(legs[i] - legs[j]))) for i, j in pairs]
-    others = centres[is_unsure]
-    partner = _partners(legs[singles], others, config.pair_distance)
-    lone = legs[singles]
-    beside = lone.copy()
-    beside[partner >= 0] = others[partner[partner >= 0]]
-    people.extend((lone + beside) / 2.0)
-    confidence.extend(leg_scores[singles])
-    spread.extend(np.where(partner >= 0, np.hypot(*(lone - beside).T), np.nan))
+    people.extend(legs[singles])
     people.extend(centres[is_body])
+    confidence = [leg_scores[[i, j]].mean() for i, j in pairs]
+    confidence.extend(leg_scores[singles])
     confidence.extend(np.ones(int(is_body.sum())))
-    spread.extend(np.full(int(is_body.sum()), np.nan))
+    spread = [float(np.hypot(*(legs[i] - legs[j]))) for i, j in pairs]
+    spread.extend(np.full(len(singles) + int(is_body.sum()), np.nan))
     people_array = np.array(people, dtype=float).reshape(-1, 2)
-    left = others[np.setdiff1d(np.arange(len(others)), partner)]
-    unsure_pairs, unsure_singles = pair_legs(left, config.pair_distance)
-    unsure = [left[[i, j]].mean(axis=0) for i, j in unsure_pairs] + [left[i] for i in unsure_singles]
+    doubted = centres[is_unsure]
+    doubted_pairs, doubted_singles = pair_legs(doubted, config.pair_distance)
+    unsure = [doubted[[i, j]].mean(axis=0) for i, j in doubted_pairs] + [doubted[i] for i in doubted_singles]
     return Detections(legs=segments.centroids[is_leg], people=people_array, confidence=np.array(confidence, dtype=float),
-                      unsure=np.array(unsure, dtype=float).reshape(-1, 2), spread=np.array(spread, dtype=float))
-
-
-def _partners(legs: np.ndarray, others: np.ndarray, max_distance: float) -> np.ndarray:
-    """(L,) for each lone leg the index of the nearest other segment within `max_distance` (one
-    partner each, closest pairs first), or -1."""
-    partner = np.full(len(legs), -1)
-    if len(legs) == 0 or len(others) == 0:
-        return partner
-    distances = np.hypot(*(legs[:, None, :] - others[None, :, :]).transpose(2, 0, 1))
-    taken = np.zeros(len(others), dtype=bool)
-    for flat in np.argsort(distances, axis=None, kind="stable"):
-        i, j = divmod(int(flat), len(others))
-        if distances[i, j] > max_distance:
-            break
-        if partner[i] < 0 and not taken[j]:
-            partner[i], taken[j] = j, True
-    return partner
+                      spread=np.array(spread, dtype=float), unsure=np.array(unsure, dtype=float).reshape(-1, 2))

@@ -12,11 +12,12 @@ probability of its detections reaches the detector's `confirm` level (what 75 % 
 labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
 early loses its detections once its cells turn static and dies. A tentative track below the
 `protect` level (what half the labelled legs reach) that has not walked (moved 0.3 m, or changed
-its legs' spread by a stride) waits 2 s (`still_wait`) before it is confirmed, so furniture in view
-from the start turns static before it is ever reported. Once confirmed, a track keeps itself
-through the scans where the classifier doubts the legs (`robot_logs.tracking`), and a track that
-walked or reaches `protect` keeps its cells out of the grid, so neither a person standing still
-nor one walking at a steady distance ahead of a moving robot turns into static world.
+its legs' spread with a stride, in the last 2 s) waits 2 s (`still_wait`) before it is confirmed, so furniture in view
+from the start turns static before it is ever reported. A confirmed track that walks is kept
+through the scans where the classifier doubts the legs (`robot_logs.tracking`), a confirmed track
+coasts through 0.5 s without a detection at any scan rate, and a track that walks or reaches `protect` keeps its cells
+out of the grid, so neither a person standing still nor one walking at a steady distance ahead of
+a moving robot turns into static world.
 """
 
 from __future__ import annotations
@@ -58,6 +59,9 @@ class ScanResult:
 #: Seconds a confirmed track of the learned setup lives without a hit (5 scans at 10 Hz), at any scan rate.
 LEARNED_COAST_S = 0.5
 
+
+#: Seconds after its last detection a walking confirmed track of the learned setup takes unsure ones.
+UNSURE_S = 1.5
 
 #: Change of the distance between a track's two legs (m) that the learned setup takes for a stride.
 GAIT_SPREAD = 0.07
@@ -102,7 +106,7 @@ class PersonTracker:
             detector,
             TrackerConfig(confirm_confidence=classifier.confirm, still_wait=still_wait(world),
                           sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
-                          gait_spread=GAIT_SPREAD),
+                          gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
             classifier,
             world,
         )
@@ -135,12 +139,12 @@ class PersonTracker:
         world = self.world
         reject = None if world is None else (lambda legs: world.is_static(sensor_pose.apply(legs)))
         found = detect(scan, self.detector, self.classifier, reject)
-        moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence,
+        moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence, found.spread,
                            sensor_pose.apply(found.unsure))
-        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, unsure=moved.unsure, spread=found.spread)
+        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, spread=found.spread, unsure=moved.unsure)
         if world is not None:
             sure = world.config.protect_confidence
             people = [t.kf.x[:2] for t in self.tracker.tracks
-                      if t.confirmed and (t.walked or t.confidence_sum >= sure * t.hits)]
+                      if t.confirmed and (t.walking(self.tracker.config) or t.confidence_sum >= sure * t.hits)]
             world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

@@ -12,12 +12,14 @@ and deleted after `death_misses` consecutive misses once confirmed. A detection 
 confirmed track (`birth_clearance`) starts no track: it is that person's other leg. So
 a person standing still is kept: confirmation asks for confidence, never for motion.
 
-Once confirmed, a track is evidence of its own: a confirmed track no sure detection reached takes
-the nearest unsure one (a leg-sized segment off the static world that the classifier scored low)
-inside the gate its filter predicts, so a person already followed is kept through the scans where
-the classifier doubts their legs. The gate grows with the filter's uncertainty while a track
-coasts, and a confirmed track lives `death_misses` scans and at least `death_time` seconds
-without a hit, so it outlives the same occlusion at any scan rate.
+A track walks while its recent detections move or its legs' spread changes with a stride
+(`walk_window`); a walker needs no wait, however still they are in the output frame. A confirmed
+track that walks and that no detection reached takes the nearest unsure one (a leg-sized segment
+off the static world that the classifier scored low) inside the gate its filter predicts, for
+`unsure_time` seconds after its last detection, so a person already followed is kept through the
+scans where the classifier doubts their legs. A confirmed track coasts on its filter's prediction,
+its gate growing with the filter's uncertainty, and lives `death_misses` scans and at least
+`death_time` seconds without a hit, so it outlives the same gap at any scan rate.
 """
 
 from __future__ import annotations
@@ -54,12 +56,15 @@ class TrackerConfig:
             no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
         still_wait, still_distance, sure_confidence: a tentative track that has not walked
-            (moved `still_distance` (m) from where it was born, or changed its legs' spread by
-            `gait_spread`), with a mean confidence under `sure_confidence`, is confirmed no
+            (see `walk_window`), with a mean confidence under `sure_confidence`, is confirmed no
             earlier than `still_wait` seconds after its birth.
         gait_spread: a change of the distance between a track's two legs (m) that shows a
             stride, however still the person is in the output frame (someone followed by the
             robot, tracked in the robot's frame); inf leaves strides out.
+        walk_window: a track walks while its detections of the last this many seconds moved
+            `still_distance` or changed their spread by `gait_spread`.
+        unsure_time: a confirmed track that walks takes unsure detections for this many seconds
+            after its last detection (0: never), so it cannot live on doubted segments alone.
     """
 
     measurement_std: float = 0.2
@@ -73,6 +78,8 @@ class TrackerConfig:
     still_wait: float = 0.0
     still_distance: float = 0.3
     gait_spread: float = np.inf
+    walk_window: float = 2.0
+    unsure_time: float = 0.0
     sure_confidence: float = 1.0
     report_misses: int = 1_000_000
     tentative_misses: int = 1
@@ -106,15 +113,29 @@ class Track:
         self.born: float | None = None
         self.misses = 0
         self.last_hit: float | None = None
-        #: Whether it has ever been `still_distance` from its birth place, or its legs' spread
-        #: changed by `gait_spread`: it walks.
-        self.walked = False
-        self.spreads = [np.inf, -np.inf]
+        self.last_sure: float | None = None
+        #: (time, x, y, spread) of its detections within `walk_window`, oldest first.
+        self.recent: list[tuple[float, float, float, float]] = []
         self.confidence_sum = 0.0
 
     @property
     def confirmed(self) -> bool:
         return self.track_id is not None
+
+    def walking(self, config: TrackerConfig) -> bool:
+        """Whether its recent detections moved `still_distance` or changed their legs'
+        spread by `gait_spread`: a walker, not furniture (which neither moves nor strides)."""
+        if len(self.recent) < 2:
+            return False
+        recent = np.array(self.recent)
+        moved = np.hypot(*(recent[:, 1:3] - recent[0, 1:3]).T).max() >= config.still_distance
+        spread = recent[:, 3][np.isfinite(recent[:, 3])]
+        return bool(moved or (len(spread) > 1 and np.ptp(spread) >= config.gait_spread))
+
+    def note(self, time: float, position: np.ndarray, spread: float, window: float) -> None:
+        """Remember a detection, forgetting those older than `window` seconds."""
+        self.recent = [r for r in self.recent if time - r[0] <= window] + [(time, position[0], position[1], spread)]
+        self.last_sure = time
 
     def state(self) -> TrackState:
         x, y, vx, vy = (float(v) for v in self.kf.x)
@@ -170,7 +191,7 @@ class Tracker:
         if mean < config.confirm_confidence:
             return False
         assert track.born is not None
-        return track.walked or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return track.walking(config) or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
@@ -183,7 +204,7 @@ class Tracker:
 
     def step(
         self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None,
-        unsure: np.ndarray | None = None, spread: np.ndarray | None = None,
+        spread: np.ndarray | None = None, unsure: np.ndarray | None = None,
     ) -> list[TrackState]:
         """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
 
@@ -192,8 +213,8 @@ class Tracker:
             detections: (D, 2) detected people.
             confidence: (D,) the detector's confidence in each (default: 1).
             static: (D,) True for detections on the static world (default: none).
-            unsure: (U, 2) people the detector doubts, which only keep confirmed tracks (default: none).
             spread: (D,) the distance between each detection's two legs, NaN for one (default: none).
+            unsure: (U, 2) people the detector doubts, which only keep confirmed tracks that walk (default: none).
 
         A confirmed track is reported while it coasts through up to `report_misses` misses.
         """
@@ -208,18 +229,16 @@ class Tracker:
             track.kf.update(detections[d])
             track.hits += 1
             track.confidence_sum += confidence[d]
-            if spread is not None and np.isfinite(spread[d]):
-                track.spreads = [min(track.spreads[0], spread[d]), max(track.spreads[1], spread[d])]
+            track.note(time, detections[d], np.nan if spread is None else spread[d], self.config.walk_window)
         if unsure is not None and len(unsure):
-            waiting = [t for t, track in enumerate(self.tracks) if track.confirmed and t not in hit]
+            waiting = [t for t, track in enumerate(self.tracks) if t not in hit and track.confirmed
+                       and time - (track.last_sure or -np.inf) <= self.config.unsure_time and track.walking(self.config)]
             for t, u in self.associate(np.asarray(unsure, dtype=float).reshape(-1, 2), waiting) if waiting else []:
                 self.tracks[t].kf.update(unsure[u])
                 hit.add(t)
         for index, track in enumerate(self.tracks):
             if index in hit:
                 track.misses, track.last_hit = 0, time
-                track.walked |= bool(np.hypot(*(track.kf.x[:2] - track.birth)) >= self.config.still_distance
-                                     or track.spreads[1] - track.spreads[0] >= self.config.gait_spread)
             else:
                 track.misses += 1
         self.tracks = [t for t in self.tracks if not self._dead(t, time)]
@@ -230,6 +249,7 @@ class Tracker:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
                 self.tracks[-1].last_hit = time
+                self.tracks[-1].note(time, detections[d], np.nan if spread is None else spread[d], self.config.walk_window)
         for track in self.tracks:
             if track.born is None:
                 track.born = time

@@ -14,7 +14,6 @@ from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.log_tracking import track_log
 from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Transform
-from robot_logs.segment_features import FEATURE_NAMES
 from robot_logs.tracking import Tracker, TrackerConfig
 from tests.support.bag_writer import BagWriter
 from tests.support.crowd import walking_crowd
@@ -180,21 +179,26 @@ def test_a_tentative_track_may_survive_a_missed_scan() -> None:
     assert [t.hits for t in tracker.tracks] == [1]  # two misses in a row: dropped, born again
 
 
-def test_a_confirmed_track_takes_an_unsure_detection_in_its_gate_and_a_tentative_one_does_not() -> None:
-    tracker = Tracker(TrackerConfig())
-    for k in range(3):
-        tracker.step(0.1 * k, np.array([[2.0 + 0.1 * k, 1.0]]))
-    tentative = Tracker(TrackerConfig())
+def test_a_walking_confirmed_track_takes_unsure_detections_for_a_while() -> None:
+    """A walker confirmed at 1.5 m/s: ten scans the classifier doubts keep them (in the gate, no
+    confidence gained); a tentative track and a standing one are never kept so, and after
+    `unsure_time` without a sure detection nor is the walker."""
+    config = TrackerConfig(unsure_time=1.0)
+    walker, standing, tentative = Tracker(config), Tracker(config), Tracker(config)
+    for k in range(4):
+        walker.step(0.1 * k, np.array([[2.0 + 0.15 * k, 1.0]]))
+        standing.step(0.1 * k, np.array([[2.0, 1.0]]))
     tentative.step(0.0, np.array([[2.0, 1.0]]))
-    doubted, far = np.array([[2.31, 1.02]]), np.array([[5.0, 1.0]])
-    for k in range(3, 13):  # ten scans in which the classifier doubts the legs
-        kept = tracker.step(0.1 * k, np.zeros((0, 2)), unsure=doubted + [0.1 * (k - 3), 0.0])
-        assert [s.track_id for s in kept] == [1]
-    assert tracker.tracks[0].misses == 0 and tracker.tracks[0].hits == 3  # kept, but no confidence gained
-    assert tracker.tracks[0].kf.x[0] == pytest.approx(3.2, abs=0.05)
-    assert tentative.step(0.1, np.zeros((0, 2)), unsure=np.array([[2.05, 1.0]])) == [] and tentative.tracks == []
-    lost = tracker.step(1.3, np.zeros((0, 2)), unsure=far)  # outside the gate: a miss
-    assert tracker.tracks[0].misses == 1 and [s.track_id for s in lost] == [1]
+    for k in range(4, 14):
+        kept = walker.step(0.1 * k, np.zeros((0, 2)), unsure=np.array([[2.0 + 0.15 * k, 1.02]]))
+        assert [s.track_id for s in kept] == [1] and walker.tracks[0].misses == 0
+    assert walker.tracks[0].hits == 4 and walker.tracks[0].kf.x[0] == pytest.approx(3.95, abs=0.05)
+    walker.step(1.4, np.zeros((0, 2)), unsure=np.array([[4.1, 1.0]]))
+    assert walker.tracks[0].misses == 1  # 1 s after its last sure detection: no longer
+    standing.step(0.4, np.zeros((0, 2)), unsure=np.array([[2.0, 1.0]]))
+    assert standing.tracks[0].misses == 1
+    tentative.step(0.1, np.zeros((0, 2)), unsure=np.array([[2.0, 1.0]]))
+    assert tentative.tracks == []
 
 
 def test_a_confirmed_track_outlives_the_same_time_at_any_scan_rate() -> None:
@@ -217,28 +221,19 @@ def test_a_stride_shows_a_walker_who_keeps_still_in_the_output_frame() -> None:
         spread = 0.17 + 0.15 * abs(math.sin(k * 0.5))
         walker.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([spread]))
         furniture.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([0.4 + 0.01 * (k % 2)]))
-    assert walker.tracks[0].walked and walker.tracks[0].confirmed
-    assert not furniture.tracks[0].walked and not furniture.tracks[0].confirmed
+    assert walker.tracks[0].walking(config) and walker.tracks[0].confirmed
+    assert not furniture.tracks[0].walking(config) and not furniture.tracks[0].confirmed
+    for k in range(6, 30):  # the walker stops: 2 s later their stride no longer shows
+        walker.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([0.17]))
+    assert not walker.tracks[0].walking(config)
 
 
-def test_a_lone_leg_pairs_with_an_unsure_leg_beside_it() -> None:
-    """Two leg-sized posts 0.3 m apart at 2 m, the classifier sure of the wider one only: one
-    person between them, their spread 0.3 m; a doubted post far from any leg is left unsure."""
+def test_a_person_s_spread_is_the_distance_between_their_legs() -> None:
+    """Two leg-sized posts 0.3 m apart at 2 m pair into one person with spread 0.3 m; a lone one
+    is a person without a spread."""
     centres = np.array([[2.0, 0.15], [2.0, -0.15], [2.0, 2.5]])
-    lidar = LidarSimulator(LidarSpec(range_noise_std=0.0), seed=0, posts=(centres, np.array([0.07, 0.045, 0.045])))
-    found = detect(lidar.scan(0.0, Pose2D(), np.zeros((0, 2))), classifier=WideIsSure())
-    assert len(found.people) == 1 and found.people[0] == pytest.approx([2.0, 0.0], abs=0.04)
-    assert found.spread[0] == pytest.approx(0.3, abs=0.03)
-    assert len(found.unsure) == 1 and found.unsure[0] == pytest.approx([2.0, 2.5], abs=0.04)
-    alone = detect(LidarSimulator(LidarSpec(range_noise_std=0.0), seed=0, posts=(centres[:1], np.array([0.07]))).scan(
-        0.0, Pose2D(), np.zeros((0, 2))), classifier=WideIsSure())
-    assert alone.people[0] == pytest.approx([2.0, 0.15], abs=0.04) and np.isnan(alone.spread[0])
-
-
-class WideIsSure:
-    """A stand-in classifier: segments wider than 0.1 m are legs (probability 0.9), others doubted (0.2)."""
-
-    threshold = 0.5
-
-    def probability(self, features: np.ndarray) -> np.ndarray:
-        return np.where(features[:, FEATURE_NAMES.index("width")] > 0.1, 0.9, 0.2)
+    lidar = LidarSimulator(LidarSpec(range_noise_std=0.0), seed=0, posts=(centres, np.full(3, 0.06)))
+    found = detect(lidar.scan(0.0, Pose2D(), np.zeros((0, 2))))
+    pair, lone = np.argsort(found.people[:, 1])
+    assert found.people[pair] == pytest.approx([2.0, 0.0], abs=0.04) and found.spread[pair] == pytest.approx(0.3, abs=0.02)
+    assert found.people[lone] == pytest.approx([2.0, 2.5], abs=0.04) and np.isnan(found.spread[lone])
