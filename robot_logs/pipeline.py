@@ -61,7 +61,7 @@ LEARNED_COAST_S = 0.5
 
 
 #: Seconds after its last detection a walking confirmed track of the learned setup takes unsure ones.
-UNSURE_S = 1.5
+UNSURE_S = 0.5
 
 #: Change of the distance between a track's two legs (m) that the learned setup takes for a stride.
 GAIT_SPREAD = 0.07
