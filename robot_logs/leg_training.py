@@ -1,6 +1,6 @@
 """Training the leg classifier from labelled logs, with cross-validated precision and recall.
 
-The protocol (docs/robot_logs.md says why): positives are the segments at the labelled legs
+The protocol (docs/leg_detector.md says why): positives are the segments at the labelled legs
 (geometry_msgs/PoseArray, one pose per leg); negatives are every candidate segment of logs
 recorded with nobody present and the segments of labelled scans farther than `ignore_radius`
 from every label; unmatched segments nearer a label (the labelled person's other leg or a piece
@@ -183,7 +183,7 @@ class StaticFlags:
     No track keeps its surroundings out of this grid, unlike `PersonTracker`'s, so it needs no
     classifier and is built once for every fold; on the sample bags the tracker's own grid, run
     with each fold's classifier, rejected 11 fewer of the 1,825 labelled legs and moved the
-    figures by under 0.01 (measured before the grid counted hidden cells; docs/robot_logs.md)."""
+    figures by under 0.01."""
 
     def __init__(self, odometry: ScanOdometryConfig | None = ScanOdometryConfig()) -> None:
         self.odometry = odometry
@@ -286,7 +286,7 @@ def collect(
 
 def _model(settings: TrainingSettings):
     """The classifier to fit. The defaults are the settings that scored best held out by log
-    among those tried (docs/robot_logs.md has the figures): larger, penalised leaves and no class
+    among those tried (docs/leg_detector.md): larger, penalised leaves and no class
     weights; the threshold, not the weights, sets how many legs are kept."""
     from sklearn.ensemble import HistGradientBoostingClassifier
 

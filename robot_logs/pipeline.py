@@ -120,7 +120,7 @@ class PersonTracker:
         other leg); and tracks kept 15 scans (1.5 s at 10 Hz) through misses but reported only one
         scan into them. Width rules give no confidence, so no track is protected: a person who
         stands still is taken for furniture."""
-        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf, never_free_hits=3,
+        world = StaticWorldConfig(min_duration=1.0, protect_confidence=math.inf, protect_walkers=False, never_free_hits=3,
                                   never_free_duration=0.3)
         tracker = TrackerConfig(still_wait=still_wait(world), sure_confidence=math.inf, death_misses=15,
                                 report_misses=1, tentative_misses=2, birth_clearance=0.6)
@@ -144,7 +144,8 @@ class PersonTracker:
         tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, spread=found.spread, unsure=moved.unsure)
         if world is not None:
             sure = world.config.protect_confidence
+            walkers = world.config.protect_walkers
             people = [t.kf.x[:2] for t in self.tracker.tracks
-                      if t.confirmed and (t.walking(self.tracker.config) or t.confidence_sum >= sure * t.hits)]
+                      if t.confirmed and (t.confidence_sum >= sure * t.hits or walkers and t.walking(self.tracker.config))]
             world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

@@ -45,6 +45,8 @@ class StaticWorldConfig:
             cell seen past something farther ahead (furniture behind furniture) is not counted.
         keep_out: points this close to a protected track are not added (m).
         protect_confidence: tracks whose mean detection confidence reaches this are protected.
+        protect_walkers: confirmed tracks that walk are protected too (`Track.walking`), so a
+            person walking at a steady distance ahead of a moving robot never turns static.
         never_free_hits, never_free_duration: a cell hit in this many scans over at least this
             many seconds and never seen free is static at once, without the wait and share above:
             a wall or post, whose cells no beam ever passes (a walker's cells are seen free as soon
@@ -59,6 +61,7 @@ class StaticWorldConfig:
     hidden_gap: float = 1.0
     keep_out: float = 0.4
     protect_confidence: float = 0.7
+    protect_walkers: bool = True
     never_free_hits: int = 1_000_000
     never_free_duration: float = 0.5
 

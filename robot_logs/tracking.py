@@ -123,17 +123,18 @@ class Track:
         return self.track_id is not None
 
     def walking(self, config: TrackerConfig) -> bool:
-        """Whether its recent detections moved `still_distance` or changed their legs'
-        spread by `gait_spread`: a walker, not furniture (which neither moves nor strides)."""
-        if len(self.recent) < 2:
+        """Whether it is `still_distance` from where it was `walk_window` ago (or at its birth,
+        if younger), or its legs' spread changed by `gait_spread` since: a walker, not furniture
+        (which neither moves nor strides)."""
+        if not self.recent:
             return False
         recent = np.array(self.recent)
-        moved = np.hypot(*(recent[:, 1:3] - recent[0, 1:3]).T).max() >= config.still_distance
+        moved = np.hypot(*(self.kf.x[:2] - recent[0, 1:3])) >= config.still_distance
         spread = recent[:, 3][np.isfinite(recent[:, 3])]
         return bool(moved or (len(spread) > 1 and np.ptp(spread) >= config.gait_spread))
 
     def note(self, time: float, position: np.ndarray, spread: float, window: float) -> None:
-        """Remember a detection, forgetting those older than `window` seconds."""
+        """Remember a detection (where it put the filter), forgetting those older than `window` seconds."""
         self.recent = [r for r in self.recent if time - r[0] <= window] + [(time, position[0], position[1], spread)]
         self.last_sure = time
 
@@ -229,7 +230,7 @@ class Tracker:
             track.kf.update(detections[d])
             track.hits += 1
             track.confidence_sum += confidence[d]
-            track.note(time, detections[d], np.nan if spread is None else spread[d], self.config.walk_window)
+            track.note(time, track.kf.x[:2], np.nan if spread is None else spread[d], self.config.walk_window)
         if unsure is not None and len(unsure):
             waiting = [t for t, track in enumerate(self.tracks) if t not in hit and track.confirmed
                        and time - (track.last_sure or -np.inf) <= self.config.unsure_time and track.walking(self.config)]
