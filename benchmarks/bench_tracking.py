@@ -21,7 +21,7 @@ within 5 m of the lidar, the range of the legs the shipped detector learned from
 farther). The learned setup runs on the simulator's default legs and lidar and on those fitted to
 the labelled bags (`BodyModel.fitted()`, `LidarSpec.fitted()`), with 6 walkers and with one. Leg
 precision and recall cross-validated by bag, for the classifier alone and followed by static-world
-rejection, come from the shipped detector's training record (the protocol is in docs/robot_logs.md),
+rejection, come from the shipped detector's training record (the protocol is in docs/leg_detector.md),
 and what the shipped detector makes of the simulator's legs, default and fitted, and of the fitted
 legs seen by the following log's narrow lidar, is printed beside it.
 """
