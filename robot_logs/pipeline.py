@@ -12,12 +12,13 @@ probability of its detections reaches the detector's `confirm` level (what 75 % 
 labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
 early loses its detections once its cells turn static and dies. A tentative track below the
 `protect` level (what half the labelled legs reach) that has not walked (moved 0.3 m, or changed
-its legs' spread with a stride, in the last 2 s) waits 2 s (`still_wait`) before it is confirmed, so furniture in view
-from the start turns static before it is ever reported. A confirmed track that walks is kept
-through the scans where the classifier doubts the legs (`robot_logs.tracking`), a confirmed track
-coasts through 0.5 s without a detection at any scan rate, and a track that walks or reaches `protect` keeps its cells
-out of the grid, so neither a person standing still nor one walking at a steady distance ahead of
-a moving robot turns into static world.
+its legs' spread with a stride, in the last 2 s) waits 2 s (`still_wait`) before it is
+confirmed, so furniture in view from the start turns static before it is ever reported. A
+confirmed track that walks is kept through the scans where the classifier doubts the legs
+(`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a detection at any scan
+rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
+person standing still nor one walking at a steady distance ahead of a moving robot turns into
+static world.
 """
 
 from __future__ import annotations

@@ -2,24 +2,25 @@
 assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static
-world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive
-hits and the detector's mean confidence over its hits so far reaches `confirm_confidence`
-(a track still within `still_distance` of its birth place whose mean confidence is under
-`sure_confidence` also waits `still_wait` seconds, long enough for the static world to tell),
-dropped after `tentative_misses` misses in a row while still tentative (a detection on the
-static world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row,
-and deleted after `death_misses` consecutive misses once confirmed. A detection beside a
-confirmed track (`birth_clearance`) starts no track: it is that person's other leg. So
-a person standing still is kept: confirmation asks for confidence, never for motion.
+world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
+and the detector's mean confidence over its hits so far reaches `confirm_confidence` (a track
+that does not walk and whose mean confidence is under `sure_confidence` also waits `still_wait`
+seconds, long enough for the static world to tell), dropped after `tentative_misses` misses in a
+row while still tentative (a detection on the static world counts as a miss for a tentative
+track), reported while it has missed at most `report_misses` scans in a row, and deleted after
+`death_misses` consecutive misses once confirmed. A detection beside a confirmed track
+(`birth_clearance`) starts no track: it is that person's other leg. So a person standing still
+is kept: confirmation asks for confidence, never for motion.
 
-A track walks while its recent detections move or its legs' spread changes with a stride
-(`walk_window`); a walker needs no wait, however still they are in the output frame. A confirmed
-track that walks and that no detection reached takes the nearest unsure one (a leg-sized segment
-off the static world that the classifier scored low) inside the gate its filter predicts, for
-`unsure_time` seconds after its last detection, so a person already followed is kept through the
-scans where the classifier doubts their legs. A confirmed track coasts on its filter's prediction,
-its gate growing with the filter's uncertainty, and lives `death_misses` scans and at least
-`death_time` seconds without a hit, so it outlives the same gap at any scan rate.
+A track walks while it is `still_distance` from where it was `walk_window` seconds before, or
+its legs' spread changes with a stride; a walker needs no wait, however still they are in the
+output frame. A confirmed track that walks and that no detection reached takes the nearest
+unsure one (a leg-sized segment off the static world that the classifier scored low) inside the
+gate its filter predicts, for `unsure_time` seconds after its last detection, so a person
+already followed is kept through the scans where the classifier doubts their legs. A confirmed
+track coasts on its filter's prediction, its gate growing with the filter's uncertainty, and
+lives `death_misses` scans and at least `death_time` seconds without a hit, so it outlives the
+same gap at any scan rate.
 """
 
 from __future__ import annotations
