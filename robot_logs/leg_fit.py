@@ -4,7 +4,7 @@ The figures `BodyModel.fitted()` and `LidarSpec.fitted()` (robot_logs.lidar_sim)
 walkers look like the legs the shipped detector learned from: the sensor's beam geometry, range
 noise and dropouts; the width of a leg seen apart from the other, the circle radius that shows that
 width, and the points per leg at each range; the two legs' sideways spacing and their gait (swing,
-cadence, walking speed) followed along each walk. docs/robot_logs.md gives the figures and why each
+cadence, walking speed) followed along each walk. docs/leg_detector.md gives the figures and why each
 estimate was chosen.
 """
 

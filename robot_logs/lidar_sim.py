@@ -41,7 +41,7 @@ class LidarSpec:
 
     @classmethod
     def fitted(cls) -> LidarSpec:
-        """The labelled sample bags' lidar, as `robot_logs.leg_fit` measures it (docs/robot_logs.md): 768
+        """The labelled sample bags' lidar, as `robot_logs.leg_fit` measures it (docs/leg_detector.md): 768
         beams from -135 degrees at 360/1024 degrees, 0.03-11 m, 3 mm range noise."""
         increment = 2.0 * math.pi / 1024
         return cls(angle_min=-0.75 * math.pi, angle_max=-0.75 * math.pi + 767 * increment, angle_increment=increment,
@@ -84,7 +84,7 @@ class BodyModel:
     @classmethod
     def fitted(cls) -> BodyModel:
         """Legs like those of the labelled sample bags' walkers, as `robot_logs.leg_fit` measures them
-        (docs/robot_logs.md): 6.7 cm in radius, 17 cm apart sideways, each swinging 15 cm fore and aft
+        (docs/leg_detector.md): 6.7 cm in radius, 17 cm apart sideways, each swinging 15 cm fore and aft
         (the full swing from 1 m/s) at 0.77 strides a second."""
         return cls(leg_radius=0.067, leg_spread=0.17, stride=0.15, walking_speed=1.0, cadence_hz=0.77)
 
@@ -145,7 +145,7 @@ class LidarSimulator:
 
     Scans meant for the shipped leg detector (`PersonTracker.learned()`, as on a real robot) take
     `LidarSpec.fitted()` and `BodyModel.fitted()`: its trees learned the sample bags' legs and lidar,
-    and it calls few of the default legs legs (docs/robot_logs.md has the figures).
+    and it recognises few of the default legs (docs/leg_detector.md has the figures).
 
     Args:
         spec: beam geometry, limits and noise.

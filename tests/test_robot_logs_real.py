@@ -39,8 +39,8 @@ def test_both_formats_give_identical_tracks(tracked: dict[str, Path]) -> None:
     ros1 = tracked["ros1"].read_bytes()
     assert ros1 == tracked["ros2"].read_bytes() == tracked["mcap"].read_bytes()
     table = TrackTable.read_csv(tracked["ros1"])
-    # People walked loops for two minutes: measured 1537 rows and 22 tracks with the shipped detector
-    # (format 2; width rules alone: 8950 rows, 150 tracks, many of them on furniture).
+    # People walked loops for two minutes: the shipped detector gives 2,309 rows and 20 tracks, measured
+    # (width rules alone: 8,950 rows, 150 tracks, many of them on furniture).
     assert len(table) > 1200 and len(table.ids) >= 15
     assert {row.frame for row in table.rows} == {"laser"}
     assert max(row.scan_index for row in table.rows) <= 1264
@@ -60,8 +60,7 @@ def test_people_walking_the_loop_are_tracked_for_long(tracked: dict[str, Path]) 
 
 def test_scan_odometry_keeps_the_walkers_of_a_standing_robot(robot_logs_dir: Path, tmp_path: Path) -> None:
     """The log holds no odometry; placed by scan matching, the standing laser's walkers stay (the shipped
-    detector gives 1,537 rows and 10 tracks of 5 m in either frame, measured; at its former threshold 1,426
-    and 10)."""
+    detector gives 2,309 rows and 12 tracks of 5 m in either frame, measured)."""
     out = tmp_path / "tracks.csv"
     assert main(["log", "track", str(robot_logs_dir / "stationary_ros1.bag"), "--odometry", "scan", "--out", str(out)]) == 0
     table = TrackTable.read_csv(out)
