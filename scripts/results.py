@@ -4,7 +4,7 @@ Every figure in docs/results.md comes from this script, with the command and see
 so the page cannot drift from the code. Each section sits between `<!-- section: NAME -->` and
 `<!-- end: NAME -->`; `--only` recomputes (or checks) just the named sections.
 
-    python scripts/results.py                          # rewrite docs/results.md (hours: two sections train networks)
+    python scripts/results.py                          # rewrite docs/results.md (hours: `trained` trains networks)
     python scripts/results.py --only table1            # Table I under both protocols (about 7 minutes on 2 cores)
     python scripts/results.py --check                  # exit 1 with a diff line if it is out of date
     python scripts/results.py --check --only designs,qualitative
@@ -47,13 +47,7 @@ EVASION_SEEDS = (0, 1, 2)
 
 HEADER = """# Measured results
 
-What the toolkit measures on its own data, each figure with the command and seed that make it.
-
-This page is written by `python scripts/results.py`, which reruns every command below;
-`python scripts/results.py --check` fails when the page no longer matches the code (the slow test
-`tests/test_results_page.py` runs that check on the designs and the qualitative study).
-The simulated studies' participant judgments come from the simulated-participant model
-(`analysis/participants.py`), not from people.
+Each figure with its command, written by `python scripts/results.py` (`--check` verifies it); judgments are simulated.
 """
 
 
@@ -83,21 +77,22 @@ def designs() -> str:
     rows = []
     for name, preset, command in (("qualitative, 27 runs", qualitative(), "trials design --runs 27"),
                                   ("A/B, 18 runs", ab(NAMES), "trials design --ab")):
+        per_seed = []
         for seed in DESIGN_SEEDS:
             plan = build_plan(replace(preset, seed=seed), allocation_seed=0)
             d = plan.diagnostics
-            rows.append([name, f"`{command} --seed {seed}`", str(d.p), f"{d.d_efficiency:.4f}", f"{plan.bound.d_efficiency:.2f}",
-                         f"{plan.d_efficiency_vs_bound:.2f} %", f"{d.a_efficiency:.2f}", f"{d.g_efficiency:.2f}",
-                         f"{d.average_prediction_variance:.4f}", f"{plan.design.hits} / {plan.design.starts}"])
+            per_seed.append([str(d.p), f"{d.d_efficiency:.4f}", f"{plan.d_efficiency_vs_bound:.2f} %", f"{d.a_efficiency:.2f}",
+                             f"{d.g_efficiency:.2f}", f"{plan.design.hits} of {plan.design.starts}"])
+        rows.append([name, f"`{command} --seed S`", *(values[0] if len(set(values)) == 1 else " / ".join(values)
+                                                      for values in zip(*per_seed))])
+    seeds = ", ".join(map(str, DESIGN_SEEDS))
     return "\n".join([
         "## Designs",
         "",
-        "The preset plans' diagnostics (`design.json`; JMP's conventions, see [designs.md](designs.md)).",
-        "Every seed reaches the same D-optimum (the bound is the approximate D-optimal design's), but the",
-        "exchange can end on different optimal designs, whose A-efficiency differs: an A-efficiency",
-        "belongs to its seed.",
+        f"Diagnostics ([designs.md](designs.md)) for seeds S = {seeds}, one figure where all agree; the A-efficiency",
+        "depends on which D-optimal design a seed ends on. `trials design` prints the rest.",
         "",
-        table(["plan", "command", "p", "D-eff", "bound", "vs bound", "A-eff", "G-eff", "avg. pred. var.", "starts at the optimum"], rows),
+        table(["plan", "command", "p", "D-eff", "of the bound", "A-eff", "G-eff", "starts at the optimum"], rows),
     ])
 
 
@@ -148,8 +143,7 @@ def qualitative() -> str:
         f"trials {' '.join(design)} && trials run && trials report",
         "```",
         "",
-        "Closest gap: between the robot's footprint and a pedestrian's body disc (`min_distance_m`).",
-        f"Rubric scores as in the paper's qualitative measurement; {judged} simulated judgments.",
+        f"The paper's rubric; closest gap from the robot's footprint to a body disc; {judged} judgments.",
         "",
         table(RUN_HEADER, [run_figures(rows, report["scores"])]),
     ])
@@ -171,16 +165,11 @@ def ab_study() -> str:
         f"trials {' '.join(design)} && trials run --blind && trials report --unblind --commitment {COMMITMENT}",
         "```",
         "",
-        f"{COMMITMENT} is the commitment `trials design` printed (design.json holds it too).",
-        "`--allocation-seed` fixes which arm is which controller, so the study can be made again; a real",
-        "study leaves it out and keeps the key secret. The lattice bounds each search by a number of",
-        "expansions, so both controllers' runs reproduce from their seeds; this section takes minutes",
-        "to recompute, so `scripts/results.py --check` checks it but the test does not.",
+        f"{COMMITMENT}: the commitment `trials design` printed; a real study leaves `--allocation-seed` out.",
         "",
         table(["controller", *RUN_HEADER], outcome_rows),
         "",
-        "Table II: share of runs judged socially compliant (simulated participants), runs with at least",
-        "2, 4 and 6 pedestrians, and Fisher's exact test between the controllers.",
+        "Table II: share judged compliant among runs with at least 2, 4, 6 pedestrians; Fisher's exact test.",
         "",
         table(["pedestrians", *arms, "Fisher's p"], shares),
     ])
@@ -190,7 +179,7 @@ PAPER_MODELS = ("goal-social-lstm", "navil2", "navil2-dagger", "navigan", "navig
                 "navigan-r-dagger", "human")
 #: The two protocols of `trials playback --protocol`, the paper's first.
 PROTOCOLS = ("paper", "strict")
-SCOPES = (("all", "pooled"), ("split_mean", "mean over splits"))
+SCOPES = (("all", "pooled"), ("split_mean", "averaged"))
 #: The networks trained without the resistance loss, and R's intention alone.
 UNRESISTED = ("Goal", "L2", "L2-dagger", "NG", "NG-dagger", "R-dagger")
 #: The strict protocol with each of the paper protocol's departures undone alone: distances at the
@@ -272,80 +261,85 @@ def cause(data: Cells, protocol: str, scope: str, metric: str, column: str) -> s
 
     other = "split_mean" if scope == "all" else "all"
     if metric == "S":
-        return ("the reward's time scale: S is mostly the arrival reward discounted by 0.9 a second, and R arrives "
-                f"after {both(protocol, 'time_to_goal_s', 'R')} s; the paper's 0.38-0.44 in every column would be "
-                "arrivals after about 8.2-9.6 s, and it states neither the discount's time unit nor v_pref")
+        return (f"time scale: R arrives after {both(protocol, 'time_to_goal_s', 'R')} s; the paper's S needs 8.2-9.6 s "
+                "(it omits the discount's unit and v_pref)")
     if metric == "C" and column in UNRESISTED:
         rates = [float(of(protocol, "all", "collision_rate", c)) for c in UNRESISTED]
-        return ("our weights: the networks without the resistance loss, and R's intention alone, come within 0.1 m "
-                f"of someone in {min(rates):.2f}-{max(rates):.2f} of the pooled episodes, where the paper's keep C near 0.8")
+        return (f"our weights: those without the resistance loss, and R-dagger, collide (< 0.1 m) in "
+                f"{min(rates):.2f}-{max(rates):.2f} of pooled episodes")
     if protocol == "strict" and metric == "C" and column == "R":
-        return ("distances within each step: its own walks measured at the frames give R's C "
-                f"{both(AT_FRAMES, 'C', 'R')}")
+        return f"distances within each step: at the frames, R's own walks give C {both(AT_FRAMES, 'C', 'R')}"
     if protocol == "strict" and metric == "A":
-        return ("the sub-goal: handed the far goal instead, R arrives in "
-                f"{both(FAR_GOAL, 'A', 'R')} and L2 in {both(FAR_GOAL, 'A', 'L2')}")
+        return (f"the sub-goal: handed the far goal, R arrives in {both(FAR_GOAL, 'A', 'R')}, "
+                f"L2 in {both(FAR_GOAL, 'A', 'L2')}")
     if protocol == "strict":
-        return (f"target selection: the recordings' own C is {both(protocol, 'C', 'human')} with these targets, "
-                f"{both('paper', 'C', 'human')} with the paper protocol's")
+        return (f"target selection: the recordings' own C is {both(protocol, 'C', 'human')}, "
+                f"{both('paper', 'C', 'human')} with `paper`'s targets")
     if metric == "C" and inside(data[protocol][other], metric, column):
-        return (f"aggregation: inside under the other one; pooled, univ's dense crowd holds {of(protocol, 'univ', 'episodes', 'R')} "
-                f"of the {of(protocol, 'all', 'episodes', 'R')} episodes, averaged, eth's "
-                f"{of(protocol, 'eth', 'episodes', 'R')} and hotel's {of(protocol, 'hotel', 'episodes', 'R')} weigh as much")
-    return ("our weights: every choice arrival depends on is the paper's here (targets, the far goal, 0.5 m, 24 s), "
-            f"yet ours differs both ways (R {both(protocol, 'A', 'R')} against 0.85, L2 {both(protocol, 'A', 'L2')} "
-            "against 0.88)")
+        return (f"aggregation (inside under the other): univ holds {of(protocol, 'univ', 'episodes', 'R')} of "
+                f"{of(protocol, 'all', 'episodes', 'R')} episodes, eth {of(protocol, 'eth', 'episodes', 'R')}, "
+                f"hotel {of(protocol, 'hotel', 'episodes', 'R')}")
+    return (f"our weights: with the paper's settings, R arrives in {both(protocol, 'A', 'R')} (paper 0.85), "
+            f"L2 in {both(protocol, 'A', 'L2')} (0.88)")
+
+
+def cells_named(columns: list[str], labels: list[str]) -> str:
+    """The columns of a row that a cause explains: `all`, `all but` the few it does not, or the few it does."""
+    if columns == labels:
+        return "all"
+    rest = [c for c in labels if c not in columns]
+    return f"all but {', '.join(rest)}" if len(rest) < len(columns) else ", ".join(columns)
 
 
 def table1_text(data: Cells) -> str:
-    """The Table I section from the cells of both protocols and the two strict runs with one departure undone."""
+    """The Table I section from the cells of both protocols and the two strict runs with one departure undone:
+    the pooled table with the paper's row, the cells inside our intervals under both aggregations, and the causes."""
     labels = list(data[PROTOCOLS[0]]["all"]["C", "paper"])
-    counts = {p: ", ".join(f"{s} {data[p][s]['episodes', 'ours']['human']}" for s in SPLITS) for p in PROTOCOLS}
+    counts = {p: data[p]["all"]["episodes", "ours"]["human"] for p in PROTOCOLS}
     lines = [
         "## Table I: long-term playback on ETH/UCY",
         "",
         "```bash",
         *(f"trials playback --protocol {p}" for p in PROTOCOLS),
-        "trials playback --protocol strict --subgoal-speed 0   # the far goal alone",
+        "trials playback --protocol strict --subgoal-speed 0",
         "```",
         "",
-        "The shipped per-split weights, noise seed 0, under the two protocols of [playback.md](playback.md#protocols):",
-        f"`paper` (targets with a position 36 steps ahead: {counts['paper']} episodes; distances at the",
-        f"recorded frames; the far goal) and `strict` (targets present for 20 frames: {counts['strict']} episodes;",
-        "the closest approach within each step; a sub-goal at the recorded pace). The paper's Table I",
-        "(`navigan/playback/paper_table1.json`) does not say whether it pools episodes or averages splits: both",
-        "are shown. 95 % intervals: Wilson for C and A, a seeded bootstrap for S.",
+        f"Shipped weights, noise seed 0, [protocols](playback.md#protocols) `paper` ({counts['paper']} episodes) and",
+        f"`strict` ({counts['strict']}), pooled, with 95 % intervals; the commands also print the mean over splits.",
+        "",
     ]
     outside: dict[tuple[str, str], list[tuple[str, str, str]]] = {}
+    body = []
+    for metric in "SCA":
+        for protocol in PROTOCOLS:
+            cells = data[protocol]["all"]
+            body.append([f"{metric}, ours (`{protocol}`)", *(cells[metric, "ours"][c] for c in labels)])
+            body.append(["95 %", *(f"{cells[metric, 'ours_low'][c]}-{cells[metric, 'ours_high'][c]}" for c in labels)])
+        body.append([f"{metric}, the paper's", *(data[PROTOCOLS[0]]["all"][metric, "paper"][c] for c in labels)])
     for scope, title in SCOPES:
-        body = []
         for metric in "SCA":
             for protocol in PROTOCOLS:
-                cells = data[protocol][scope]
-                body.append([f"{metric}, ours (`{protocol}`)", *(cells[metric, "ours"][c] for c in labels)])
-                body.append(["95 %", *(f"{cells[metric, 'ours_low'][c]}-{cells[metric, 'ours_high'][c]}" for c in labels)])
                 for c in labels:
-                    if not inside(cells, metric, c):
+                    if not inside(data[protocol][scope], metric, c):
                         outside.setdefault((protocol, cause(data, protocol, scope, metric, c)), []).append((title, metric, c))
-            body.append([f"{metric}, the paper's Table I", *(data[PROTOCOLS[0]][scope][metric, "paper"][c] for c in labels)])
-        lines += ["", f"### {title[0].upper()}{title[1:]}", "", table(["", *labels], body)]
-    lines += ["", "### Cells reproduced, and why the others differ", "",
+    lines += [table(["", *labels], body), "",
               "The paper's value lies inside our 95 % interval in "
               + " and ".join(f"{count_inside(data, p, 'all')} pooled and {count_inside(data, p, 'split_mean')} averaged "
                              f"of its 24 cells under `{p}`" for p in PROTOCOLS)
-              + ". Elsewhere, one cause a line (pooled / averaged where two figures are given):", ""]
+              + ". Elsewhere, by cause (figures pooled / averaged):", ""]
     for protocol in PROTOCOLS:
         for (run, reason), where in outside.items():
             if run == protocol:
-                named = "; ".join(f"{title} {metric} {', '.join(c for t, m, c in where if (t, m) == (title, metric))}"
+                named = "; ".join(f"{title} {metric} {cells_named([c for t, m, c in where if (t, m) == (title, metric)], labels)}"
                                   for title, metric in dict.fromkeys((t, m) for t, m, _ in where))
                 lines.append(f"- `{protocol}`, {reason}: {named}.")
     return "\n".join(lines)
 
 
-#: The five leave-one-scene-out splits and the four models of the family, as `trials evaluate` names them.
+#: The five leave-one-scene-out splits.
 SPLITS = ("eth", "hotel", "univ", "zara1", "zara2")
-MODELS = (("goal-social-lstm", "Goal-Social-LSTM"), ("navil2", "NaviL2"), ("navigan", "NaviGAN"), ("navigan-r", "NaviGAN-R"))
+#: The model whose ADE/FDE the page shows (`trials evaluate` gives the family's others alike).
+ADE_MODEL = "navigan-r"
 #: Social GAN's SGAN-1V-1 ADE/FDE (m) on the same splits (Gupta et al. 2018, Table 1): a goal-free predictor.
 SGAN_1V_1 = {"eth": (1.13, 2.21), "hotel": (1.01, 2.18), "univ": (0.60, 1.28), "zara1": (0.42, 0.91), "zara2": (0.52, 1.11)}
 
@@ -375,30 +369,33 @@ def shipped_then(options: list[str], folder: Path) -> Path:
                 *options, "--threads", "1", "--out", str(out), "--quiet"], folder)
     return weights
 
-def closed_loop() -> str:
-    """What `trials train --closed-loop` does to NaviGAN-R's comfort and arrival, over three tuning seeds."""
+def trained() -> str:
+    """NaviGAN-R taken further by `trials train`: closed-loop tuning and the evasion networks, over three seeds
+    each, beside R alone and R+shield."""
     figures = {}
     with tempfile.TemporaryDirectory() as folder:
         shipped = Path(folder) / "shipped"
         shipped.mkdir()
-        figures["shipped"] = r_alone(None, shipped)
-        for seed in TUNING_SEEDS:
-            run = Path(folder) / f"seed{seed}"
-            run.mkdir()
-            figures[f"tuned, seed {seed}"] = r_alone(shipped_then(["--closed-loop", "--closed-loop-seed", str(seed)], run),
-                                                     run)
-    return closed_loop_text(figures)
+        for option, seeds, model, label in (("closed-loop", TUNING_SEEDS, "navigan-r", "tuned"),
+                                            ("evasion", EVASION_SEEDS, "navigan-r-evasion", "R+evasion")):
+            for seed in seeds:
+                run = Path(folder) / f"{option}-{seed}"
+                run.mkdir()
+                extra = ["--retrain-evasion"] if option == "evasion" else []
+                weights = shipped_then([f"--{option}", f"--{option}-seed", str(seed), *extra], run)
+                figures[f"{label}, seed {seed}" + (" (shipped)" if option == "evasion" and seed == seeds[0] else "")] = \
+                    r_alone(weights, run, model)
+        figures["shipped, R+shield"] = r_alone(None, shipped, "navigan-r-shield")
+    return trained_text(figures)
 
 
 def by_scope(figures: dict[str, dict[tuple[str, str], str]]) -> str:
-    """C / A per scope, one row per set of weights."""
-    scopes = ["all", "split_mean", *SPLITS]
-    rows = [[name, *(f"{cells[scope, 'C']} / {cells[scope, 'A']}" for scope in scopes)] for name, cells in figures.items()]
-    return table(["weights", "pooled", "mean over splits", *SPLITS], rows)
+    """Pooled C / A, one row per set of weights (the command also prints the mean over splits and each split)."""
+    return table(["weights", "C / A, pooled"], [[name, f"{cells['all', 'C']} / {cells['all', 'A']}"] for name, cells in figures.items()])
 
 
-def closed_loop_text(figures: dict[str, dict[tuple[str, str], str]]) -> str:
-    return f"""## Closed-loop tuning of NaviGAN-R
+def trained_text(figures: dict[str, dict[tuple[str, str], str]]) -> str:
+    return f"""## NaviGAN-R trained further
 
 ```bash
 cp navigan/weights/navigan-r-SPLIT.pt DIR/       # each split; univ's command adds --epochs 60
@@ -406,51 +403,11 @@ trials train --recipe playback --split SPLIT --closed-loop --closed-loop-seed SE
 trials playback --checkpoints DIR --models navigan-r
 ```
 
-C / A of R alone under the strict protocol, noise seed 0, after two rounds of tuning the social
-force on the states R visits in its training recordings' episodes
-([NaviGAN training](navigan_training.md#closed-loop-tuning---closed-loop); about 30 CPU minutes):
+`strict`, noise seed 0, after [closed-loop tuning](navigan_training.md#closed-loop-tuning---closed-loop) or with
+[evasion networks](navigan_training.md#evasion-networks---evasion) (`--evasion --evasion-seed SEED --retrain-evasion`,
+model `navigan-r-evasion`); R alone is Table I's. Tuning costs arrival, so no shipped weights use it.
 
-{by_scope(figures)}
-
-The tuning lifts the mean over splits but not univ, whose test crowd (about 44 others around a
-target) is six times denser than its training recordings'; there it costs arrival without gaining
-comfort, so no shipped weights use it."""
-
-
-def evasion() -> str:
-    """R+evasion over three training seeds beside R alone and R+shield."""
-    figures = {}
-    with tempfile.TemporaryDirectory() as folder:
-        shipped = Path(folder) / "shipped"
-        shipped.mkdir()
-        figures["shipped, R alone"] = r_alone(None, shipped)
-        for seed in EVASION_SEEDS:
-            run = Path(folder) / f"seed{seed}"
-            run.mkdir()
-            name = f"R+evasion, seed {seed}" + (" (shipped)" if seed == EVASION_SEEDS[0] else "")
-            weights = shipped_then(["--evasion", "--evasion-seed", str(seed), "--retrain-evasion"], run)
-            figures[name] = r_alone(weights, run, "navigan-r-evasion")
-        figures["shipped, R+shield"] = r_alone(None, shipped, "navigan-r-shield")
-    return evasion_text(figures)
-
-
-def evasion_text(figures: dict[str, dict[tuple[str, str], str]]) -> str:
-    return f"""## R+evasion: NaviGAN-R with its evasion networks
-
-```bash
-cp navigan/weights/navigan-r-SPLIT.pt DIR/       # each split; univ's command adds --epochs 60
-trials train --recipe playback --split SPLIT --evasion --evasion-seed SEED --retrain-evasion --threads 1 --out DIR/navigan-r-SPLIT.pt
-trials playback --checkpoints DIR --models navigan-r-evasion
-```
-
-C / A under the strict protocol, noise seed 0, for three training seeds of the evasion networks
-([NaviGAN training](navigan_training.md#evasion-networks---evasion); 4 to 11 minutes a split on
-one core); the shipped per-split files hold seed 0's, beside an unchanged generator:
-
-{by_scope(figures)}
-
-On every seed R+evasion keeps C >= 0.97 with A >= 0.95 under both aggregations, without any
-forecast while walking; univ is the one split whose arrival stays below 0.95."""
+{by_scope(figures)}"""
 
 
 def evaluation(args: list[str], folder: Path) -> dict:
@@ -461,27 +418,28 @@ def evaluation(args: list[str], folder: Path) -> dict:
 
 
 def ade_fde() -> str:
-    """ADE/FDE of the shipped per-split weights and the constant-velocity baseline on each test scene."""
-    header = ["split", "SGAN-1V-1 (published)", "constant velocity", *(label for _, label in MODELS), "NaviGAN-R†"]
+    """ADE/FDE of the shipped NaviGAN-R weights (its way-points) and the constant-velocity baseline on each test scene."""
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for split in SPLITS:
             cells = [split, "{:.2f} / {:.2f}".format(*SGAN_1V_1[split])]
-            records = [evaluation(["evaluate", "--baseline", "constant-velocity", "--split", split], Path(folder))]
-            records += [evaluation(["evaluate", "--checkpoint", f"{model}-{split}"], Path(folder)) for model, _ in MODELS]
-            pairs = [r["full"] for r in records] + [records[-1]["dagger"]]
-            rows.append(cells + [f"{m['ade']:.2f} / {m['fde']:.2f}" for m in pairs])
+            baseline = evaluation(["evaluate", "--baseline", "constant-velocity", "--split", split], Path(folder))
+            model = evaluation(["evaluate", "--checkpoint", f"{ADE_MODEL}-{split}"], Path(folder))
+            rows.append(cells + [f"{m['ade']:.2f} / {m['fde']:.2f}" for m in (baseline["full"], model["full"])])
+    return ade_fde_text(rows)
+
+
+def ade_fde_text(rows: list[list[str]]) -> str:
+    header = ["split", "SGAN-1V-1 (published)", "constant velocity", "NaviGAN-R"]
     return f"""## ADE / FDE on the ETH/UCY test scenes
 
 ```bash
-trials evaluate --checkpoint MODEL-SPLIT             # e.g. navigan-r-eth; one noise sample, seed 0
+trials evaluate --checkpoint navigan-r-SPLIT      # one noise sample, seed 0; likewise the other models
 trials evaluate --baseline constant-velocity --split SPLIT
 ```
 
-ADE / FDE in metres over every window of each split's test recordings (8 observed, 12 planned
-steps), for the shipped weights. NaviGAN is a planner and is handed its goal, the position
-4.8 s ahead, which a predictor such as Social GAN must guess, so the comparison with the
-published SGAN-1V-1 figures is not like for like: the final error is small by construction.
+ADE / FDE (m), 8 observed and 12 planned steps. NaviGAN-R is handed its goal 4.8 s ahead, which Social GAN
+must guess: not like for like.
 
 {table(header, rows)}"""
 
@@ -490,18 +448,12 @@ def reactive() -> str:
     """The non-learned yardstick beside Table I: scripts/reactive_reference.py over the same episodes."""
     done = subprocess.run([sys.executable, str(ROOT / "scripts" / "reactive_reference.py")], env=checkout_env(), check=True,
                           capture_output=True, text=True)
-    return f"""## A reactive walker in the same episodes
+    return f"""## A reactive walker in Table I's episodes
 
-```bash
-python scripts/reactive_reference.py
-```
-
-A plain velocity-sampling avoider (no learning; it knows everyone's current velocity) walked
-through Table I's episodes of the strict protocol and scored with the same metrics: a yardstick of what keeping
-0.5 m from constant-velocity forecasts achieves among recordings that never give way.
+The [yardstick](playback.md#a-yardstick) under `strict`: `python scripts/reactive_reference.py` prints each split, then
 
 ```text
-{done.stdout.strip()}
+{done.stdout.strip().splitlines()[-1]}
 ```"""
 
 
@@ -522,7 +474,7 @@ def _runs_for_80(record: dict) -> str:
     needed = record["smallest_runs"]["model_based"]
     by_runs = [(plan["runs"], plan["judgments"]["Controller"]["power"]) for plan in record["plans"]]
     crossing = next((a + (b - a) * (0.8 - pa) / (pb - pa) for (a, pa), (b, pb) in zip(by_runs, by_runs[1:]) if pa < 0.8 <= pb), None)
-    where = f" (straight line between the sizes tried: about {crossing:.0f})" if crossing else ""
+    where = f" (interpolated: about {crossing:.0f})" if crossing else ""
     return f"{needed if needed else 'none of those tried'}{where}"
 
 
@@ -536,18 +488,11 @@ def power() -> str:
     def cell(figure: dict | None) -> str:
         return f"{figure['power']:.3f} ({figure['low']:.3f}-{figure['high']:.3f})" if figure else "n/a"
 
-    header, rows = ["runs"], []
-    for shares in POWER_SHARES:
-        gap = f"{100 * shares[0]:.0f} % vs {100 * shares[1]:.0f} %"
-        header += [f"{gap}: Controller term (GEE by run)", f"{gap}: Table II, >= 6 pedestrians"]
-    for index, plan in enumerate(results[0][1]["plans"]):
-        row = [str(plan["runs"])]
-        for _, record in results:
-            mine = record["plans"][index]
-            row += [cell(mine["judgments"]["Controller"]), cell(mine["rows"].get("6"))]
-        rows.append(row)
+    gaps = [f"{100 * low:.0f} % vs {100 * high:.0f} %" for low, high in POWER_SHARES]
+    rows = [[str(plan["runs"]), *(cell(record["plans"][index]["judgments"]["Controller"]) for _, record in results)]
+            for index, plan in enumerate(results[0][1]["plans"])]
     commands = [f"trials {' '.join(args)}" for args, _ in results]
-    needed = "; ".join(f"{100 * s[0]:.0f} % vs {100 * s[1]:.0f} %: {_runs_for_80(record)}" for s, (_, record) in zip(POWER_SHARES, results))
+    needed = "; ".join(f"{gap}: {_runs_for_80(record)}" for gap, (_, record) in zip(gaps, results))
     return "\n".join([
         "## Power: how many runs the A/B study needs",
         "",
@@ -556,24 +501,18 @@ def power() -> str:
         *commands,
         "```",
         "",
-        "Model-based power ([power.md](power.md)) of the controller comparison when people judge the lattice planner socially",
-        "compliant 58 % of the time and NaviGAN-R 75 % (the paper's Table II at 6 or more pedestrians), and for the smaller gap",
-        "of 67 % against 75 %; in every scene alike, with a between-run SD of 0.5 on the logit scale and one judgment per",
-        "pedestrian. Each plan but the study's own 18 runs is the D-optimal plan of that size from the A/B spec. The primary",
-        "analysis is the Controller term's test in the GEE by run; Table II's last row is Fisher's test on the runs with 6",
-        f"pedestrians, Holm-adjusted. Each figure is over {POWER_SIMULATIONS} simulated data sets, with its 95 % Monte Carlo interval.",
+        "[Power](power.md) of the GEE's Controller test, the lattice planner judged compliant 58 % of the time against",
+        f"NaviGAN-R's 75 % (the paper's Table II) or 67 % against 75 %; D-optimal plans, {POWER_SIMULATIONS} data sets each.",
         "",
-        table(header, rows),
+        table(["runs", *gaps], rows),
         "",
-        f"Smallest of these plans with power 0.8 on the Controller term: {needed}.",
-        "The paper's 18 runs hardly ever show either difference: with 18 runs for the model's 11 columns the GEE's small-sample",
-        "sandwich errors are wide, and the data sets whose judgments are separated (no test) count as not rejecting.",
+        f"Smallest plan with power 0.8: {needed}. 18 runs leave the GEE 7 degrees of freedom.",
     ])
 
 
 SECTIONS: dict[str, Callable[[], str]] = {
-    "designs": designs, "qualitative": qualitative, "ab": ab_study, "table1": table1, "closedloop": closed_loop,
-    "evasion": evasion, "reactive": reactive, "adefde": ade_fde, "power": power,
+    "designs": designs, "qualitative": qualitative, "ab": ab_study, "table1": table1, "trained": trained,
+    "reactive": reactive, "adefde": ade_fde, "power": power,
 }
 
 
