@@ -371,7 +371,7 @@ def shipped_then(options: list[str], folder: Path) -> Path:
 
 def trained() -> str:
     """NaviGAN-R taken further by `trials train`: closed-loop tuning and the evasion networks, over three seeds
-    each, beside R alone and R+shield."""
+    each, beside R+shield (R alone is in Table I)."""
     figures = {}
     with tempfile.TemporaryDirectory() as folder:
         shipped = Path(folder) / "shipped"
