@@ -89,7 +89,7 @@ def test_a_run_without_sensors_never_starts(tmp_path, master):
     uri, _ = master
     study = design(tmp_path / "study", uri)
     spec = study.root / "study.toml"
-    spec.write_text(spec.read_text(encoding="utf-8") + "sensor_wait = 3.0\n", encoding="utf-8")
+    spec.write_text(spec.read_text(encoding="utf-8").replace("[robot]\n", "[robot]\nsensor_wait = 3.0\n"), encoding="utf-8")
     code = first_code(study)
     with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
         rig.processes[1].kill()  # no robot: no scan, odometry or transform ever comes
