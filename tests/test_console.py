@@ -249,6 +249,7 @@ def test_the_questionnaire_survives_trials_design(template):
         LikertItem("comfort", "How comfortable did you feel near the robot?", 5, "very uncomfortable", "very comfortable"),)
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_trials_serve_prints_the_experimenters_link_first(study):
     with served(study) as url:
         opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor())

@@ -24,6 +24,7 @@ def public_files(folder: Path) -> list[Path]:
     return [p for p in folder.rglob("*") if p.is_file() and "sealed" not in p.relative_to(folder).parts]
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
     assert main(["design", "--ab", "--study", str(tmp_path), "--seed", "12", "--figures"]) == 0
     captured = capsys.readouterr()

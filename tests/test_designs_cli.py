@@ -84,6 +84,7 @@ def _png_width(path: Path) -> int:
     return int.from_bytes(data[16:20], "big")  # IHDR's width
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_figures_are_drawn_on_request_as_png_at_dpi_and_svg(tmp_path):
     low, high = tmp_path / "low", tmp_path / "high"
     assert design(low, "--runs", "27", "--seed", "4", "--figures", "--dpi", "50") == 0

@@ -86,6 +86,7 @@ def _png_width(path: Path) -> int:
 FIGURES = ("correlation_map.png", "correlation_map.svg", "design_evaluation.png", "design_evaluation.svg")
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_evaluate_draws_the_plans_figures_beside_the_studys_own(tmp_path, capsys):
     study = tmp_path / "s"
     assert main(["design", "--study", str(study), "--seed", "1", "--figures", "--dpi", "50"]) == 0
@@ -105,6 +106,7 @@ def test_evaluate_draws_the_plans_figures_beside_the_studys_own(tmp_path, capsys
         assert svg != (study / f"plan.{stem}.svg").read_text(encoding="utf-8")
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_evaluated_figures_are_replaced_only_with_force(tmp_path, capsys):
     factorial = _factorial(tmp_path / "factorial.csv")
     study = tmp_path / "s"
@@ -180,6 +182,7 @@ def test_bad_criterion_or_restriction_is_one_line_exit_2(tmp_path, capsys, line,
     assert not (tmp_path / "s").exists() or not any((tmp_path / "s").iterdir())
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_augment_keeps_the_planned_runs_results_and_key(tmp_path, capsys):
     study = tmp_path / "s"
     assert main(["design", "--ab", "--seed", "1", "--study", str(study), "--figures"]) == 0

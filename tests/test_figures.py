@@ -48,6 +48,7 @@ def size(png: bytes) -> tuple[int, int]:
     return mpimg.imread(io.BytesIO(png), format="png").shape[:2]
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_one_saving_function_gives_png_at_the_dpi_and_a_stable_svg(tmp_path: Path):
     image = score_distribution_figure({"A": [1, 3, 10]}, None, "scores")
     low, high = size(image.png(100)), size(image.png(200))

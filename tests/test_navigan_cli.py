@@ -57,6 +57,7 @@ def test_train_then_resume_then_evaluate(data, tmp_path, capsys):
     assert 0 < record["full"]["ade"] < 5 and 0 < record["dagger"]["fde"] < 5
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_checkpoint_records_the_recipe_and_the_command_that_reproduce_it(data, tmp_path):
     out = tmp_path / "m.pt"
     mine = recipe_file(tmp_path, 'model = "goal-social-lstm"\n[network]\nhidden = 16\n[train]\nbatch = 48\n')

@@ -152,6 +152,7 @@ def without_networks(path) -> ckpt.Checkpoint:
     return record
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_a_resumed_training_ends_where_an_uninterrupted_one_does(zara1, tmp_path):
     path, episodes = zara1
     config = EvasionConfig(rounds=2, epochs=1, batch=64, seed=5, width=16, shortfall_batches=4)

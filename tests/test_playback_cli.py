@@ -128,6 +128,7 @@ def test_subgoal_speed_0_walks_the_same_weights_toward_the_goal_itself(walked, e
     assert [r["path"] for r in direct["results"]] != [r["path"] for r in stored_result(walked[0], "navigan-r")["results"]]
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, tmp_path):
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", "navigan-r,navigan-r-shield", "--shield", "0.6") == 0
@@ -144,6 +145,7 @@ def test_the_shielded_column_walks_navigan_r_with_the_margin_asked(eth_ucy_dir, 
     assert sorted(p.name for p in (out / "episodes" / "zara1").iterdir()) == ["navigan-r-shield.json", "navigan-r.json"]
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_the_evasion_column_walks_the_networks_its_checkpoint_holds_and_refuses_one_without(
         eth_ucy_dir, tmp_path, capsys):
     from navigan import checkpoint as ckpt
@@ -174,6 +176,7 @@ def test_the_evasion_column_walks_the_networks_its_checkpoint_holds_and_refuses_
     assert record["checkpoint"]["file"] == "navigan-r-zara1.pt" and len(record["results"]) == 3
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_figures_are_png_at_the_dpi_asked_and_svg_that_a_redraw_keeps_byte_for_byte(eth_ucy_dir, tmp_path):
     out = tmp_path / "pb"
     assert playback(eth_ucy_dir, out, "--models", "navigan-r,human", "--dpi", str(2 * DEFAULT_DPI)) == 0
@@ -256,6 +259,7 @@ def transcription(folder, values, source="Tsai & Oh 2020, Table I (hand copy)") 
     return str(path)
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_a_transcription_of_the_paper_is_printed_beside_ours(eth_ucy_dir, tmp_path):
     out = tmp_path / "pb"
     paper = transcription(tmp_path, {"S": {"human": -0.125}, "C": {"R": 0.875, "human": 0.75}, "A": {"R": 1}})

@@ -107,6 +107,7 @@ def assert_transforms(got: list[dict[str, Any]], kind: str) -> None:
         assert_pose(one["pose"], expected.pose)
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_every_kind_arrives_as_published(ros1_master: RobotUri, nodes: list[Node], tmp_path: Path) -> None:
     """Latched values (published once, before the listener existed) and streamed ones arrive exactly; a
     malformed scan makes lost() say why; nodes listen on loopback only; rospy writes nothing on the
@@ -146,6 +147,7 @@ def test_every_kind_arrives_as_published(ros1_master: RobotUri, nodes: list[Node
     assert "init_node" in log_file.read_text()
 
 
+@pytest.mark.slow  # over 1.5 s: left out of the quick loop
 def test_a_stopped_master_is_lost_within_seconds(ros1_master: RobotUri, nodes: list[Node], tmp_path: Path) -> None:
     """TCPROS links outlive the master, so lost() polls it; a second node in the process is refused; the
     log goes to a temporary folder when ROS_LOG_DIR cannot be written; close() after the loss is quick."""
