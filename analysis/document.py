@@ -233,7 +233,7 @@ def _plain(text: str) -> str:
     return _BOLD.sub(r"\1", _CODE.sub(r"\1", text))
 
 
-def _csv_cell(text: str) -> str:
+def csv_cell(text: str) -> str:
     """A CSV cell: markup removed, and text a spreadsheet would run as a formula (a leading =, +, -, @, tab or
     carriage return, not a number) shown as text by a leading apostrophe, as OWASP advises."""
     cell = _plain(text)
@@ -252,8 +252,8 @@ def to_csv(table: Table) -> str:
     report)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow([_csv_cell(h) for h in table.header])
-    writer.writerows([[_csv_cell(c) for c in row] for row in table.rows])
+    writer.writerow([csv_cell(h) for h in table.header])
+    writer.writerows([[csv_cell(c) for c in row] for row in table.rows])
     return buffer.getvalue()
 
 

@@ -66,8 +66,13 @@ class AnalysisPlan:
         return {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
 
     def digest(self) -> str:
-        """SHA-256 of the table as canonical JSON: what design.json commits to and unblinding.json records."""
-        return hashlib.sha256(canonical_bytes(self.table())).hexdigest()
+        """What design.json commits to and unblinding.json records (`table_digest` of its table)."""
+        return table_digest(self.table())
+
+
+def table_digest(table: dict[str, object]) -> str:
+    """SHA-256 of an [analysis] table as canonical JSON (sorted keys, no spaces, UTF-8)."""
+    return hashlib.sha256(canonical_bytes(table)).hexdigest()
 
 
 def arm_factor(spec: StudySpec) -> CategoricalFactor | None:
@@ -110,10 +115,11 @@ class PlanStatus:
 
     @property
     def changed_after_opening(self) -> bool:
-        """The plan now differs from one in force when the key was opened (an opening that recorded none counts: it cannot
-        be ruled out)."""
+        """The plan now differs from one in force when the key was opened; an opening that recorded none counts when the
+        plan is not the committed one (a change after it cannot be ruled out)."""
         current = self.plan.digest()
-        return not self.matches and any(digest != current for digest in self.opened_with)
+        recorded_other = any(digest is not None and digest != current for digest in self.opened_with)
+        return recorded_other or (not self.matches and None in self.opened_with)
 
     def describe(self) -> str:
         """The plan's standing in one sentence for the report."""
@@ -121,8 +127,11 @@ class PlanStatus:
         if self.committed is None:
             source = "study.toml's [analysis] table" if self.declared else "the defaults for this design (study.toml declares no [analysis] table)"
             return f"Analysis plan: {source} (sha256 {digest}...); design.json commits to no plan (a design of an earlier release)."
-        if self.matches:
+        if self.matches and not self.changed_after_opening:
             return f"Analysis plan: study.toml's [analysis] table, the one committed to in design.json with the design (sha256 {digest}...)."
+        if self.matches:  # committed again (an augmented design) after the key was opened under another plan
+            return (f"**The analysis plan changed after the sealed key was opened: the plan in force (sha256 {digest}...) is the one "
+                    "design.json commits to now, but not the one in force when the key was opened.** Results below follow the changed plan.")
         what = "study.toml's [analysis] table" if self.declared else "the defaults (study.toml's [analysis] table was removed)"
         text = (f"the analysis plan in force ({what}, sha256 {digest}...) differs from the one committed to in design.json with the "
                 f"design (sha256 {self.committed[:16]}...)")

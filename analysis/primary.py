@@ -12,6 +12,7 @@ import numpy as np
 
 from analysis.ab_table import RunJudgments
 from analysis.clustered import fit_gee
+from analysis.errors import AnalysisError
 from analysis.mixed import fit_mixed
 from analysis.models import DesignMatrix, Fit, fit_logistic
 from analysis.plan import RANDOMIZATION, AnalysisPlan
@@ -50,8 +51,12 @@ def primary_p_value(plan: AnalysisPlan, factors: tuple[DesignFactor, ...], setti
         return run_randomization(use, arms, first_arm, strata, yes, total, None).p_value
     judged = np.asarray(total) > 0
     dm = DesignMatrix.from_model(primary_model(plan, factors), np.asarray(settings)[judged])
-    fit = fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], JUDGED, plan.gee_options())
-    return next((e.p_value for e in fit.effects if e.term == plan.factor), math.nan)
+    return factor_p_value(fit_gee(dm, np.asarray(yes)[judged], np.asarray(total)[judged], JUDGED, plan.gee_options()), plan.factor)
+
+
+def factor_p_value(fit: Fit, factor: str) -> float:
+    """The p-value of the compared factor's term in a fit (NaN when the fit could not test it)."""
+    return next((e.p_value for e in fit.effects if e.term == factor), math.nan)
 
 
 #: How each sensitivity analysis of the plan is named in the report.
@@ -101,7 +106,8 @@ def arm_effect(fit: Fit, factor: str) -> OddsRatio | None:
     column = next((p for p in fit.parameters if p.column.startswith(f"{factor}[") and "*" not in p.column), None)
     if column is None or not math.isfinite(column.estimate):
         return None
-    ends = [math.exp(2.0 * v) if math.isfinite(v) else (0.0 if v < 0 else math.inf) for v in (column.low, column.high)]
+    ends = [math.nan if math.isnan(v) else math.exp(2.0 * v) if math.isfinite(v) else (0.0 if v < 0 else math.inf)
+            for v in (column.low, column.high)]
     return OddsRatio(math.exp(2.0 * column.estimate), ends[0], ends[1], column.p_value, fit.method)
 
 
@@ -130,16 +136,23 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
     mean_shares = {arm: float(np.mean([s for s, a in zip(shares, arm_of) if a == arm])) if arm in arm_of else math.nan for arm in arms}
     arm_runs = {arm: arm_of.count(arm) for arm in arms}
     base = PrimaryResult(plan, arms, len(judged), int(total.sum()), mean_shares, arm_runs, None, math.nan, None, fits)
-    if len(arms) != 2 or min(arm_runs.values()) == 0:
-        return replace(base, notes=("The plan's test compares two arms; these judgments do not hold runs of both.",) if plan.factor else ())
-    strata = [tuple(str(run.values[name]) for name in plan.strata) for run in runs]
-    effect = next((replace(e, source=SENSITIVITY_NAMES[name]) for name, fit in fits for e in [arm_effect(fit, plan.factor)] if e is not None), None)
+    if sum(count > 0 for count in arm_runs.values()) < 2:
+        return replace(base, notes=("The plan's test compares arms; these judgments do not hold runs of two of them.",) if plan.factor else ())
+    effect = None
+    if len(arms) == 2:
+        effect = next((replace(e, source=SENSITIVITY_NAMES[name]) for name, fit in fits for e in [arm_effect(fit, plan.factor)] if e is not None),
+                      None)
     if plan.test == RANDOMIZATION:
-        test = run_randomization(plan, arm_of, arms[0], strata, yes, total, 1.0 - plan.alpha)
+        if min(arm_runs.values()) == 0:
+            return replace(base, notes=("The randomization test compares two arms; these judgments do not hold runs of both.",))
+        strata = [tuple(str(run.values[name]) for name in plan.strata) for run in runs]
+        try:
+            test = run_randomization(plan, arm_of, arms[0], strata, yes, total, 1.0 - plan.alpha)
+        except AnalysisError as exc:  # e.g. no stratum judged in both arms yet (an interim report)
+            return replace(base, odds_ratio=effect, notes=(f"The randomization test cannot be made on these judgments: {exc}.",))
         return replace(base, randomization=test, p_value=test.p_value, odds_ratio=effect)
     gee = fits[0][1] if fits and fits[0][0] == "gee-small-sample" else relabel(fit_gee(dm, yes, total, JUDGED, plan.gee_options()), data.blinding)
-    p = next((e.p_value for e in gee.effects if e.term == plan.factor), math.nan)
-    return replace(base, p_value=p, odds_ratio=effect)
+    return replace(base, p_value=factor_p_value(gee, plan.factor), odds_ratio=effect)
 
 
 def _arms(data: StudyData, plan: AnalysisPlan) -> tuple[str, ...]:

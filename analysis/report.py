@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from analysis.ab_table import PAPER_NAMES, PAPER_TABLE_II, RunJudgments, TableRow, count_judgments, judgments_used, table_ii
-from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, table_names, to_csv, to_html, to_markdown
+from analysis.document import Block, Bullets, Figure, Heading, Paragraph, Table, csv_cell, table_names, to_csv, to_html, to_markdown
 from analysis.figures import (
     arm_colours,
     correlation_map_figure,
@@ -72,8 +72,8 @@ class DataTable(Table):
     def csv(self) -> str:
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow(self.data_header)
-        writer.writerows([["" if cell is None else cell for cell in row] for row in self.data_rows])
+        writer.writerow([csv_cell(name) for name in self.data_header])
+        writer.writerows([["" if cell is None else csv_cell(cell) if isinstance(cell, str) else cell for cell in row] for row in self.data_rows])
         return buffer.getvalue()
 
 

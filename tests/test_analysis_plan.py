@@ -4,6 +4,7 @@ its standing in the report's words, the digest recorded at each opening of the k
 from __future__ import annotations
 
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -11,14 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.models import DesignMatrix
-from analysis.plan import SENSITIVITY, AnalysisPlan, PlanStatus
-from analysis.primary import sensitivity_fit
+from analysis.ab_table import RunJudgments
+from analysis.models import DesignMatrix, Fit, Parameter
+from analysis.plan import SENSITIVITY, AnalysisPlan, PlanStatus, default_plan
+from analysis.primary import arm_effect, primary_analysis, sensitivity_fit
+from analysis.records import StudyData
 from tests.support.run_studies import SMALL_SPEC
-from trials.analysis_plan import committed_digest
+from trials.analysis_plan import committed_digest, plan_from_table
 from trials.cli import main
 from trials.study import StudyFolder
-from trials.study_data import PLAN_KEY, Opening, opened_record
+from trials.study_data import PLAN_KEY, Opening, load_study, opened_record
 
 
 @pytest.fixture(scope="module")
@@ -128,3 +131,69 @@ def test_the_plans_gee_conventions_reach_its_gee_fits() -> None:
     assert theirs.summary["within-run correlation"] != pytest.approx(ours.summary["within-run correlation"], rel=1e-4)
     independence = sensitivity_fit(geepack, "gee-independence", dm, yes, total)
     assert "independence" in independence.method and "Kauermann" in independence.method
+
+
+def test_a_design_seed_past_2_to_the_53_is_a_plan_seed_too(ab: Path) -> None:
+    folder = StudyFolder(ab)
+    spec = load_study(folder, False, "2026-01-01T00:00:00+00:00").spec
+    big = default_plan(spec, 2**63 - 1)
+    assert plan_from_table(big.table(), spec, 0, "here").seed == 2**63 - 1
+
+
+def test_a_plan_committed_again_after_the_key_was_opened_under_another_is_flagged() -> None:
+    opened = AnalysisPlan("compliant", "Controller", "randomization", "Controller", (), "main", 0.05, SENSITIVITY, 20000, 3)
+    now = AnalysisPlan("compliant", "Controller", "gee", "Controller", (), "main", 0.05, SENSITIVITY, 20000, 3)
+    recommitted = PlanStatus(now, True, now.digest(), (opened.digest(),))  # e.g. `trials design --augment` after the opening
+    assert recommitted.matches and recommitted.changed_after_opening
+    assert recommitted.describe().startswith("**The analysis plan changed after the sealed key was opened")
+    # an opening that recorded no plan (an earlier release) casts no doubt on a plan that is the committed one
+    assert not PlanStatus(now, True, now.digest(), (None,)).changed_after_opening
+
+
+def _judged(data: StudyData, arms_judged: dict[str, int]) -> list[RunJudgments]:
+    """4 of 5 judgments yes for each run of the arms named, at most that many runs of each."""
+    taken: dict[str, int] = {}
+    judged = []
+    for run in data.runs:
+        if taken.get(run.arm, 0) < arms_judged.get(run.arm, 0):
+            taken[run.arm] = taken.get(run.arm, 0) + 1
+            judged.append(RunJudgments(run.code, run.arm, 2, 4 if run.arm == "A" else 1, 5))
+    return judged
+
+
+def test_an_interim_report_whose_strata_hold_one_arm_each_keeps_its_primary_section(ab: Path) -> None:
+    data = load_study(StudyFolder(ab), False, "2026-01-01T00:00:00+00:00")
+    strata = ("Direction",)
+    plan = AnalysisPlan("compliant", "Controller", "randomization", "Controller + Direction", strata, "", 0.05, ("gee-small-sample",), 20000, 3)
+    judged = _judged(data, {"A": 9, "B": 9})
+    by_direction: dict[str, set[str]] = {}
+    runs = {run.code: run for run in data.runs}
+    for j in judged:
+        by_direction.setdefault(runs[j.code].values["Direction"], set()).add(j.arm)
+    # keep, per Direction, the runs of one arm only: no stratum holds both arms
+    keep = {direction: "AB"[i % 2] for i, direction in enumerate(sorted(by_direction))}
+    lone = [j for j in judged if j.arm == keep[runs[j.code].values["Direction"]]]
+    assert {j.arm for j in lone} == {"A", "B"}, "the plan should leave both arms among the kept strata"
+    result = primary_analysis(data, lone, plan)
+    assert math.isnan(result.p_value) and result.randomization is None
+    assert result.notes and result.notes[0].startswith("The randomization test cannot be made on these judgments: no stratum holds runs of both arms")
+    full = primary_analysis(data, judged, plan)
+    assert full.randomization is not None and 0.0 < full.p_value < 0.05
+
+
+def test_arm_effects_keep_a_missing_interval_end_missing() -> None:
+    column = Parameter("Controller[A]", 0.5, math.nan, math.nan, math.nan, math.nan, 1.0)
+    fit = Fit("judged", "a fit", 18, 90, "z", "Wald", [column], [])
+    effect = arm_effect(fit, "Controller")
+    assert effect is not None and effect.estimate == pytest.approx(math.e)
+    assert math.isnan(effect.low) and effect.high == pytest.approx(math.exp(2.0))
+
+
+def test_a_planned_gee_test_of_a_three_level_factor_gives_its_p_value(ab: Path) -> None:
+    data = load_study(StudyFolder(ab), False, "2026-01-01T00:00:00+00:00")
+    plan = AnalysisPlan("compliant", "Direction", "gee", "Direction", (), "", 0.05, ("gee-small-sample",), 20000, 3)
+    judged = [RunJudgments(run.code, run.arm, 2, 1 + i % 4, 5) for i, run in enumerate(data.runs)]
+    result = primary_analysis(data, judged, plan)
+    assert len(result.arms) == 3 and result.odds_ratio is None
+    gee = result.sensitivity[0][1]
+    assert result.p_value == next(e.p_value for e in gee.effects if e.term == "Direction") and 0.0 < result.p_value < 1.0

@@ -13,6 +13,7 @@ import pytest
 from markdown_it import MarkdownIt
 
 from analysis.document import Bullets, Heading, Paragraph, Table, to_csv, to_html, to_markdown
+from analysis.report import DataTable
 
 HOSTILE = [
     "<img src=x onerror=alert(1)>",
@@ -99,3 +100,9 @@ def test_csv_cells_a_spreadsheet_would_run_are_kept_as_text() -> None:
     assert rows[0] == ["'=header", "n"]
     assert [row[0] for row in rows[1:]] == ["'=HYPERLINK(\"http://example.com\")", "'+1+1", "'-2+3", "'@SUM(A1)", "'\tTAB", "-0.52",
                                             "+1.5", "1e-3", "'-inf", "'-0.5 (0.1)", "plain", "'=code"]
+
+
+def test_number_tables_keep_numbers_and_formula_like_text_as_text() -> None:
+    table = DataTable(["level"], [["=x"]], data_header=["=level", "estimate", "p"], data_rows=[["=HYPERLINK(1)", -0.5, None], ["B", 1.25, 0.01]])
+    rows = list(csv.reader(io.StringIO(table.csv())))
+    assert rows == [["'=level", "estimate", "p"], ["'=HYPERLINK(1)", "-0.5", ""], ["B", "1.25", "0.01"]]

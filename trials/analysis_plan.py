@@ -21,15 +21,13 @@ key is optional; a missing one takes its default:
 
 from __future__ import annotations
 
-import hashlib
 import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from analysis.clustered import ALPHA_ESTIMATORS, COVARIANCES
-from analysis.plan import OUTCOMES, RANDOMIZATION, SENSITIVITY, TESTS, AnalysisPlan, PlanStatus, default_plan
-from designs.blinding import canonical_bytes
+from analysis.plan import OUTCOMES, RANDOMIZATION, SENSITIVITY, TESTS, AnalysisPlan, PlanStatus, default_plan, table_digest
 from designs.errors import DesignError
 from designs.factors import CategoricalFactor, DiscreteFactor
 from designs.model import parse_model
@@ -40,7 +38,7 @@ from trials.errors import StudyError
 TABLE = "analysis"
 KEYS = ("outcome", "factor", "test", "model", "strata", "exploratory", "alpha", "sensitivity", "draws", "seed", "gee_covariance", "gee_alpha")
 MAX_DRAWS = 200_000  # the drawn allocations are held at once: 8 bytes per run and draw
-MAX_SEED = 2**53 - 1
+MAX_SEED = 2**63 - 1  # as study.toml's [study] seed, which the default copies
 
 
 def _table(spec_path: Path) -> dict[str, Any] | None:
@@ -141,8 +139,7 @@ COMMITMENT = "analysis_plan"
 
 def commitment(table: dict[str, Any]) -> dict[str, str]:
     """design.json's record of the [analysis] table written with the design: its SHA-256 (`AnalysisPlan.digest`)."""
-    return {"covers": f"study.toml's [{TABLE}] table, every key, as JSON with sorted keys, no spaces, UTF-8",
-            "sha256": hashlib.sha256(canonical_bytes(table)).hexdigest()}
+    return {"covers": f"study.toml's [{TABLE}] table, every key, as JSON with sorted keys, no spaces, UTF-8", "sha256": table_digest(table)}
 
 
 def committed_digest(design: dict[str, Any]) -> str | None:

@@ -176,8 +176,8 @@ def _run_on_actors(ray: Any, start: Callable[[], Any], count: int, work: list[Ca
     """Each batch on one of `count` actors made by `start`, a batch at a time each, results handed on as they come.
 
     An actor Ray gave up on (one whose start was cancelled on a busy node, or that died past its restarts) is
-    replaced by a fresh one, and its batch run again, up to RAY_RETRIES times a batch: without that one slow start
-    failed the whole run (`ActorDiedError: ... it was cancelled before it started running`).
+    replaced by a fresh one, and its batch run again, up to RAY_RETRIES times a batch, so one slow start on a busy
+    cluster does not end the whole run.
     """
     actors = [start() for _ in range(count)]
     waiting = list(range(len(work)))

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.ab_table import RunJudgments, table_ii
-from analysis.clustered import fit_gee
+from analysis.clustered import DEFAULT, fit_gee
 from analysis.models import DesignMatrix, Fit, fit_least_squares
 from analysis.plan import AnalysisPlan
 from analysis.primary import primary_p_value
@@ -71,7 +71,7 @@ def judgments_verdict(plan: PowerPlan, yes: np.ndarray, total: np.ndarray, arm_n
     """The GEE term tests, Table II and, with `analysis`, the planned primary test of `yes` of `total` judgments per run
     of `plan`; `arm_names` names each run's arm (default: its Controller level)."""
     dm = DesignMatrix.from_model(plan.model, plan.settings)
-    fit = fit_gee(dm, yes, total, "judged socially compliant")
+    fit = fit_gee(dm, yes, total, "judged socially compliant", analysis.gee_options() if analysis is not None else DEFAULT)
     arms = arm_names if arm_names is not None else plan.arm_of_runs()
     rows: tuple[RowVerdict, ...] = ()
     if plan.arms:
