@@ -27,12 +27,6 @@ from robot_logs.reader import LogReader
 from robot_logs.topics import POINTS_TYPES, SCAN_TYPES, listing, pick_topic
 from robot_logs.tracks import TrackTable
 
-#: leg_tracker's label messages as its msg/ folder defines them, for writing and registering them with rosbags.
-LEG_TRACKER_MSGS = {
-    "leg_tracker/msg/Person": "geometry_msgs/Pose pose\nuint32 id\n",
-    "leg_tracker/msg/PersonArray": "std_msgs/Header header\nPerson[] people\n",
-}
-
 
 def _kind(msgtype: str) -> str | None:
     """'person', 'people' or 'poses' for a label type score-tracks reads, else None."""

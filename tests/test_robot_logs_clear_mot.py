@@ -13,10 +13,15 @@ from robot_logs.clear_mot import ScoredScan, clear_mot
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.records import PointSet
-from robot_logs.track_scoring import LEG_TRACKER_MSGS
 from robot_logs.tracks import TrackRow, TrackTable
 from tests.support.bag_writer import BagWriter
 from trials.cli import main
+
+#: leg_tracker's label messages as its msg/ folder defines them, registered with rosbags to write test bags.
+LEG_TRACKER_MSGS = {
+    "leg_tracker/msg/Person": "geometry_msgs/Pose pose\nuint32 id\n",
+    "leg_tracker/msg/PersonArray": "std_msgs/Header header\nPerson[] people\n",
+}
 
 
 def scan(people: dict[int, tuple[float, float]], tracks: dict[int, tuple[float, float]]) -> ScoredScan:
