@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 from analysis.clustered import GeeOptions
 from designs.blinding import canonical_bytes
 from designs.factors import BlockFactor, CategoricalFactor
-from designs.spec import BLOCK_COLUMN, StudySpec
+from designs.spec import StudySpec
 
 #: The outcome analysed: each judgment's answer to "socially compliant?" (responses.csv's `compliant`).
 OUTCOMES = ("compliant",)
@@ -89,7 +89,7 @@ def default_plan(spec: StudySpec, seed: int) -> AnalysisPlan:
     else the small-sample GEE of the design's model; every sensitivity analysis; alpha from the spec."""
     factor = arm_factor(spec)
     blocks = [f.name for f in spec.design_factors if isinstance(f, BlockFactor)]
-    full = spec.model + (f" + {BLOCK_COLUMN}" if blocks else "")
+    full = spec.full_model
     if factor is None:
         return AnalysisPlan("compliant", "", GEE, full, (), "", spec.alpha, SENSITIVITY, DRAWS, seed)
     test = RANDOMIZATION if len(factor.levels) == 2 else GEE

@@ -111,10 +111,14 @@ class StudySpec:
         block = next((f for f in self.factors if isinstance(f, BlockFactor)), None)
         return len(block.levels) if block is not None else 1
 
+    @property
+    def full_model(self) -> str:
+        """The model expression the design is built on: `model`, with the block effect when the study is blocked."""
+        return self.model + (f" + {BLOCK_COLUMN}" if self.blocks > 1 else "")
+
     def build_model(self) -> Model:
-        """The model of `model` over the design factors, with the block effect when the study is blocked."""
-        expression = self.model + (f" + {BLOCK_COLUMN}" if self.blocks > 1 else "")
-        return parse_model(expression, self.design_factors, tuple(f.name for f in self.fixed_factors))
+        """The design's model (`full_model`) over the design factors."""
+        return parse_model(self.full_model, self.design_factors, tuple(f.name for f in self.fixed_factors))
 
     def per_run(self) -> dict[int, np.ndarray]:
         """Design-factor index -> the coded setting of each run, for the factors the runs fix (block, covariates)."""
