@@ -22,7 +22,6 @@ key is optional; a missing one takes its default:
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -33,28 +32,13 @@ from designs.factors import CategoricalFactor, DiscreteFactor
 from designs.model import parse_model
 from designs.spec import StudySpec
 from trials.errors import StudyError
+from trials.study import study_table
 
 #: The study.toml table this module reads.
 TABLE = "analysis"
 KEYS = ("outcome", "factor", "test", "model", "strata", "exploratory", "alpha", "sensitivity", "draws", "seed", "gee_covariance", "gee_alpha")
 MAX_DRAWS = 200_000  # the drawn allocations are held at once: 8 bytes per run and draw
 MAX_SEED = 2**63 - 1  # as study.toml's [study] seed, which the default copies
-
-
-def _table(spec_path: Path) -> dict[str, Any] | None:
-    """study.toml's [analysis] table, None without one (or without the file)."""
-    try:
-        data = tomllib.loads(spec_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        return None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise StudyError(f"{spec_path}: cannot read its [{TABLE}] table ({exc})") from None
-    except RecursionError:
-        raise StudyError(f"{spec_path}: cannot read its [{TABLE}] table (values nested too deeply to read)") from None
-    table = data.get(TABLE)
-    if table is not None and not isinstance(table, dict):
-        raise StudyError(f"{spec_path}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
-    return table
 
 
 def read_analysis_plan(spec_path: Path, spec: StudySpec, seed: int) -> AnalysisPlan | None:
@@ -64,7 +48,7 @@ def read_analysis_plan(spec_path: Path, spec: StudySpec, seed: int) -> AnalysisP
     Raises:
         StudyError: a malformed file, an unknown key or a bad value, naming the file, table and key.
     """
-    table = _table(spec_path)
+    table = study_table(spec_path, TABLE)
     return None if table is None else plan_from_table(table, spec, seed, f"{spec_path} [{TABLE}]")
 
 

@@ -25,6 +25,7 @@ from typing import Any
 from robot_logs.physical import STEP_S
 from trials.csv_table import cell
 from trials.errors import StudyError
+from trials.study import study_table
 
 #: The study.toml table this module reads.
 TABLE = "run"
@@ -74,17 +75,9 @@ def read_run_settings(spec: Path) -> RunSettings:
     Raises:
         StudyError: malformed TOML, an unknown key, or a value out of its range, naming the file and key.
     """
-    try:
-        data = tomllib.loads(spec.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    table = study_table(spec, TABLE)
+    if table is None:
         return RunSettings()
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise StudyError(f"{spec}: cannot read its [{TABLE}] table ({exc})") from None
-    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
-        raise StudyError(f"{spec}: cannot read its [{TABLE}] table (values nested too deeply to read)") from None
-    table = data.get(TABLE, {})
-    if not isinstance(table, dict):
-        raise StudyError(f"{spec}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
     settings = settings_from_table(table, f"{spec} [{TABLE}]")
     beside = spec.parent / settings.weights if settings.weights else None
     # A checkpoint named by a relative path is the study's own, beside study.toml; else a shipped name.

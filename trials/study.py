@@ -19,6 +19,7 @@ import itertools
 import json
 import os
 import shutil
+import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -124,6 +125,26 @@ def to_the_minute(*paths: Path) -> None:
     for path in paths:
         minute = minute_ns(path.stat().st_mtime_ns)
         os.utime(path, ns=(minute, minute))
+
+
+def study_table(spec: Path, name: str) -> dict[str, Any] | None:
+    """study.toml's `[name]` table as written; None when the file or the table is missing.
+
+    Raises:
+        StudyError: unreadable TOML, values nested too deeply for tomllib, or `name` not a table, naming the file.
+    """
+    try:
+        data = tomllib.loads(spec.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise StudyError(f"{spec}: cannot read its [{name}] table ({exc})") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise StudyError(f"{spec}: cannot read its [{name}] table (values nested too deeply to read)") from None
+    table = data.get(name)
+    if table is not None and not isinstance(table, dict):
+        raise StudyError(f"{spec}: {name} must be a table ([{name}]), got {type(table).__name__}")
+    return table
 
 
 def utc_now() -> str:

@@ -40,6 +40,7 @@ from trials.errors import StudyError
 from trials.robot.transport import RobotUri
 from trials.scenario import DIRECTION, GOAL
 from trials.sim.robot import RobotLimits
+from trials.study import study_table
 
 #: The study.toml table this module reads.
 TABLE = "robot"
@@ -110,20 +111,8 @@ def read_robot_settings(spec: Path) -> RobotSettings | None:
     Raises:
         StudyError: unreadable TOML, an unknown key, or a value of the wrong kind or out of range, naming the file and key.
     """
-    try:
-        data = tomllib.loads(spec.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        return None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise StudyError(f"{spec}: cannot read its [{TABLE}] table ({exc})") from None
-    except RecursionError:
-        raise StudyError(f"{spec}: cannot read its [{TABLE}] table (values nested too deeply to read)") from None
-    if TABLE not in data:
-        return None
-    table = data[TABLE]
-    if not isinstance(table, dict):
-        raise StudyError(f"{spec}: {TABLE} must be a table ([{TABLE}]), got {type(table).__name__}")
-    return settings_from_table(table, f"{spec} [{TABLE}]")
+    table = study_table(spec, TABLE)
+    return None if table is None else settings_from_table(table, f"{spec} [{TABLE}]")
 
 
 def robot_table(spec: Path | None, uri: str | None = None) -> dict[str, Any]:
