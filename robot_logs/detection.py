@@ -46,13 +46,19 @@ class DetectorConfig:
 @dataclass(frozen=True)
 class Segments:
     """Contiguous groups of scan points: (K, 2) centroids, (K,) widths and point counts, and
-    the (M, 2) points they split with (K,) the index of each segment's first point."""
+    the (M, 2) points they split with (K,) the index of each segment's first point; `beam_angle`
+    is the scan's angle between neighbouring beams (rad)."""
 
     centroids: np.ndarray
     widths: np.ndarray
     counts: np.ndarray
     points: np.ndarray
     starts: np.ndarray
+    beam_angle: float
+
+    def features(self, select: np.ndarray) -> np.ndarray:
+        """The classifier's features (`robot_logs.segment_features`) of the `select`ed segments."""
+        return segment_features(self.points, self.starts, self.beam_angle, select)
 
     def middles(self) -> np.ndarray:
         """(K, 2) the middle point of each segment: a point the lidar hit, unlike the centroid of
@@ -105,7 +111,7 @@ def segment(scan: Scan, jump_distance: float) -> Segments:
     points = scan_points(scan)
     if len(points) == 0:
         empty = np.zeros((0, 2))
-        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int), empty, np.zeros(0, dtype=int))
+        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int), empty, np.zeros(0, dtype=int), scan.angle_increment)
     jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
     if _covers_circle(scan) and jumps.any() and np.hypot(*(points[0] - points[-1])) <= jump_distance:
         shift = int(np.flatnonzero(jumps)[0]) + 1
@@ -116,7 +122,7 @@ def segment(scan: Scan, jump_distance: float) -> Segments:
     counts = ends - starts
     centroids = np.add.reduceat(points, starts, axis=0) / counts[:, None]
     widths = np.hypot(*(points[ends - 1] - points[starts]).T)
-    return Segments(centroids, widths, counts, points, starts)
+    return Segments(centroids, widths, counts, points, starts, scan.angle_increment)
 
 
 def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, int]], list[int]]:
@@ -144,8 +150,7 @@ def leg_probabilities(segments: Segments, config: DetectorConfig, classifier: Le
     candidates = (segments.counts >= config.min_points) & (segments.widths < config.candidate_width)
     probability = np.zeros(len(segments.counts))
     if candidates.any():
-        features = segment_features(segments.points, segments.starts, candidates)
-        probability[candidates] = classifier.probability(features)
+        probability[candidates] = classifier.probability(segments.features(candidates))
     return probability
 
 

@@ -23,8 +23,8 @@ import numpy as np
 from robot_logs.errors import LogError
 
 #: The detector file format this code reads and writes; bump it when the arrays or the features
-#: change (2: the context features of `robot_logs.segment_features` and histogram boosting).
-FORMAT_VERSION = 2
+#: change (3: `robot_logs.segment_features` counts no beams).
+FORMAT_VERSION = 3
 
 #: The detector shipped with the package, trained on tests/data/robot_logs (its record says how).
 SHIPPED_DETECTOR = "leg_detector.npz"

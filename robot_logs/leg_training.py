@@ -1,15 +1,21 @@
 """Training the leg classifier from labelled logs, with cross-validated precision and recall.
 
 The protocol (docs/leg_detector.md says why): positives are the segments at the labelled legs
-(geometry_msgs/PoseArray, one pose per leg); negatives are every candidate segment of logs
-recorded with nobody present and the segments of labelled scans farther than `ignore_radius`
-from every label; unmatched segments nearer a label (the labelled person's other leg or a piece
-of them split differently) are left out of training and of the protocol's scores. Precision and
-recall are cross-validated with whole groups held out (each labelled log, or blocks of time),
-so neighbouring scans of one walk never sit on both sides of a split; the stricter figure that
-counts every unlabelled segment as a negative is reported beside it.
+(geometry_msgs/PoseArray, one pose per leg) and, in logs of a robot standing still, the
+leg-sized segments standing in front of the room's background (`robot_logs.background_labels`);
+negatives are every candidate segment of logs recorded with nobody present, the segments of
+labelled scans farther than `ignore_radius` from every label and the standing logs' segments on
+their background; unmatched segments nearer a label (the labelled person's other leg or a piece
+of them split differently) and segments partly in front of the background are left out of
+training and of the protocol's scores. Each labelled and standing log is also seen as lasers
+of half its resolution and with beams lost would see it (`AUGMENTATIONS`); those copies are
+trained on, never scored. Precision and recall are cross-validated with whole groups held out
+(each labelled or standing log with its copies, or blocks of time), so neighbouring scans of
+one walk never sit on both sides of a split; the stricter figure that counts every unlabelled
+segment as a negative is reported beside it.
 
-Each figure is given over every log's segments and over the labelled logs' alone, and for the
+Each figure is given over every log's segments, over the labelled logs' and over the standing
+logs' alone, and for the
 classifier alone and for the detection stage the tracker uses, the classifier followed by
 static-world rejection (`robot_logs.static_world`): a segment on
 a cell that the log's own occupancy grid, built from its earlier scans only, holds static is not a
@@ -20,13 +26,14 @@ from __future__ import annotations
 
 import datetime
 import hashlib
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from robot_logs.background_labels import Background, background_labels
 from robot_logs.convert import to_scan
 from robot_logs.detection import DetectorConfig, Segments, scan_points, segment
 from robot_logs.errors import LogError
@@ -36,7 +43,7 @@ from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_g
 from robot_logs.reader import LogReader
 from robot_logs.records import Scan
 from robot_logs.scan_odometry import ScanOdometry, ScanOdometryConfig
-from robot_logs.segment_features import FEATURE_NAMES, segment_features
+from robot_logs.segment_features import FEATURE_NAMES
 from robot_logs.static_world import StaticWorld, StaticWorldConfig
 from robot_logs.topics import SCAN_TYPES, TopicNames, pick_topic
 
@@ -64,6 +71,7 @@ class TrainingSettings:
         scan_odometry: place each scan by scan matching (`robot_logs.scan_odometry`) for the
             static world, so it holds in the room while the robot moves; off, each sensor's grid
             stays in the sensor's own frame.
+        augment: also train on each labelled and standing log as `AUGMENTATIONS` change it.
     """
 
     label_radius: float = 0.1
@@ -81,14 +89,16 @@ class TrainingSettings:
     protect_recall: float = 0.5
     seed: int = 0
     scan_odometry: bool = True
+    augment: bool = True
 
 
 @dataclass(frozen=True)
 class LabelledSegments:
     """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
-    but near a label), (N,) log index, (N,) time block (numbered across logs) and (N,) on the
-    static world (`StaticFlags`); `logs` names each log with its kind, its scan count and how many
-    of them scan matching could not place (`unplaced`), labelled logs first."""
+    but near a label), (N,) log index, (N,) time block (numbered across logs), (N,) on the
+    static world (`StaticFlags`) and (N,) from an augmented copy (`AUGMENTATIONS`; trained on,
+    never scored); `logs` names each log with its kind, its scan count and how many of them scan
+    matching could not place (`unplaced`): labelled logs first, then standing, then empty ones."""
 
     features: np.ndarray
     is_leg: np.ndarray
@@ -97,10 +107,20 @@ class LabelledSegments:
     block: np.ndarray
     static: np.ndarray
     logs: list[dict[str, object]]
+    augmented: np.ndarray
+
+    def count(self, kind: str) -> int:
+        """How many logs of a `kind` ("labelled", "standing", "nobody present")."""
+        return sum(log["kind"] == kind for log in self.logs)
 
     @property
     def labelled_logs(self) -> int:
-        return sum(log["kind"] == "labelled" for log in self.logs)
+        return self.count("labelled")
+
+    @property
+    def held_out_logs(self) -> int:
+        """The logs with legs, each a fold of its own by log: the labelled and the standing ones."""
+        return self.labelled_logs + self.count("standing")
 
 
 @dataclass(frozen=True)
@@ -129,15 +149,21 @@ class FalsePositives:
 
 #: The protocol, as the training record states it.
 PROTOCOL = {
-    "positives": "segments whose centroid is matched one to one to a labelled leg within label_radius",
-    "negatives": "every segment of logs recorded with nobody present, and segments of labelled scans "
-                 "farther than ignore_radius from every label",
-    "ignored": "unmatched segments of labelled scans within ignore_radius of a label (not trained on, "
-               "not scored by the protocol; the strict figures count them as negatives)",
+    "positives": "segments whose centroid is matched one to one to a labelled leg within label_radius; in "
+                 "logs of a robot standing still, leg-wide segments with 80 % of their points 0.3 m or more "
+                 "in front of their beams' background (robot_logs.background_labels)",
+    "negatives": "every segment of logs recorded with nobody present, segments of labelled scans "
+                 "farther than ignore_radius from every label, and standing logs' segments on the background",
+    "ignored": "unmatched segments of labelled scans within ignore_radius of a label, and other standing logs' "
+               "segments with a point in front of the background (not trained on, not scored by the protocol; "
+               "the strict figures count them as negatives)",
+    "augmented": "each labelled and standing log is also trained on as seen with every other beam and with "
+                 "runs of lost beams (leg_training.AUGMENTATIONS); these copies are held out with their log, "
+                 "never scored",
     "threshold": "the highest held-out probability at which the classifier followed by the static world "
-                 "keeps the settings' recall of the labelled legs",
-    "folds by log": "each labelled log held out whole; the time blocks of logs with nobody present "
-                    "are dealt to those folds in turn",
+                 "keeps the settings' recall of the hand-labelled legs",
+    "folds by log": "each labelled and each standing log held out whole; the time blocks of logs with nobody "
+                    "present are dealt to those folds in turn",
     "static world": "the figures with the static world call no segment a leg whose middle point lies on a "
                     "cell that the log's own occupancy grid (robot_logs.static_world, default settings, "
                     "one grid per sensor, no track protected) holds static after the log's earlier scans; "
@@ -211,31 +237,97 @@ class StaticFlags:
         return static
 
 
-def _labelled(scans: list[tuple[Scan, np.ndarray]], settings: TrainingSettings, config: DetectorConfig):
-    features, is_leg, ignored, static, stamps = [], [], [], [], []
-    flags = StaticFlags(ScanOdometryConfig() if settings.scan_odometry else None)
-    for scan, labels in scans:
+def half_beams(scan: Scan, rng: np.random.Generator) -> Scan:
+    """Every other beam, from the first or the second: a laser of half the angular resolution,
+    or the same one seeing everything twice as far in beams per metre."""
+    start = int(rng.integers(2))
+    return replace(scan, angle_min=scan.angle_min + start * scan.angle_increment,
+                   angle_increment=2.0 * scan.angle_increment, ranges=scan.ranges[start::2].copy())
+
+
+def lost_beams(scan: Scan, rng: np.random.Generator) -> Scan:
+    """One beam in 20 starts a run of 1 to 3 beams that return nothing: a darker or partly
+    occluded surface, segments cut short or split."""
+    ranges = scan.ranges.copy()
+    for start in np.flatnonzero(rng.random(len(ranges)) < 0.05):
+        ranges[start:start + int(rng.integers(1, 4))] = np.inf
+    return replace(scan, ranges=ranges)
+
+
+#: The augmented copies of each labelled and standing log: how another laser sees the same legs.
+AUGMENTATIONS = {"half beams": half_beams, "lost beams": lost_beams}
+
+
+#: How a log's segments are labelled: the scans, then each scan's (K,) leg and ignored masks of
+#: its K masked segments.
+Labeller = Callable[[Scan, Segments, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class _Gathered:
+    """A log's candidate segments as they are gathered, scan by scan."""
+
+    features: list[np.ndarray]
+    is_leg: list[np.ndarray]
+    ignored: list[np.ndarray]
+    static: list[np.ndarray]
+    stamps: list[np.ndarray]
+
+
+def _gather(scans: Sequence[Scan], label: Labeller, config: DetectorConfig, flags: StaticFlags | None) -> _Gathered:
+    """The labelled candidate segments of `scans`, each flagged on the static world by `flags`
+    (None: none is)."""
+    gathered = _Gathered([], [], [], [], [])
+    for scan in scans:
         segments, mask = candidates(scan, config)
-        on_static = flags(scan, segments, mask)
+        on_static = flags(scan, segments, mask) if flags is not None else np.zeros(int(mask.sum()), dtype=bool)
         if not mask.any():
             continue
-        positive, near = match_labels(segments.centroids[mask], labels, settings)
-        features.append(segment_features(segments.points, segments.starts, mask))
-        is_leg.append(positive)
-        ignored.append(near)
-        static.append(on_static)
-        stamps.append(np.full(len(positive), scan.stamp))
-    return features, is_leg, ignored, static, stamps, flags.lost
+        positive, near = label(scan, segments, mask)
+        gathered.features.append(segments.features(mask))
+        gathered.is_leg.append(positive)
+        gathered.ignored.append(near)
+        gathered.static.append(on_static)
+        gathered.stamps.append(np.full(len(positive), scan.stamp))
+    return gathered
 
 
-def _scans_of_empty_log(log: LogReader) -> list[tuple[Scan, np.ndarray]]:
+def _all_scans(log: LogReader) -> list[Scan]:
     topics = {t.name for t in log.topics if t.msgtype in SCAN_TYPES}
     if not topics:
         pick_topic(log.topics, SCAN_TYPES, "LaserScan", None, log.path, "--scan-topic")
-    return [
-        (to_scan(m.data, m.record_ns, f"scan on {m.topic} of {log.path}"), np.zeros((0, 2)))
-        for m in log.messages(topics)
-    ]
+    return [to_scan(m.data, m.record_ns, f"scan on {m.topic} of {log.path}") for m in log.messages(topics)]
+
+
+def _standing_scans(log: LogReader, topics: TopicNames) -> list[Scan]:
+    name = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic").name
+    return [to_scan(m.data, m.record_ns, f"scan on {name} of {log.path}") for m in log.messages({name})]
+
+
+def _scans_and_labeller(path: Path, kind: str, topics: TopicNames, settings: TrainingSettings,
+                        config: DetectorConfig) -> tuple[list[Scan], Labeller]:
+    """A log's scans and how its segments are labelled, by its kind."""
+    with LogReader(path) as log:
+        if kind == "labelled":
+            pairs = labelled_scans(log, topics)
+            scans = [scan for scan, _ in pairs]
+        else:
+            scans = _standing_scans(log, topics) if kind == "standing" else _all_scans(log)
+    if kind == "labelled":
+        # An augmented copy keeps its scan's stamp and labels: the legs stay where they were.
+        by_stamp = {scan.stamp_ns: label.points for scan, label in pairs}
+        return scans, lambda scan, segments, mask: match_labels(segments.centroids[mask], by_stamp[scan.stamp_ns], settings)
+    if kind == "standing":
+        if not scans:
+            raise LogError(f"{path}: no scan to learn from")
+        background = Background.of(scans, str(path))
+        return scans, lambda scan, segments, mask: background_labels(background, segments, mask, config.leg_width)
+
+    def nobody(scan: Scan, segments: Segments, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        none = np.zeros(int(mask.sum()), dtype=bool)
+        return none, none.copy()
+
+    return scans, nobody
 
 
 def collect(
@@ -244,40 +336,50 @@ def collect(
     topics: TopicNames = TopicNames(),
     settings: TrainingSettings = TrainingSettings(),
     config: DetectorConfig = DetectorConfig(),
+    standing: Sequence[Path] = (),
 ) -> LabelledSegments:
-    """Candidate segments of labelled logs and of logs with nobody present (all negative).
+    """Candidate segments of labelled logs, of logs of a robot standing still among passers-by
+    (labelled by background subtraction) with their augmented copies (`settings.augment`), and
+    of logs with nobody present (all negative).
 
     Raises:
         LogError: a labelled log has no PoseArray labels (or no scans), or no leg was found
             at any label.
     """
-    features, is_leg, ignored, static, log_index, blocks, logs = [], [], [], [], [], [], []
+    features, is_leg, ignored, static, log_index, blocks, logs, augmented = [], [], [], [], [], [], [], []
     next_block = 0
-    for index, path in enumerate([*labelled, *empty]):
-        with LogReader(path) as log:
-            if index < len(labelled):
-                scans = [(scan, label.points) for scan, label in labelled_scans(log, topics)]
-            else:
-                scans = _scans_of_empty_log(log)
-        f, legs, near, on_static, stamps, unplaced = _labelled(scans, settings, config)
-        if not f:
+    kinds = [("labelled", path) for path in labelled] + [("standing", path) for path in standing]
+    kinds += [("nobody present", path) for path in empty]
+    for index, (kind, path) in enumerate(kinds):
+        scans, label = _scans_and_labeller(Path(path), kind, topics, settings, config)
+        flags = StaticFlags(ScanOdometryConfig() if settings.scan_odometry else None)
+        gathered = _gather(scans, label, config, flags)
+        if not gathered.features:
             raise LogError(f"{path}: no segment in any scan to learn from")
-        stamps_all = np.concatenate(stamps)
-        block = np.floor((stamps_all - stamps_all.min()) / settings.block_s).astype(int)
+        recorded = sum(len(stamps) for stamps in gathered.stamps)
+        if settings.augment and kind != "nobody present":
+            for number, change in enumerate(AUGMENTATIONS.values()):
+                rng = np.random.default_rng([settings.seed, index, number])
+                copy = _gather([change(scan, rng) for scan in scans], label, config, None)
+                for mine, more in zip(vars(gathered).values(), vars(copy).values()):
+                    mine.extend(more)
+        stamps_all = np.concatenate(gathered.stamps)
+        # A copy's segments fall in the time block of the scan they were copied from.
+        block = np.floor((stamps_all - stamps_all[:recorded].min()) / settings.block_s).astype(int)
         _, block = np.unique(block, return_inverse=True)
-        features.extend(f)
-        is_leg.extend(legs)
-        ignored.extend(near)
-        static.extend(on_static)
+        features.extend(gathered.features)
+        is_leg.extend(gathered.is_leg)
+        ignored.extend(gathered.ignored)
+        static.extend(gathered.static)
         log_index.append(np.full(len(stamps_all), index))
         blocks.append(block + next_block)
+        augmented.append(np.arange(len(stamps_all)) >= recorded)
         next_block += int(block.max()) + 1
-        kind = "labelled" if index < len(labelled) else "nobody present"
         logs.append({"file": Path(path).name, "kind": kind, "scans": len(scans), "sha256": _digest(Path(path)),
-                     "unplaced": unplaced})
+                     "unplaced": flags.lost})
     data = LabelledSegments(
         np.concatenate(features), np.concatenate(is_leg), np.concatenate(ignored), np.concatenate(log_index),
-        np.concatenate(blocks), np.concatenate(static), logs,
+        np.concatenate(blocks), np.concatenate(static), logs, np.concatenate(augmented),
     )
     if not data.is_leg.any():
         raise LogError(f"no segment lies within {settings.label_radius} m of a labelled leg in {', '.join(map(str, labelled))}")
@@ -310,14 +412,15 @@ def scores(is_leg: np.ndarray, probability: np.ndarray, threshold: float) -> Sco
 
 
 def folds(data: LabelledSegments, by: str, settings: TrainingSettings = TrainingSettings()) -> np.ndarray:
-    """(N,) the fold each segment is held out in: `by` "log" (each labelled log a fold of its
-    own, the time blocks of logs with nobody present dealt to those folds in turn; needs two
-    labelled logs) or "time" (blocks of `block_s` seconds shuffled into `folds` groups)."""
+    """(N,) the fold each segment is held out in: `by` "log" (each labelled and each standing
+    log a fold of its own with its augmented copies, the time blocks of logs with nobody present
+    dealt to those folds in turn; needs two labelled logs) or "time" (blocks of `block_s` seconds
+    shuffled into `folds` groups)."""
     if by == "log":
-        labelled = data.labelled_logs
-        if labelled < 2:
+        if data.labelled_logs < 2:
             raise LogError("cross-validation by log needs two labelled logs or more")
-        return np.where(data.log < labelled, data.log, data.block % labelled)
+        with_legs = data.held_out_logs
+        return np.where(data.log < with_legs, data.log, data.block % with_legs)
     from sklearn.model_selection import GroupKFold
 
     splitter = GroupKFold(n_splits=min(settings.folds, len(np.unique(data.block))), shuffle=True,
@@ -367,22 +470,28 @@ def validate(
     data: LabelledSegments, settings: TrainingSettings = TrainingSettings()
 ) -> tuple[tuple[float, float, float], dict[str, Scores], list[FalsePositives]]:
     """The (threshold, confirm, protect) probabilities, from the held-out predictions by log (by
-    time blocks when only one log is labelled), the threshold for the classifier followed by the
-    static world (`stage_threshold`); the held-out scores at the threshold, by log
-    and by time blocks, each under the protocol and strictly (every unlabelled segment a
-    negative), for the classifier alone and followed by the static world (`StaticFlags`); and
-    each log's false positives under the protocol, held out as the threshold was.
+    time blocks when only one log is labelled) of the hand-labelled legs, the threshold for the
+    classifier followed by the static world (`stage_threshold`); the held-out scores at the
+    threshold, by log and by time blocks, each under the protocol and strictly (every unlabelled
+    segment a negative), for the classifier alone and followed by the static world
+    (`StaticFlags`); and each log's false positives under the protocol, held out as the threshold
+    was. Augmented copies are never scored.
 
-    The scores' keys name the design ("logs", "time blocks"), then ", labelled logs" for the figures
-    over the labelled logs' segments alone (the logs with nobody present left out), ", static world"
-    and ", strict" where they apply."""
+    The scores' keys name the design ("logs", "time blocks"), then ", labelled logs" or ", standing
+    logs" for the figures over those logs' segments alone, ", static world" and ", strict" where
+    they apply."""
     designs = (["log"] if data.labelled_logs >= 2 else []) + ["time"]
     held_out = {by: held_out_probability(data, by, settings) for by in designs}
     chosen = held_out[designs[0]]
-    levels = (stage_threshold(data.is_leg, chosen, data.static, settings.recall),
-              *(threshold_for_recall(data.is_leg, chosen, share) for share in (settings.confirm_recall, settings.protect_recall)))
+    recorded = ~data.augmented
+    labelled = recorded & (data.log < data.labelled_logs)
+    levels = (stage_threshold(data.is_leg[labelled], chosen[labelled], data.static[labelled], settings.recall),
+              *(threshold_for_recall(data.is_leg[labelled], chosen[labelled], share)
+                for share in (settings.confirm_recall, settings.protect_recall)))
     validation = {}
-    scopes = (("", np.ones(len(data.is_leg), dtype=bool)), (", labelled logs", data.log < data.labelled_logs))
+    scopes = [("", recorded), (", labelled logs", labelled)]
+    if data.count("standing"):
+        scopes.append((", standing logs", recorded & (data.log >= data.labelled_logs) & (data.log < data.held_out_logs)))
     for by, probability in held_out.items():
         name = {"log": "logs", "time": "time blocks"}[by]
         for scope, within in scopes:
@@ -390,7 +499,7 @@ def validate(
             for stage, kept in (("", probability), (", static world", np.where(data.static, -np.inf, probability))):
                 validation[f"{name}{scope}{stage}"] = scores(data.is_leg[scored], kept[scored], levels[0])
                 validation[f"{name}{scope}{stage}, strict"] = scores(data.is_leg[within], kept[within], levels[0])
-    wrong = (chosen >= levels[0]) & ~data.is_leg & ~data.ignored
+    wrong = (chosen >= levels[0]) & ~data.is_leg & ~data.ignored & recorded
     false_positives = [
         FalsePositives(str(log["file"]), int((wrong & (data.log == index)).sum()),
                        int((wrong & data.static & (data.log == index)).sum()))
@@ -419,9 +528,10 @@ def train(
         "confirm": levels[1],
         "protect": levels[2],
         "logs": data.logs,
-        "segments": len(data.is_leg),
-        "legs": int(data.is_leg.sum()),
-        "ignored": int(data.ignored.sum()),
+        "segments": int((~data.augmented).sum()),
+        "legs": int(data.is_leg[~data.augmented].sum()),
+        "ignored": int(data.ignored[~data.augmented].sum()),
+        "augmented_segments": int(data.augmented.sum()),
         "cross_validation": {name: score.as_dict() for name, score in (validation or {}).items()},
         "trained": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
     }

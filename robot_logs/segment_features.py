@@ -4,6 +4,9 @@ One row per segment, computed for all segments of a scan at once (no Python loop
 segments): the kind of set Arras et al. (ICRA 2007) and leg_tracker use. A leg seen by a
 planar lidar is a short arc of a circle about 5-8 cm in radius; furniture legs are similar but
 steadier and rounder, wall pieces are straight, and noise is short and irregular.
+
+No feature counts beams: a laser of another angular resolution sees a leg with more or fewer
+points, so the surroundings are measured as lengths of surface seen, not as points.
 """
 
 from __future__ import annotations
@@ -12,7 +15,6 @@ import numpy as np
 
 #: The segment's own shape, the first columns.
 SHAPE_NAMES = (
-    "points",
     "width",
     "distance",
     "spread",
@@ -32,15 +34,15 @@ CONTEXT_NAMES = (
     "foreground",
     "neighbour_width",
     "clearance",
-    "clutter_near",
-    "clutter_around",
+    "surface_near",
+    "surface_around",
     "candidates_around",
 )
 
 #: Feature names, in column order.
 FEATURE_NAMES = SHAPE_NAMES + CONTEXT_NAMES
 
-#: Radii (m) within which `clutter_near` and `clutter_around` count other segments' points.
+#: Radii (m) within which `surface_near` and `surface_around` measure other segments' surface.
 CLUTTER_RADII = (0.5, 1.0)
 
 
@@ -55,16 +57,19 @@ def _sums(labels: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
     return np.bincount(labels, weights=values, minlength=count)
 
 
-def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray | None = None) -> np.ndarray:
+def segment_features(
+    points: np.ndarray, starts: np.ndarray, beam_angle: float, select: np.ndarray | None = None
+) -> np.ndarray:
     """(K, len(FEATURE_NAMES)) features of K segments (or of the `select`ed ones).
 
     Args:
         points: (M, 2) scan points in beam order, in the sensor frame (m).
         starts: (K,) index of each segment's first point; segment k ends where k + 1 starts.
+        beam_angle: the angle between neighbouring beams (rad).
         select: (K,) True for the segments wanted (default: all); the context features still
             look at every segment.
 
-    The columns: point count; end-to-end width; centroid distance from the sensor; root mean
+    The columns: end-to-end width; centroid distance from the sensor; root mean
     square distance of the points from their centroid; root mean square residual of the best
     line (linearity) and of the best circle (circularity), and that circle's radius; summed and
     spread of the point-to-point steps (boundary length and regularity); mean curvature of
@@ -74,8 +79,9 @@ def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray 
     how far in front of its neighbouring beams the segment stands, on the nearer side
     (foreground; 0 beyond the first or last point); the distance from its centroid to the nearest point of
     any other segment (clearance: people walk in the open, furniture legs stand by tables and
-    walls) and how many such points lie within CLUTTER_RADII of it; how many other wanted segments
-    lie within the larger radius (a person's other leg, or the three other legs of a chair).
+    walls) and the length of other segments' surface within CLUTTER_RADII of it (each point
+    standing for the arc its beam spans at its range); how many other wanted segments lie within
+    the larger radius (a person's other leg, or the three other legs of a chair).
     Distances are capped at FAR.
     """
     ends = np.append(starts[1:], len(points))
@@ -86,10 +92,12 @@ def segment_features(points: np.ndarray, starts: np.ndarray, select: np.ndarray 
     first = np.cumsum(lengths) - lengths
     taken = np.repeat(starts[wanted] - first, lengths) + np.arange(lengths.sum())
     shape = _shape_features(points[taken], first)
-    return np.column_stack((shape, _context_features(points, starts, ends, wanted)))
+    return np.column_stack((shape, _context_features(points, starts, ends, wanted, beam_angle)))
 
 
-def _context_features(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+def _context_features(
+    points: np.ndarray, starts: np.ndarray, ends: np.ndarray, wanted: np.ndarray, beam_angle: float
+) -> np.ndarray:
     """The CONTEXT_NAMES columns: what surrounds each wanted segment in its scan."""
     chosen = np.flatnonzero(wanted)
     lengths = ends - starts
@@ -106,10 +114,11 @@ def _context_features(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, 
     to_points = np.hypot(*(centroids[chosen][:, None, :] - points[None, :, :]).transpose(2, 0, 1))
     to_points[owner[None, :] == chosen[:, None]] = np.inf
     clearance = np.minimum(to_points.min(axis=1, initial=np.inf), FAR)
-    clutter = [(to_points < radius).sum(axis=1) for radius in CLUTTER_RADII]
+    ranges = np.hypot(points[:, 0], points[:, 1])
+    footprint = ranges * beam_angle
+    surface = [(to_points < radius) @ footprint for radius in CLUTTER_RADII]
     candidates_around = (apart[:, chosen] < CLUTTER_RADII[1]).sum(axis=1)
 
-    ranges = np.hypot(points[:, 0], points[:, 1])
     total = len(points)
     head, tail = starts[chosen], ends[chosen]
     previous, following = np.maximum(head - 1, 0), np.minimum(tail, total - 1)
@@ -119,7 +128,7 @@ def _context_features(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, 
     after = np.where(tail < total, ranges[following] - ranges[tail - 1], 0.0)
     foreground = np.clip(np.minimum(before, after), -FAR, FAR)
 
-    return np.column_stack((neighbour, foreground, neighbour_width, clearance, *clutter, candidates_around))
+    return np.column_stack((neighbour, foreground, neighbour_width, clearance, *surface, candidates_around))
 
 
 def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -193,5 +202,5 @@ def _shape_features(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
         sagitta = np.where(width > 0.0, np.abs(chord[:, 0] * middle[:, 1] - chord[:, 1] * middle[:, 0]) / width, 0.0)
     distance = np.hypot(centroid[:, 0], centroid[:, 1])
     return np.column_stack(
-        (n, width, distance, spread, linearity, circularity, radius, boundary, regularity, mean_curvature, mean_turn, sagitta)
+        (width, distance, spread, linearity, circularity, radius, boundary, regularity, mean_curvature, mean_turn, sagitta)
     )

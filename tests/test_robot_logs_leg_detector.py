@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,9 @@ from trials.cli import main
 
 COLUMN = {name: k for k, name in enumerate(FEATURE_NAMES)}
 
+#: The angle between beams of the hand-made scans (rad): 0.25 degrees.
+BEAM = math.radians(0.25)
+
 
 def arc(centre: tuple[float, float], radius: float, points: int) -> np.ndarray:
     """The near half of a circle as a sensor at the origin sees it (a leg at `centre`)."""
@@ -42,9 +46,8 @@ def arc(centre: tuple[float, float], radius: float, points: int) -> np.ndarray:
 def test_features_of_a_circle_arc_and_a_line() -> None:
     circle = arc((2.0, 0.5), 0.07, 12)
     line = np.column_stack((np.full(10, 3.0), np.linspace(-1.0, -0.5, 10)))
-    features = segment_features(np.vstack((circle, line)), np.array([0, 12]))
+    features = segment_features(np.vstack((circle, line)), np.array([0, 12]), BEAM)
     leg, wall = features[:, :].tolist()
-    assert leg[COLUMN["points"]] == 12 and wall[COLUMN["points"]] == 10
     assert leg[COLUMN["radius"]] == pytest.approx(0.07, abs=1e-9)
     assert leg[COLUMN["circularity"]] == pytest.approx(0.0, abs=1e-9)
     assert leg[COLUMN["mean_curvature"]] == pytest.approx(1 / 0.07, rel=1e-6)  # three points on a circle: 1 / r
@@ -61,12 +64,12 @@ def test_features_of_a_circle_arc_and_a_line() -> None:
 
 def test_shape_features_are_computed_per_segment_regardless_of_their_neighbours() -> None:
     circle = arc((2.0, 0.5), 0.07, 12)
-    alone = segment_features(circle, np.array([0]))[0]
-    together = segment_features(np.vstack((circle, circle + [0.0, 2.0])), np.array([0, 12]))[0]
+    alone = segment_features(circle, np.array([0]), BEAM)[0]
+    together = segment_features(np.vstack((circle, circle + [0.0, 2.0])), np.array([0, 12]), BEAM)[0]
     shape = [COLUMN[n] for n in SHAPE_NAMES]
     assert together[shape] == pytest.approx(alone[shape])
     assert alone[[COLUMN[n] for n in ("neighbour_distance", "clearance")]].tolist() == [3.0, 3.0]  # nothing else: FAR
-    assert alone[[COLUMN[n] for n in ("neighbour_width", "clutter_near", "clutter_around", "candidates_around")]].tolist() == [0] * 4
+    assert alone[[COLUMN[n] for n in ("neighbour_width", "surface_near", "surface_around", "candidates_around")]].tolist() == [0] * 4
     assert alone[COLUMN["foreground"]] == 0.0  # nothing seen on either side: no step, not open space
 
 
@@ -77,7 +80,7 @@ def test_context_features_of_a_leg_between_two_walls() -> None:
     leg = arc((2.0, 0.0), 0.07, 12)[::-1]  # counter-clockwise, as the beams sweep
     left = np.column_stack((np.full(11, 2.5), np.linspace(0.3, 0.8, 11)))
     points = np.vstack((right, leg, left))
-    rows = segment_features(points, np.array([0, 10, 22]))
+    rows = segment_features(points, np.array([0, 10, 22]), BEAM)
     context = {name: rows[:, COLUMN[name]] for name in CONTEXT_NAMES}
     centre = leg.mean(axis=0)
     others = np.vstack((right, left))
@@ -85,7 +88,9 @@ def test_context_features_of_a_leg_between_two_walls() -> None:
     assert context["neighbour_distance"][1] == pytest.approx(min(np.hypot(*(right.mean(0) - centre)), np.hypot(*(left.mean(0) - centre))))
     assert context["neighbour_width"][1] == pytest.approx(0.5)  # the left wall piece is the nearer
     assert context["clearance"][1] == pytest.approx(to_others.min()) and 0.6 < to_others.min() < 0.7
-    assert context["clutter_near"][1] == 0 and context["clutter_around"][1] == (to_others < 1.0).sum() > 0
+    # Each point within 1 m stands for the surface its beam spans at its range.
+    near_surface = (np.hypot(*others.T) * BEAM)[to_others < 1.0].sum()
+    assert context["surface_near"][1] == 0 and context["surface_around"][1] == pytest.approx(near_surface) and near_surface > 0
     assert context["candidates_around"].tolist() == [0, 1, 1]  # the leg and the left wall piece are 0.78 m apart
     ranges = np.hypot(*points.T)
     before, after = ranges[9] - ranges[10], ranges[22] - ranges[21]  # both walls lie behind the leg
@@ -108,16 +113,18 @@ def test_labels_match_one_segment_each_and_ignore_their_surroundings() -> None:
     assert not leg.any() and not ignored.any()
 
 
-def test_folds_by_log_hold_out_each_labelled_log_and_deal_out_the_empty_ones() -> None:
-    log = np.array([0, 0, 1, 1, 2, 2, 2, 2])  # two labelled logs, then one with nobody present
-    block = np.array([0, 1, 2, 2, 3, 4, 5, 6])
-    logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "nobody present"}]
-    data = LabelledSegments(np.zeros((8, 1)), np.zeros(8, bool), np.zeros(8, bool), log, block, np.zeros(8, bool), logs)
-    assert folds(data, "log").tolist() == [0, 0, 1, 1, 1, 0, 1, 0]
+def test_folds_by_log_hold_out_each_log_with_legs_and_deal_out_the_empty_ones() -> None:
+    log = np.array([0, 0, 1, 1, 2, 2, 3, 3, 3, 3])  # two labelled logs, a standing one, one with nobody present
+    block = np.array([0, 1, 2, 2, 3, 3, 4, 5, 6, 7])
+    logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "standing"}, {"kind": "nobody present"}]
+    none = np.zeros(10, bool)
+    data = LabelledSegments(np.zeros((10, 1)), none, none, log, block, none, logs, none)
+    assert (data.labelled_logs, data.held_out_logs) == (2, 3)
+    assert folds(data, "log").tolist() == [0, 0, 1, 1, 2, 2, 1, 2, 0, 1]
     by_time = folds(data, "time", TrainingSettings(folds=3))
     assert len(set(by_time.tolist())) == 3 and by_time[2] == by_time[3]  # a block is never split
     with pytest.raises(LogError, match="needs two labelled logs"):
-        folds(LabelledSegments(data.features, data.is_leg, data.ignored, np.zeros(8, int), block, data.static, logs[:1]), "log")
+        folds(LabelledSegments(data.features, none, none, np.zeros(10, int), block, none, logs[:1], none), "log")
 
 
 def test_static_flags_take_a_post_after_its_log_has_seen_it_and_never_a_walker() -> None:
@@ -201,27 +208,31 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
     record = detector.record
     assert record["format"] == FORMAT_VERSION and record["features"] == list(FEATURE_NAMES)
     files = {log["file"]: log for log in record["logs"]}
-    assert set(files) == {"legs_labelled_ros1.bag", "negative_2.bag"} | {
+    assert set(files) == {"legs_labelled_ros1.bag", "negative_2.bag", "stationary_ros1.bag"} | {
         f"positive_{k}_extracted.bag" for k in (2, 3, 4, 6, 7)}
     assert sum(log["scans"] for log in record["logs"] if log["kind"] == "labelled") == 1204
     assert files["negative_2.bag"]["kind"] == "nobody present" and files["negative_2.bag"]["scans"] == 1304
-    assert record["legs"] == 1825 and record["settings"]["seed"] == 0 and record["ignored"] > 0
-    assert set(record["protocol"]) == {"positives", "negatives", "ignored", "threshold", "folds by log", "static world"}
+    assert files["stationary_ros1.bag"]["kind"] == "standing" and files["stationary_ros1.bag"]["scans"] == 1265
+    assert record["settings"]["seed"] == 0 and record["settings"]["augment"] and record["ignored"] > 0
+    assert record["augmented_segments"] > record["segments"] / 2  # two copies of the logs with legs
+    assert set(record["protocol"]) == {"positives", "negatives", "ignored", "augmented", "threshold", "folds by log",
+                                       "static world"}
     figures = record["cross_validation"]
     assert set(figures) == {f"{design}{scope}{stage}{rule}" for design in ("logs", "time blocks")
-                            for scope in ("", ", labelled logs") for stage in ("", ", static world") for rule in ("", ", strict")}
-    # Over the labelled logs alone: the same legs, fewer segments (the empty room's are left out), so no lower precision.
-    for name in (n for n in figures if ", labelled logs" in n):
-        every = figures[name.replace(", labelled logs", "")]
-        assert figures[name]["legs"] == every["legs"] and figures[name]["recall"] == every["recall"]
-        assert figures[name]["segments"] < every["segments"] and figures[name]["precision"] >= every["precision"]
+                            for scope in ("", ", labelled logs", ", standing logs") for stage in ("", ", static world")
+                            for rule in ("", ", strict")}
+    # The hand-labelled legs and those of the standing log make every leg; the recorded segments only are scored.
+    labelled, standing = figures["logs, labelled logs"], figures["logs, standing logs"]
+    assert labelled["legs"] == 1825 and labelled["legs"] + standing["legs"] == figures["logs"]["legs"] == record["legs"]
+    assert figures["logs"]["segments"] == record["segments"] - record["ignored"] == figures["logs, strict"]["segments"] - record["ignored"]
     # The goal, leg precision 0.8 at recall 0.9 held out by bag over the labelled sample bags, for the detection
-    # stage the tracker uses: under the protocol (measured 0.908) and strictly (0.837).
+    # stage the tracker uses: under the protocol (measured 0.869) and strictly (0.803).
     for rule in ("", ", strict"):
         goal = figures[f"logs, labelled logs, static world{rule}"]
-        assert goal["precision"] >= 0.8 and goal["recall"] >= 0.9
-    assert figures["logs, static world"]["recall"] >= record["settings"]["recall"]  # the threshold is set by log
-    assert figures["logs"]["segments"] == record["segments"] - record["ignored"] == figures["logs, strict"]["segments"] - record["ignored"]
+        assert goal["precision"] >= 0.8 and goal["recall"] >= record["settings"]["recall"]
+    # Held out whole, the standing log is another laser in another room: the figure a new robot's log gets
+    # (recall 0.473); held out by time blocks, the same laser and room (0.979).
+    assert figures["logs, standing logs, static world"]["recall"] < 0.6 < 0.95 < figures["time blocks, standing logs, static world"]["recall"]
     for design in ("logs", "time blocks"):
         for stage in ("", ", static world"):  # the strict figure counts the ignored segments as negatives
             assert figures[f"{design}{stage}, strict"]["precision"] <= figures[f"{design}{stage}"]["precision"]
@@ -247,7 +258,8 @@ def test_train_detector_learns_legs_from_one_labelled_log(robot_logs_dir: Path, 
     from robot_logs.leg_training import TrainingSettings, collect, held_out_probability, scores
 
     data = collect([robot_logs_dir / "legs_labelled_ros1.bag"])
-    assert int(data.is_leg.sum()) == 317  # 317 of the 324 labelled legs lie on a segment centroid
+    assert int(data.is_leg[~data.augmented].sum()) == 317  # 317 of the 324 labelled legs lie on a segment centroid
+    assert data.augmented.any() and (data.log == 0).all()
     settings = TrainingSettings(trees=30, folds=3)
     probability = held_out_probability(data, "time", settings)
     score = scores(data.is_leg, probability, 0.5)
@@ -281,3 +293,58 @@ def test_the_tree_walk_follows_splits_and_missing_values_and_stops_at_the_depth(
     np.testing.assert_array_equal(stumps, [0.5 - 1 + 10, 0.5 + 1 + 20, 0.5 - 1 + 20])
     looped = log_odds(features[:1], feature, split, left, right, missing_left, value, np.array([6], dtype=np.int32), 3, 0.0)
     assert looped.tolist() == [200.0]  # 6 -> 7 -> 6 -> 7, three steps, then stopped
+
+
+def test_surface_around_a_segment_does_not_depend_on_the_beams() -> None:
+    """A wall 0.6 m beside a leg, seen by a laser and by one of half its resolution: the same surface."""
+    leg = arc((2.0, 0.0), 0.07, 12)
+    wall_bearings = np.arange(0.3, 0.55, BEAM)
+    wall = np.column_stack((np.full(len(wall_bearings), 2.2), 2.2 * np.tan(wall_bearings)))
+    fine = segment_features(np.vstack((leg, wall)), np.array([0, 12]), BEAM)[0]
+    coarse = segment_features(np.vstack((leg, wall[::2])), np.array([0, 12]), 2 * BEAM)[0]
+    for name in ("surface_near", "surface_around"):
+        assert coarse[COLUMN[name]] == pytest.approx(fine[COLUMN[name]], rel=0.1)
+    assert fine[COLUMN["surface_around"]] > 0.2  # part of the wall's 0.67 m lies within 1 m of the leg
+
+
+def test_augmented_scans_are_another_laser_seeing_the_same_room() -> None:
+    from robot_logs.leg_training import half_beams, lost_beams
+
+    scan = LidarSimulator(seed=2, walls=np.array([[[3.0, -5.0], [3.0, 5.0]]])).scan(0.0, Pose2D(), np.zeros((0, 2)))
+    rng = np.random.default_rng(0)
+    half = half_beams(scan, rng)
+    assert half.angle_increment == 2 * scan.angle_increment and len(half.ranges) in (len(scan.ranges) // 2, len(scan.ranges) // 2 + 1)
+    start = round((half.angle_min - scan.angle_min) / scan.angle_increment)
+    assert half.ranges.tolist() == scan.ranges[start::2].tolist()  # the same beams, every other one
+    lost = lost_beams(scan, rng)
+    changed = lost.ranges != scan.ranges
+    assert np.isinf(lost.ranges[changed]).all() and 0.02 < changed.mean() < 0.2
+
+
+def test_background_labels_take_the_passer_by_for_legs_and_the_room_for_the_room() -> None:
+    """A standing laser before a wall 4 m away and three leg-sized posts while one person walks across
+    2 m ahead for 2 s of 20."""
+    from robot_logs.background_labels import Background, background_labels
+    from robot_logs.lidar_sim import BodyModel, LidarSpec
+
+    posts = (np.array([[3.0, 2.0], [3.0, -2.5], [2.5, 3.0]]), np.full(3, 0.06))  # leg-sized, part of the room
+    lidar = LidarSimulator(LidarSpec.fitted(), BodyModel.fitted(), seed=3, walls=np.array([[[4.0, -6.0], [4.0, 6.0]]]),
+                           posts=posts)
+    scans = [lidar.scan(0.1 * k, Pose2D(), np.array([[2.0, -1.0 + 0.1 * (k - 180)]]), np.array([[0.0, 1.0]]))
+             if k >= 180 else lidar.scan(0.1 * k, Pose2D(), np.zeros((0, 2))) for k in range(200)]
+    background = Background.of(scans, "test")
+    empty = scans[0].valid()
+    assert background.ranges[empty] == pytest.approx(scans[0].ranges[empty], abs=0.02)  # the wall, not the walker
+    assert np.isinf(background.ranges[~empty]).all()
+    legs, person, room = 0, 0, 0
+    for k, scan in enumerate(scans):
+        segments, mask = candidates(scan, DetectorConfig())
+        leg, ignored = background_labels(background, segments, mask, DetectorConfig().leg_width)
+        centroids = segments.centroids[mask]
+        at_person = np.hypot(*(centroids - [2.0, -1.0 + 0.1 * (k - 180)]).T) < 0.5 if k >= 180 else np.zeros(len(leg), bool)
+        assert not (leg & ~at_person).any() and not (ignored & ~at_person).any()  # the room is never a leg
+        legs, person, room = legs + int(leg.sum()), person + int(at_person.sum()), room + int((~at_person).sum())
+    assert legs >= 0.9 * person and person >= 30 and room >= 3 * 200
+    other = replace(scans[0], ranges=scans[0].ranges[:-1])
+    with pytest.raises(LogError, match="the scans' beams differ"):
+        Background.of([scans[0], other], "test")

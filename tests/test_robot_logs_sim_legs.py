@@ -87,9 +87,10 @@ def test_the_fit_recovers_a_simulated_gait_and_range_noise():
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_the_shipped_detector_finds_simulated_legs_at_the_fitted_settings(seed):
-    """One walker within 5 m, as in the bags: at the fitted settings the detector calls every leg
-    segment a leg and 85 % reach the level that confirms a track; at the defaults it missed 13-37 %
-    of them and confirmed under 55 % (measured 1.000 and 0.88-0.92 against 0.63-0.86 and 0.37-0.53)."""
+    """One walker within 5 m, as in the bags: the detector calls nearly every leg segment a leg both
+    at the fitted settings and at the simulator's defaults (another resolution and range noise), and
+    most reach the level that confirms a track (measured 1.000 and 0.96-0.97 fitted, 0.997-1.000 and
+    0.91-0.96 at the defaults)."""
     detector = shipped_detector()
     crowd = walking_crowd(1, 20.0, 10.0, area=NEAR, seed=seed)
     shares = {}
@@ -99,4 +100,4 @@ def test_the_shipped_detector_finds_simulated_legs_at_the_fitted_settings(seed):
         assert len(near) > 250
         shares[name] = (np.mean(near >= detector.threshold), np.mean(near >= detector.confirm))
     assert shares["fitted"][0] >= 0.98 and shares["fitted"][1] >= 0.85
-    assert shares["default"][0] <= 0.9 and shares["default"][1] <= 0.6
+    assert shares["default"][0] >= 0.98 and shares["default"][1] >= 0.85, shares

@@ -22,7 +22,7 @@ from robot_logs.labels import labelled_scans
 from robot_logs.leg_training import TrainingSettings, candidates, match_labels
 from robot_logs.lidar_sim import LidarSimulator, body_circles
 from robot_logs.records import Scan
-from robot_logs.segment_features import FEATURE_NAMES, segment_features
+from robot_logs.segment_features import FEATURE_NAMES
 from robot_logs.tracking import TrackState
 from tests.support.crowd import Crowd
 
@@ -113,5 +113,5 @@ def leg_features(pairs: Iterable[tuple[Scan, np.ndarray]]) -> np.ndarray:
         segments, mask = candidates(scan, config)
         leg, _ = match_labels(segments.centroids[mask], labels, settings)
         if leg.any():
-            features.append(segment_features(segments.points, segments.starts, mask)[leg])
+            features.append(segments.features(mask)[leg])
     return np.concatenate(features)

@@ -15,16 +15,21 @@ def register(group: argparse._SubParsersAction) -> None:
         help="train the leg detector from logs with labelled legs, with cross-validated precision and recall",
         description="Train the leg classifier (gradient-boosted trees on segment features) from logs whose "
         "legs are labelled (geometry_msgs/PoseArray, one pose per leg), plus logs recorded with nobody present "
-        "(--empty). Unmatched segments within --ignore-radius of a label are left out; the rest are negatives. "
+        "(--empty) and logs of a robot standing still among passers-by (--standing), whose legs are the leg-wide "
+        "segments in front of each beam's background. Unmatched segments within --ignore-radius of a label are left "
+        "out; the rest are negatives. Each log with legs is also trained on as lasers of half its resolution and "
+        "with lost beams would see it (--no-augment: not). "
         "Prints precision and recall cross-validated by whole log and by blocks of time, under that protocol "
-        "and strictly (every unlabelled segment a negative), over every log's segments and over the labelled logs' "
-        "alone, for the classifier alone and followed by static-world "
+        "and strictly (every unlabelled segment a negative), over every log's segments and over the labelled and "
+        "the standing logs' alone, for the classifier alone and followed by static-world "
         "rejection (each log's own occupancy grid from its earlier scans, each scan placed by scan matching), and writes the detector as an .npz file with its "
         "training record for `trials log track --detector`.",
     )
     parser.add_argument("bags", nargs="+", type=types.input_file, metavar="BAG", help="logs with labelled legs")
     parser.add_argument("--empty", nargs="+", type=types.input_file, default=[], metavar="BAG",
                         help="logs recorded with nobody present: every segment is a negative example")
+    parser.add_argument("--standing", nargs="+", type=types.input_file, default=[], metavar="BAG",
+                        help="logs of a robot standing still while people pass: legs labelled by background subtraction")
     parser.add_argument("--out", type=types.output_file, required=True, metavar="FILE", help="the detector file to write (.npz)")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic of the labelled logs (default: their only one)")
     parser.add_argument("--labels-topic", metavar="TOPIC", help="PoseArray topic of the labelled legs (default: the only one)")
@@ -39,6 +44,9 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-scan-odometry", dest="scan_odometry", action="store_false",
                         help="keep each sensor's static-world grid in the sensor's own frame instead of placing its "
                         "scans by scan matching (the logs carry no odometry; a moving robot then keeps little static)")
+    parser.add_argument("--no-augment", dest="augment", action="store_false",
+                        help="train on the logs as recorded only, not also on their copies with every other beam and "
+                        "with lost beams")
     model = parser.add_argument_group("the model (defaults: robot_logs.leg_training.TrainingSettings)")
     model.add_argument("--trees", type=types.whole(1), help="boosting iterations (default 200)")
     model.add_argument("--leaves", type=types.whole(2), help="leaves per tree (default 31)")
@@ -55,12 +63,14 @@ def train_detector(args: argparse.Namespace) -> int:
 
     model = {"trees": args.trees, "leaves": args.leaves, "min_leaf": args.min_leaf, "l2": args.l2, "balanced": args.balanced}
     settings = TrainingSettings(ignore_radius=args.ignore_radius, block_s=args.block, recall=args.recall, seed=args.seed,
-                                scan_odometry=args.scan_odometry,
+                                scan_odometry=args.scan_odometry, augment=args.augment,
                                 **{name: value for name, value in model.items() if value is not None})
     topics = TopicNames(scan=args.scan_topic, people=args.labels_topic)
-    data = collect(args.bags, args.empty, topics, settings)
-    sys.stderr.write(f"{len(data.is_leg)} segments, {int(data.is_leg.sum())} at labelled legs, {int(data.ignored.sum())} "
-                     f"ignored near a label, from {len(data.logs)} logs\n")
+    data = collect(args.bags, args.empty, topics, settings, standing=args.standing)
+    recorded = ~data.augmented
+    sys.stderr.write(f"{int(recorded.sum())} segments, {int(data.is_leg[recorded].sum())} at legs, "
+                     f"{int(data.ignored[recorded].sum())} ignored near one, from {len(data.logs)} logs "
+                     f"(and {int(data.augmented.sum())} of their augmented copies)\n")
     levels, validation, false_positives = validate(data, settings)
     classifier = train(data, levels, settings, validation)
     classifier.save(Path(args.out))
@@ -75,7 +85,7 @@ def train_detector(args: argparse.Namespace) -> int:
           "scans (the grid `trials log track` keeps)")
     print(f"{'held out by':<13}{'segments of':<16}{'detection':<29}{'protocol':<17}strict")
     for design in ("logs", "time blocks"):
-        for scope, logs in (("", "every log"), (", labelled logs", "labelled logs")):
+        for scope, logs in (("", "every log"), (", labelled logs", "labelled logs"), (", standing logs", "standing logs")):
             for stage in ("", ", static world"):
                 name = f"{design}{scope}{stage}"
                 if name not in validation:
