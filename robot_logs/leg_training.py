@@ -154,7 +154,7 @@ PROTOCOL = {
                  "in front of their beams' background (robot_logs.background_labels)",
     "negatives": "every segment of logs recorded with nobody present, segments of labelled scans "
                  "farther than ignore_radius from every label, and standing logs' segments on the background",
-    "ignored": "unmatched segments of labelled scans within ignore_radius of a label, and other standing logs' "
+    "ignored": "unmatched segments of labelled scans within ignore_radius of a label, and standing logs' other "
                "segments with a point in front of the background (not trained on, not scored by the protocol; "
                "the strict figures count them as negatives)",
     "augmented": "each labelled and standing log is also trained on as seen with every other beam and with "
@@ -258,8 +258,8 @@ def lost_beams(scan: Scan, rng: np.random.Generator) -> Scan:
 AUGMENTATIONS = {"half beams": half_beams, "lost beams": lost_beams}
 
 
-#: How a log's segments are labelled: the scans, then each scan's (K,) leg and ignored masks of
-#: its K masked segments.
+#: How a log's segments are labelled: given a scan, its segments and the mask of the K candidates,
+#: the (K,) leg and ignored masks of those candidates.
 Labeller = Callable[[Scan, Segments, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
