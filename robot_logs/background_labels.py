@@ -22,6 +22,9 @@ from robot_logs.records import Scan
 #: Share of the log's scans in which a beam reaches at least as far as its background.
 BACKGROUND_SHARE = 0.9
 
+#: At most this many scans, evenly spaced, make the background (a long log needs no more).
+BACKGROUND_SCANS = 2000
+
 #: A point this much nearer than its beam's background (m) is in front of it.
 MARGIN = 0.3
 
@@ -39,7 +42,8 @@ class Background:
 
     @classmethod
     def of(cls, scans: Sequence[Scan], where: str) -> Background:
-        """The range each beam reaches in all but the nearest (1 - BACKGROUND_SHARE) of the scans.
+        """The range each beam reaches in all but the nearest (1 - BACKGROUND_SHARE) of the scans
+        (of BACKGROUND_SCANS of them, evenly spaced, in a longer log).
 
         Raises:
             LogError: the scans differ in their beams (not one laser standing still).
@@ -48,8 +52,10 @@ class Background:
         if any(len(s.ranges) != len(first.ranges) or s.angle_min != first.angle_min
                or s.angle_increment != first.angle_increment for s in scans):
             raise LogError(f"{where}: the scans' beams differ; background labels need one laser standing still")
-        ranges = np.sort(np.array([np.where(s.valid(), s.ranges, np.inf) for s in scans]), axis=0)
-        background = ranges[int(np.floor((1.0 - BACKGROUND_SHARE) * (len(scans) - 1)))]
+        sample = scans[:: max(1, len(scans) // BACKGROUND_SCANS)]
+        ranges = np.array([np.where(s.valid(), s.ranges, np.inf) for s in sample])
+        rank = int(np.floor((1.0 - BACKGROUND_SHARE) * (len(sample) - 1)))
+        background = np.partition(ranges, rank, axis=0)[rank]
         return cls(first.angle_min, first.angle_increment, background)
 
     def in_front(self, points: np.ndarray) -> np.ndarray:
