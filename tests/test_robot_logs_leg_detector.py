@@ -348,3 +348,19 @@ def test_background_labels_take_the_passer_by_for_legs_and_the_room_for_the_room
     other = replace(scans[0], ranges=scans[0].ranges[:-1])
     with pytest.raises(LogError, match="the scans' beams differ"):
         Background.of([scans[0], other], "test")
+
+
+@pytest.mark.slow
+def test_a_standing_log_is_a_fold_of_its_own_with_legs_from_its_background(robot_logs_dir: Path) -> None:
+    from robot_logs.leg_training import collect
+
+    settings = TrainingSettings(scan_odometry=False, augment=False)
+    data = collect([robot_logs_dir / "legs_labelled_ros1.bag"], settings=settings,
+                   standing=[robot_logs_dir / "stationary_ros1.bag"])
+    assert [log["kind"] for log in data.logs] == ["labelled", "standing"] and data.held_out_logs == 2
+    standing = data.log == 1
+    # People walked loops before the standing laser: thousands of leg segments in front of the background
+    # (3,946 measured), and the room's own segments as negatives.
+    assert 3000 < int(data.is_leg[standing].sum()) < 5000
+    assert int((standing & ~data.is_leg & ~data.ignored).sum()) > 1000
+    assert not data.augmented.any()
