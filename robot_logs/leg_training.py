@@ -26,14 +26,14 @@ from __future__ import annotations
 
 import datetime
 import hashlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from robot_logs.background_labels import Background, background_labels
+from robot_logs.background_labels import IN_FRONT_SHARE, MARGIN, Background, background_labels
 from robot_logs.convert import to_scan
 from robot_logs.detection import DetectorConfig, Segments, scan_points, segment
 from robot_logs.errors import LogError
@@ -118,8 +118,8 @@ class LabelledSegments:
         return self.count("labelled")
 
     @property
-    def held_out_logs(self) -> int:
-        """The logs with legs, each a fold of its own by log: the labelled and the standing ones."""
+    def logs_with_legs(self) -> int:
+        """How many labelled and standing logs (each a fold of its own by log; they come first)."""
         return self.labelled_logs + self.count("standing")
 
 
@@ -150,8 +150,8 @@ class FalsePositives:
 #: The protocol, as the training record states it.
 PROTOCOL = {
     "positives": "segments whose centroid is matched one to one to a labelled leg within label_radius; in "
-                 "logs of a robot standing still, leg-wide segments with 80 % of their points 0.3 m or more "
-                 "in front of their beams' background (robot_logs.background_labels)",
+                 f"logs of a robot standing still, leg-wide segments with {IN_FRONT_SHARE:.0%} of their points "
+                 f"{MARGIN} m or more in front of their beams' background (robot_logs.background_labels)",
     "negatives": "every segment of logs recorded with nobody present, segments of labelled scans "
                  "farther than ignore_radius from every label, and standing logs' segments on the background",
     "ignored": "unmatched segments of labelled scans within ignore_radius of a label, and standing logs' other "
@@ -273,8 +273,13 @@ class _Gathered:
     static: list[np.ndarray]
     stamps: list[np.ndarray]
 
+    def extend(self, other: _Gathered) -> None:
+        """Append another gathering's segments (an augmented copy's)."""
+        for name in ("features", "is_leg", "ignored", "static", "stamps"):
+            getattr(self, name).extend(getattr(other, name))
 
-def _gather(scans: Sequence[Scan], label: Labeller, config: DetectorConfig, flags: StaticFlags | None) -> _Gathered:
+
+def _gather(scans: Iterable[Scan], label: Labeller, config: DetectorConfig, flags: StaticFlags | None) -> _Gathered:
     """The labelled candidate segments of `scans`, each flagged on the static world by `flags`
     (None: none is)."""
     gathered = _Gathered([], [], [], [], [])
@@ -292,16 +297,19 @@ def _gather(scans: Sequence[Scan], label: Labeller, config: DetectorConfig, flag
     return gathered
 
 
+def _scans(log: LogReader, topics: set[str]) -> list[Scan]:
+    return [to_scan(m.data, m.record_ns, f"scan on {m.topic} of {log.path}") for m in log.messages(topics)]
+
+
 def _all_scans(log: LogReader) -> list[Scan]:
     topics = {t.name for t in log.topics if t.msgtype in SCAN_TYPES}
     if not topics:
         pick_topic(log.topics, SCAN_TYPES, "LaserScan", None, log.path, "--scan-topic")
-    return [to_scan(m.data, m.record_ns, f"scan on {m.topic} of {log.path}") for m in log.messages(topics)]
+    return _scans(log, topics)
 
 
 def _standing_scans(log: LogReader, topics: TopicNames) -> list[Scan]:
-    name = pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic").name
-    return [to_scan(m.data, m.record_ns, f"scan on {name} of {log.path}") for m in log.messages({name})]
+    return _scans(log, {pick_topic(log.topics, SCAN_TYPES, "LaserScan", topics.scan, log.path, "--scan-topic").name})
 
 
 def _scans_and_labeller(path: Path, kind: str, topics: TopicNames, settings: TrainingSettings,
@@ -318,8 +326,6 @@ def _scans_and_labeller(path: Path, kind: str, topics: TopicNames, settings: Tra
         by_stamp = {scan.stamp_ns: label.points for scan, label in pairs}
         return scans, lambda scan, segments, mask: match_labels(segments.centroids[mask], by_stamp[scan.stamp_ns], settings)
     if kind == "standing":
-        if not scans:
-            raise LogError(f"{path}: no scan to learn from")
         background = Background.of(scans, str(path))
         return scans, lambda scan, segments, mask: background_labels(background, segments, mask, config.leg_width)
 
@@ -344,7 +350,9 @@ def collect(
 
     Raises:
         LogError: a labelled log has no PoseArray labels (or no scans), or no leg was found
-            at any label.
+            at any label; a standing log has no scans, scans of differing beams, too few beams on
+            their background (the robot moved) or no leg in front of it; a log has no candidate
+            segment.
     """
     features, is_leg, ignored, static, log_index, blocks, logs, augmented = [], [], [], [], [], [], [], []
     next_block = 0
@@ -356,13 +364,14 @@ def collect(
         gathered = _gather(scans, label, config, flags)
         if not gathered.features:
             raise LogError(f"{path}: no segment in any scan to learn from")
+        if kind == "standing" and not any(legs.any() for legs in gathered.is_leg):
+            raise LogError(f"{path}: no leg-wide segment stands in front of the background; expected a robot "
+                           "standing still while people pass")
         recorded = sum(len(stamps) for stamps in gathered.stamps)
         if settings.augment and kind != "nobody present":
             for number, change in enumerate(AUGMENTATIONS.values()):
                 rng = np.random.default_rng([settings.seed, index, number])
-                copy = _gather([change(scan, rng) for scan in scans], label, config, None)
-                for mine, more in zip(vars(gathered).values(), vars(copy).values()):
-                    mine.extend(more)
+                gathered.extend(_gather((change(scan, rng) for scan in scans), label, config, None))
         stamps_all = np.concatenate(gathered.stamps)
         # A copy's segments fall in the time block of the scan they were copied from.
         block = np.floor((stamps_all - stamps_all[:recorded].min()) / settings.block_s).astype(int)
@@ -381,7 +390,7 @@ def collect(
         np.concatenate(features), np.concatenate(is_leg), np.concatenate(ignored), np.concatenate(log_index),
         np.concatenate(blocks), np.concatenate(static), logs, np.concatenate(augmented),
     )
-    if not data.is_leg.any():
+    if not data.is_leg[(data.log < data.labelled_logs) & ~data.augmented].any():
         raise LogError(f"no segment lies within {settings.label_radius} m of a labelled leg in {', '.join(map(str, labelled))}")
     return data
 
@@ -419,7 +428,7 @@ def folds(data: LabelledSegments, by: str, settings: TrainingSettings = Training
     if by == "log":
         if data.labelled_logs < 2:
             raise LogError("cross-validation by log needs two labelled logs or more")
-        with_legs = data.held_out_logs
+        with_legs = data.logs_with_legs
         return np.where(data.log < with_legs, data.log, data.block % with_legs)
     from sklearn.model_selection import GroupKFold
 
@@ -491,7 +500,7 @@ def validate(
     validation = {}
     scopes = [("", recorded), (", labelled logs", labelled)]
     if data.count("standing"):
-        scopes.append((", standing logs", recorded & (data.log >= data.labelled_logs) & (data.log < data.held_out_logs)))
+        scopes.append((", standing logs", recorded & (data.log >= data.labelled_logs) & (data.log < data.logs_with_legs)))
     for by, probability in held_out.items():
         name = {"log": "logs", "time": "time blocks"}[by]
         for scope, within in scopes:

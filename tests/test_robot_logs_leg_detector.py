@@ -118,13 +118,14 @@ def test_folds_by_log_hold_out_each_log_with_legs_and_deal_out_the_empty_ones() 
     block = np.array([0, 1, 2, 2, 3, 3, 4, 5, 6, 7])
     logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "standing"}, {"kind": "nobody present"}]
     none = np.zeros(10, bool)
-    data = LabelledSegments(np.zeros((10, 1)), none, none, log, block, none, logs, none)
-    assert (data.labelled_logs, data.held_out_logs) == (2, 3)
+    data = LabelledSegments(features=np.zeros((10, 1)), is_leg=none, ignored=none, log=log, block=block, static=none,
+                            logs=logs, augmented=none)
+    assert (data.labelled_logs, data.logs_with_legs) == (2, 3)
     assert folds(data, "log").tolist() == [0, 0, 1, 1, 2, 2, 1, 2, 0, 1]
     by_time = folds(data, "time", TrainingSettings(folds=3))
     assert len(set(by_time.tolist())) == 3 and by_time[2] == by_time[3]  # a block is never split
     with pytest.raises(LogError, match="needs two labelled logs"):
-        folds(LabelledSegments(data.features, none, none, np.zeros(10, int), block, none, logs[:1], none), "log")
+        folds(replace(data, log=np.zeros(10, int), logs=logs[:1]), "log")
 
 
 def test_static_flags_take_a_post_after_its_log_has_seen_it_and_never_a_walker() -> None:
@@ -230,9 +231,10 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
     for rule in ("", ", strict"):
         goal = figures[f"logs, labelled logs, static world{rule}"]
         assert goal["precision"] >= 0.8 and goal["recall"] >= record["settings"]["recall"]
-    # Held out whole, the standing log is another laser in another room: the figure a new robot's log gets
-    # (recall 0.473); held out by time blocks, the same laser and room (0.979).
-    assert figures["logs, standing logs, static world"]["recall"] < 0.6 < 0.95 < figures["time blocks, standing logs, static world"]["recall"]
+    # Held out whole, the standing log is another laser in another place: what a new robot's log gets
+    # (recall 0.473, measured); held out by time blocks, a laser and place trained on (0.979).
+    assert figures["logs, standing logs, static world"]["recall"] > 0.4
+    assert figures["time blocks, standing logs, static world"]["recall"] > 0.95
     for design in ("logs", "time blocks"):
         for stage in ("", ", static world"):  # the strict figure counts the ignored segments as negatives
             assert figures[f"{design}{stage}, strict"]["precision"] <= figures[f"{design}{stage}"]["precision"]
@@ -262,7 +264,8 @@ def test_train_detector_learns_legs_from_one_labelled_log(robot_logs_dir: Path, 
     assert data.augmented.any() and (data.log == 0).all()
     settings = TrainingSettings(trees=30, folds=3)
     probability = held_out_probability(data, "time", settings)
-    score = scores(data.is_leg, probability, 0.5)
+    recorded = ~data.augmented  # the copies are trained on, never scored
+    score = scores(data.is_leg[recorded], probability[recorded], 0.5)
     assert score.precision > 0.5 and score.recall > 0.3  # far better than the 0.06 share of legs by chance
 
 
@@ -345,9 +348,6 @@ def test_background_labels_take_the_passer_by_for_legs_and_the_room_for_the_room
         assert not (leg & ~at_person).any() and not (ignored & ~at_person).any()  # the room is never a leg
         legs, person, room = legs + int(leg.sum()), person + int(at_person.sum()), room + int((~at_person).sum())
     assert legs >= 0.9 * person and person >= 30 and room >= 3 * 200
-    other = replace(scans[0], ranges=scans[0].ranges[:-1])
-    with pytest.raises(LogError, match="the scans' beams differ"):
-        Background.of([scans[0], other], "test")
 
 
 @pytest.mark.slow
@@ -357,10 +357,43 @@ def test_a_standing_log_is_a_fold_of_its_own_with_legs_from_its_background(robot
     settings = TrainingSettings(scan_odometry=False, augment=False)
     data = collect([robot_logs_dir / "legs_labelled_ros1.bag"], settings=settings,
                    standing=[robot_logs_dir / "stationary_ros1.bag"])
-    assert [log["kind"] for log in data.logs] == ["labelled", "standing"] and data.held_out_logs == 2
+    assert [log["kind"] for log in data.logs] == ["labelled", "standing"] and data.logs_with_legs == 2
     standing = data.log == 1
     # People walked loops before the standing laser: thousands of leg segments in front of the background
     # (3,946 measured), and the room's own segments as negatives.
     assert 3000 < int(data.is_leg[standing].sum()) < 5000
     assert int((standing & ~data.is_leg & ~data.ignored).sum()) > 1000
     assert not data.augmented.any()
+
+
+def test_the_background_of_a_full_circle_wraps_and_bearings_past_a_partial_scan_take_its_nearer_end() -> None:
+    from robot_logs.background_labels import Background
+
+    step = 2 * math.pi / 360
+    ranges = np.full(360, 5.0)
+    ranges[270] = 1.0  # a post at 270 degrees (bearing -90 degrees) of a laser sweeping 0 to 360 degrees
+    circle = Background(0.0, step, ranges)
+    bearings = np.radians([-90.0, -90.0, 10.0, 359.8])
+    distances = np.array([1.0, 0.5, 4.0, 4.8])
+    points = np.column_stack((distances * np.cos(bearings), distances * np.sin(bearings)))
+    assert circle.in_front(points).tolist() == [False, True, True, False]  # 359.8 degrees is beam 0: 4.8 m is on it
+    half = Background(-math.pi / 2, step, np.r_[1.0, np.full(180, 5.0)])  # -90 to +90 degrees, beam 0 at 1 m
+    beyond = np.radians([-90.2, -90.2, 90.2])
+    reach = np.array([0.9, 0.6, 0.9])
+    points = np.column_stack((reach * np.cos(beyond), reach * np.sin(beyond)))
+    assert half.in_front(points).tolist() == [False, True, True]  # -90.2 is beam 0's, +90.2 the last beam's
+
+
+def test_a_standing_log_that_moves_or_changes_laser_is_refused_in_one_line() -> None:
+    from robot_logs.background_labels import Background
+
+    rng = np.random.default_rng(5)
+    scan = LidarSimulator(seed=5).scan(0.0, Pose2D(), np.zeros((0, 2)))
+    driving = [replace(scan, ranges=rng.uniform(1.0, 8.0, len(scan.ranges))) for _ in range(50)]
+    with pytest.raises(LogError, match=r"drive.bag: in the median scan only \d+% of the beams see their background"):
+        Background.of(driving, "drive.bag")
+    other = replace(scan, ranges=scan.ranges[:-1])
+    with pytest.raises(LogError, match="scan 1 has 1080 beams .* the first 1081"):
+        Background.of([scan, other], "two.bag")
+    with pytest.raises(LogError, match="none.bag: no scan"):
+        Background.of([], "none.bag")

@@ -31,7 +31,7 @@ def register(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--standing", nargs="+", type=types.input_file, default=[], metavar="BAG",
                         help="logs of a robot standing still while people pass: legs labelled by background subtraction")
     parser.add_argument("--out", type=types.output_file, required=True, metavar="FILE", help="the detector file to write (.npz)")
-    parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic of the labelled logs (default: their only one)")
+    parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic of the labelled and the standing logs (default: their only one)")
     parser.add_argument("--labels-topic", metavar="TOPIC", help="PoseArray topic of the labelled legs (default: the only one)")
     parser.add_argument("--recall", type=types.number(0.0, 1.0, above=True), default=0.9,
                         help="the threshold keeps this share of the labelled legs through the classifier and the static "
@@ -69,7 +69,8 @@ def train_detector(args: argparse.Namespace) -> int:
     data = collect(args.bags, args.empty, topics, settings, standing=args.standing)
     recorded = ~data.augmented
     sys.stderr.write(f"{int(recorded.sum())} segments, {int(data.is_leg[recorded].sum())} at legs, "
-                     f"{int(data.ignored[recorded].sum())} ignored near one, from {len(data.logs)} logs "
+                     f"{int(data.ignored[recorded].sum())} ignored (near a label or partly in front of a standing "
+                     f"log's background), from {len(data.logs)} logs "
                      f"(and {int(data.augmented.sum())} of their augmented copies)\n")
     levels, validation, false_positives = validate(data, settings)
     classifier = train(data, levels, settings, validation)
