@@ -354,7 +354,8 @@ def collect(
             their background (the robot moved) or no leg in front of it; a log has no candidate
             segment.
     """
-    features, is_leg, ignored, static, log_index, blocks, logs, augmented = [], [], [], [], [], [], [], []
+    every = _Gathered([], [], [], [], [])
+    log_index, blocks, logs, augmented = [], [], [], []
     next_block = 0
     kinds = [("labelled", path) for path in labelled] + [("standing", path) for path in standing]
     kinds += [("nobody present", path) for path in empty]
@@ -376,10 +377,7 @@ def collect(
         # A copy's segments fall in the time block of the scan they were copied from.
         block = np.floor((stamps_all - stamps_all[:recorded].min()) / settings.block_s).astype(int)
         _, block = np.unique(block, return_inverse=True)
-        features.extend(gathered.features)
-        is_leg.extend(gathered.is_leg)
-        ignored.extend(gathered.ignored)
-        static.extend(gathered.static)
+        every.extend(gathered)
         log_index.append(np.full(len(stamps_all), index))
         blocks.append(block + next_block)
         augmented.append(np.arange(len(stamps_all)) >= recorded)
@@ -387,8 +385,8 @@ def collect(
         logs.append({"file": Path(path).name, "kind": kind, "scans": len(scans), "sha256": _digest(Path(path)),
                      "unplaced": flags.lost})
     data = LabelledSegments(
-        np.concatenate(features), np.concatenate(is_leg), np.concatenate(ignored), np.concatenate(log_index),
-        np.concatenate(blocks), np.concatenate(static), logs, np.concatenate(augmented),
+        np.concatenate(every.features), np.concatenate(every.is_leg), np.concatenate(every.ignored),
+        np.concatenate(log_index), np.concatenate(blocks), np.concatenate(every.static), logs, np.concatenate(augmented),
     )
     if not data.is_leg[(data.log < data.labelled_logs) & ~data.augmented].any():
         raise LogError(f"no segment lies within {settings.label_radius} m of a labelled leg in {', '.join(map(str, labelled))}")

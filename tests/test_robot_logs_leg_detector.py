@@ -397,3 +397,27 @@ def test_a_standing_log_that_moves_or_changes_laser_is_refused_in_one_line() -> 
         Background.of([scan, other], "two.bag")
     with pytest.raises(LogError, match="none.bag: no scan"):
         Background.of([], "none.bag")
+
+
+@pytest.mark.slow
+def test_train_detector_refuses_a_standing_log_that_moved_or_saw_nobody_in_one_line(
+        robot_logs_dir: Path, tmp_path: Path, capsys) -> None:
+    from robot_logs.clutter import furnished_room
+    from tests.support.bag_writer import BagWriter
+
+    room = furnished_room(6)
+    lidar = LidarSimulator(seed=6, walls=room.walls, posts=(room.centres, room.radii))
+    logs = {"driving.bag": lambda k: Pose2D(1.0 + 0.1 * k, 0.5 * math.sin(0.2 * k), 0.15 * k), "standing.bag": lambda k: Pose2D(1.0, 0.0, 0.0)}
+    for name, pose in logs.items():  # 3 s of an empty furnished room, the laser driving and turning, or standing
+        with BagWriter(tmp_path / name) as bag:
+            for k in range(30):
+                bag.scan(replace(lidar.scan(0.1 * k, pose(k), np.zeros((0, 2))), stamp_ns=1_000_000_000 + 100_000_000 * k))
+    out = tmp_path / "detector.npz"
+    fast = ["--no-scan-odometry", "--no-augment", "--out", str(out)]
+    labelled = str(robot_logs_dir / "legs_labelled_ros1.bag")
+    for name, message in (("driving.bag", "of the beams see their background (a laser standing still sees at least 50%)"),
+                          ("standing.bag", "no leg-wide segment stands in front of the background")):
+        code = main(["log", "train-detector", labelled, "--standing", str(tmp_path / name), *fast])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and err[0].startswith(f"error: {tmp_path / name}: ") and message in err[0], err
+        assert not out.exists()
