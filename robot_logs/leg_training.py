@@ -8,8 +8,8 @@ labelled scans farther than `ignore_radius` from every label and the standing lo
 their background; unmatched segments nearer a label (the labelled person's other leg or a piece
 of them split differently) and segments partly in front of the background are left out of
 training and of the protocol's scores. Each labelled and standing log is also seen as lasers
-of half its resolution and with beams lost would see it (`AUGMENTATIONS`); those copies are
-trained on, never scored. Precision and recall are cross-validated with whole groups held out
+of half its resolution (once more with its segments taken for twice as far) and with beams lost
+would see it (`AUGMENTATIONS`); those copies are trained on, never scored. Precision and recall are cross-validated with whole groups held out
 (each labelled or standing log with its copies, or blocks of time), so neighbouring scans of
 one walk never sit on both sides of a split; the stricter figure that counts every unlabelled
 segment as a negative is reported beside it.
@@ -157,9 +157,9 @@ PROTOCOL = {
     "ignored": "unmatched segments of labelled scans within ignore_radius of a label, and standing logs' other "
                "segments with a point in front of the background (not trained on, not scored by the protocol; "
                "the strict figures count them as negatives)",
-    "augmented": "each labelled and standing log is also trained on as seen with every other beam and with "
-                 "runs of lost beams (leg_training.AUGMENTATIONS); these copies are held out with their log, "
-                 "never scored",
+    "augmented": "each labelled and standing log is also trained on as seen with every other beam, the same "
+                 "with each segment taken for twice as far, and with runs of lost beams "
+                 "(leg_training.AUGMENTATIONS); these copies are held out with their log, never scored",
     "threshold": "the highest held-out probability at which the classifier followed by the static world "
                  "keeps the settings' recall of the hand-labelled legs",
     "folds by log": "each labelled and each standing log held out whole; the time blocks of logs with nobody "
@@ -254,8 +254,26 @@ def lost_beams(scan: Scan, rng: np.random.Generator) -> Scan:
     return replace(scan, ranges=ranges)
 
 
-#: The augmented copies of each labelled and standing log: how another laser sees the same legs.
-AUGMENTATIONS = {"half beams": half_beams, "lost beams": lost_beams}
+@dataclass(frozen=True)
+class Augmentation:
+    """An augmented copy of a log: `change` makes each scan's copy, and the copy's segments are
+    taken to stand `farther` times as far from the laser (their distance feature alone changes)."""
+
+    change: Callable[[Scan, np.random.Generator], Scan]
+    farther: float = 1.0
+
+
+#: The augmented copies of each labelled and standing log: how another laser sees the same legs. A
+#: laser sees a leg with every other beam as it sees the leg twice as far with every beam (the
+#: same points per leg, as far apart), so that copy also teaches legs beyond the labelled range.
+AUGMENTATIONS = {
+    "half beams": Augmentation(half_beams),
+    "half beams, twice as far": Augmentation(half_beams, farther=2.0),
+    "lost beams": Augmentation(lost_beams),
+}
+
+#: The column of the segment's distance from the laser.
+DISTANCE = FEATURE_NAMES.index("distance")
 
 
 #: How a log's segments are labelled: given a scan, its segments and the mask of the K candidates,
@@ -370,9 +388,12 @@ def collect(
                            "standing still while people pass")
         recorded = sum(len(stamps) for stamps in gathered.stamps)
         if settings.augment and kind != "nobody present":
-            for number, change in enumerate(AUGMENTATIONS.values()):
+            for number, augmentation in enumerate(AUGMENTATIONS.values()):
                 rng = np.random.default_rng([settings.seed, index, number])
-                gathered.extend(_gather((change(scan, rng) for scan in scans), label, config, None))
+                copy = _gather((augmentation.change(scan, rng) for scan in scans), label, config, None)
+                for features in copy.features:
+                    features[:, DISTANCE] *= augmentation.farther
+                gathered.extend(copy)
         stamps_all = np.concatenate(gathered.stamps)
         # A copy's segments fall in the time block of the scan they were copied from.
         block = np.floor((stamps_all - stamps_all[:recorded].min()) / settings.block_s).astype(int)

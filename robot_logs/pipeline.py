@@ -11,9 +11,9 @@ The rule for a person: a tentative track is confirmed after 3 consecutive hits o
 probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
 labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
 early loses its detections once its cells turn static and dies. A tentative track below the
-`protect` level (what half the labelled legs reach) that has not walked (moved 0.3 m, or changed
-its legs' spread with a stride, in the last 2 s) waits 2 s (`still_wait`) before it is
-confirmed, so furniture in view from the start turns static before it is ever reported. A
+`protect` level (what half the labelled legs reach) is not confirmed until it walks (moves 0.3 m,
+or changes its legs' spread with a stride, within 2 s): still, it is furniture or a person the grid
+would hold static within 1.5 s anyway, and a moving robot's grid can miss a thin post for longer. A
 confirmed track that walks is kept through the scans where the classifier doubts the legs
 (`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a detection at any scan
 rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
@@ -99,13 +99,13 @@ class PersonTracker:
     @classmethod
     def learned(cls, classifier: LegClassifier | None = None, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
         """The setup for real scans: a leg classifier (default: the shipped one), static-world
-        rejection, and tracks confirmed and protected at the classifier's levels; a still, unsure track waits
-        for the grid before it is confirmed."""
+        rejection, and tracks confirmed and protected at the classifier's levels; a still, unsure track is
+        never confirmed."""
         classifier = classifier if classifier is not None else shipped_detector()
         world = StaticWorldConfig(protect_confidence=classifier.protect)
         return cls(
             detector,
-            TrackerConfig(confirm_confidence=classifier.confirm, still_wait=still_wait(world),
+            TrackerConfig(confirm_confidence=classifier.confirm, still_wait=math.inf,
                           sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
                           gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
             classifier,

@@ -30,7 +30,7 @@ def env_for(tmp_path: Path) -> dict[str, str]:
     return {**repository_env(), **environment(tmp_path / "ros")}
 
 
-def test_a_blinded_live_run_reaches_its_goal_and_names_no_controller(tmp_path, master):
+def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, master):
     uri, _ = master
     check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), env_for(tmp_path))
 

@@ -26,7 +26,7 @@ def env() -> dict[str, str]:
     return {**repository_env(), LOOPBACK_ENV: "1"}
 
 
-def test_a_blinded_live_run_reaches_its_goal_and_names_no_controller(tmp_path, uri):
+def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, uri):
     check_blinded_run(design(tmp_path / "study", uri, "--ab"), uri, env())
 
 

@@ -138,7 +138,7 @@ def assert_stopped_and_kept(rig: Rig, study: StudyFolder, code: str, reason: str
 
 
 def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None:
-    """Drive the blinded study's first row live against the software robot: it reaches its goal, a zero velocity was the
+    """Drive the blinded study's first row live against the software robot: it drives to its end, a zero velocity was the
     last command, the log holds the robot's scans and tf at its real stamps and no controller output, the sealed record
     holds the plans, and no public file names a controller."""
     code = first_code(study)
@@ -149,8 +149,10 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
         assert rig.last_heard() == (0.0, 0.0)
         assert rig.moving_commands() > 20
     (row,) = read_outcomes(study.path(OUTCOMES), True)
-    assert (row.run_code, row.status, row.perception) == (code, "goal", "live")
-    assert 5.0 < row.duration_s < 40.0 and row.path_length_m > 8.0
+    # The run ends as the motion decides: at its goal, or (about 1 run in 18 over ROS 2, measured by
+    # benchmarks/bench_live.py, more often on a loaded machine) touching a simulated walker.
+    assert (row.run_code, row.perception) == (code, "live") and row.status in ("goal", "collision"), row
+    assert 1.0 < row.duration_s < 40.0 and row.path_length_m > (8.0 if row.status == "goal" else 0.5), row
     reader = FoxgloveReader(study.run_log(code))
     assert {fmt.SCAN.name, fmt.ROBOT_TF.name, fmt.ROBOT_STATE.name, fmt.PEDESTRIANS.name} <= set(reader.topics)
     assert not {t.name for t in fmt.CONTROLLER_TOPICS} & set(reader.topics)
@@ -165,7 +167,7 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
     # The controller that drove is the one the key allocates to the row's arm: the report's arms are the real drivers.
     arm = study.read_plan()[0]["Controller"]
     assert sealed["arm"] == arm and sealed["controller"] == study.read_sealed().arms[arm]
-    assert len(sealed["topics"][fmt.PLAN.name]) >= 10
+    assert len(sealed["topics"][fmt.PLAN.name]) >= row.duration_s / 0.8  # planned every 0.4 s, at least half of them
     for public in [*study.root.rglob("*.csv"), *study.root.rglob("*.json"), *study.root.rglob("*.mcap")]:
         if "sealed" not in public.parts:
             data = public.read_bytes()
