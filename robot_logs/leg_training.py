@@ -7,11 +7,11 @@ negatives are every candidate segment of logs recorded with nobody present, the 
 labelled scans farther than `ignore_radius` from every label and the standing logs' segments on
 their background; unmatched segments nearer a label (the labelled person's other leg or a piece
 of them split differently) and segments partly in front of the background are left out of
-training and of the protocol's scores. Each labelled and standing log is also seen as lasers
-of half its resolution (once more with its segments taken for twice as far) and with beams lost
-would see it (`AUGMENTATIONS`); those copies are trained on, never scored. Precision and recall are cross-validated with whole groups held out
-(each labelled or standing log with its copies, or blocks of time), so neighbouring scans of
-one walk never sit on both sides of a split; the stricter figure that counts every unlabelled
+training and of the protocol's scores. Each labelled and standing log is also trained on as
+copies (`AUGMENTATIONS`): as a laser of half its resolution sees it, the same with every segment
+taken for twice as far, and with beams lost; copies are never scored. Precision and recall are
+cross-validated with whole groups held out (each labelled or standing log with its copies, or
+blocks of time), so neighbouring scans of one walk never sit on both sides of a split; the stricter figure that counts every unlabelled
 segment as a negative is reported beside it.
 
 Each figure is given over every log's segments, over the labelled logs' and over the standing
@@ -254,28 +254,6 @@ def lost_beams(scan: Scan, rng: np.random.Generator) -> Scan:
     return replace(scan, ranges=ranges)
 
 
-@dataclass(frozen=True)
-class Augmentation:
-    """An augmented copy of a log: `change` makes each scan's copy, and the copy's segments are
-    taken to stand `farther` times as far from the laser (their distance feature alone changes)."""
-
-    change: Callable[[Scan, np.random.Generator], Scan]
-    farther: float = 1.0
-
-
-#: The augmented copies of each labelled and standing log: how another laser sees the same legs. A
-#: laser sees a leg with every other beam as it sees the leg twice as far with every beam (the
-#: same points per leg, as far apart), so that copy also teaches legs beyond the labelled range.
-AUGMENTATIONS = {
-    "half beams": Augmentation(half_beams),
-    "half beams, twice as far": Augmentation(half_beams, farther=2.0),
-    "lost beams": Augmentation(lost_beams),
-}
-
-#: The column of the segment's distance from the laser.
-DISTANCE = FEATURE_NAMES.index("distance")
-
-
 #: How a log's segments are labelled: given a scan, its segments and the mask of the K candidates,
 #: the (K,) leg and ignored masks of those candidates.
 Labeller = Callable[[Scan, Segments, np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -313,6 +291,35 @@ def _gather(scans: Iterable[Scan], label: Labeller, config: DetectorConfig, flag
         gathered.static.append(on_static)
         gathered.stamps.append(np.full(len(positive), scan.stamp))
     return gathered
+
+
+@dataclass(frozen=True)
+class Augmentation:
+    """An augmented copy of a log: `change` makes each scan's copy, and the copy's segments are
+    taken to stand `farther` times as far from the laser (their distance feature alone changes)."""
+
+    change: Callable[[Scan, np.random.Generator], Scan]
+    farther: float = 1.0
+
+    def gather(self, scans: Iterable[Scan], label: Labeller, config: DetectorConfig, rng: np.random.Generator) -> _Gathered:
+        """The copy's labelled candidate segments (none on the static world: copies only train)."""
+        copy = _gather((self.change(scan, rng) for scan in scans), label, config, None)
+        for features in copy.features:
+            features[:, DISTANCE] *= self.farther
+        return copy
+
+
+#: The augmented copies of each labelled and standing log: how another laser sees the same legs. A
+#: laser sees a leg with every other beam as it sees the leg twice as far with every beam (the
+#: same points per leg, as far apart), so that copy also teaches legs beyond the labelled range.
+AUGMENTATIONS = {
+    "half beams": Augmentation(half_beams),
+    "half beams, twice as far": Augmentation(half_beams, farther=2.0),
+    "lost beams": Augmentation(lost_beams),
+}
+
+#: The column of the segment's distance from the laser.
+DISTANCE = FEATURE_NAMES.index("distance")
 
 
 def _scans(log: LogReader, topics: set[str]) -> list[Scan]:
@@ -390,10 +397,7 @@ def collect(
         if settings.augment and kind != "nobody present":
             for number, augmentation in enumerate(AUGMENTATIONS.values()):
                 rng = np.random.default_rng([settings.seed, index, number])
-                copy = _gather((augmentation.change(scan, rng) for scan in scans), label, config, None)
-                for features in copy.features:
-                    features[:, DISTANCE] *= augmentation.farther
-                gathered.extend(copy)
+                gathered.extend(augmentation.gather(scans, label, config, rng))
         stamps_all = np.concatenate(gathered.stamps)
         # A copy's segments fall in the time block of the scan they were copied from.
         block = np.floor((stamps_all - stamps_all[:recorded].min()) / settings.block_s).astype(int)
@@ -415,8 +419,8 @@ def collect(
 
 
 def _model(settings: TrainingSettings):
-    """The classifier to fit. The defaults are the settings that scored best held out by log
-    among those tried (docs/leg_detector.md): larger, penalised leaves and no class
+    """The classifier to fit. The defaults were chosen among the settings tried by their figures
+    held out by log and by tracking (docs/leg_detector.md): larger, penalised leaves and no class
     weights; the threshold, not the weights, sets how many legs are kept."""
     from sklearn.ensemble import HistGradientBoostingClassifier
 

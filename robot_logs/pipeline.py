@@ -99,8 +99,8 @@ class PersonTracker:
     @classmethod
     def learned(cls, classifier: LegClassifier | None = None, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
         """The setup for real scans: a leg classifier (default: the shipped one), static-world
-        rejection, and tracks confirmed and protected at the classifier's levels; a still, unsure track is
-        never confirmed."""
+        rejection, and tracks confirmed and protected at the classifier's levels; a still track under the
+        protecting level is not confirmed until it walks."""
         classifier = classifier if classifier is not None else shipped_detector()
         world = StaticWorldConfig(protect_confidence=classifier.protect)
         return cls(

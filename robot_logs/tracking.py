@@ -5,12 +5,12 @@ Life of a track: it is born tentative from an unassigned detection that is not o
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
 and the detector's mean confidence over its hits so far reaches `confirm_confidence` (a track
 that does not walk and whose mean confidence is under `sure_confidence` also waits `still_wait`
-seconds, long enough for the static world to tell), dropped after `tentative_misses` misses in a
-row while still tentative (a detection on the static world counts as a miss for a tentative
-track), reported while it has missed at most `report_misses` scans in a row, and deleted after
+seconds, long enough for the static world to tell; an infinite wait lasts until it walks),
+dropped after `tentative_misses` misses in a row while still tentative (a detection on the static
+world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row, and deleted after
 `death_misses` consecutive misses once confirmed. A detection beside a confirmed track
-(`birth_clearance`) starts no track: it is that person's other leg. So a person standing still
-is kept: confirmation asks for confidence, never for motion.
+(`birth_clearance`) starts no track: it is that person's other leg. A confirmed person who stands
+still is kept: only confirmation may ask for motion.
 
 A track walks while it is `still_distance` from where it was `walk_window` seconds before, or
 its legs' spread changes with a stride; a walker needs no wait, however still they are in the
@@ -58,7 +58,7 @@ class TrackerConfig:
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
         still_wait, still_distance, sure_confidence: a tentative track that has not walked
             (see `walk_window`), with a mean confidence under `sure_confidence`, is confirmed no
-            earlier than `still_wait` seconds after its birth.
+            earlier than `still_wait` seconds after its birth (inf: not until it walks).
         gait_spread: a change of the distance between a track's two legs (m) that shows a
             stride, however still the person is in the output frame (someone followed by the
             robot, tracked in the robot's frame); inf leaves strides out.
