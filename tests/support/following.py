@@ -16,6 +16,7 @@ import numpy as np
 
 from robot_logs.clear_mot import ClearMot, ScoredScan
 from robot_logs.frames import Pose2D
+from robot_logs.leg_classifier import LegClassifier
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.pipeline import PersonTracker
 
@@ -88,11 +89,11 @@ def following_walk(duration: float = 60.0, rate_hz: float = 10.0, seed: int = 0,
 VISIBLE_BEAMS = 3
 
 
-def follow(rate_hz: float, odometry: bool, seed: int = 0) -> tuple[ClearMot, int]:
-    """CLEAR-MOT of the walker (0.75 m match radius) over 60 s, and how many scans found the
-    walker's place on the static world."""
+def follow(rate_hz: float, odometry: bool, seed: int = 0, classifier: LegClassifier | None = None) -> tuple[ClearMot, int]:
+    """CLEAR-MOT of the walker (0.75 m match radius) over 60 s with the learned setup (`classifier`,
+    default: the shipped one), and how many scans found the walker's place on the static world."""
     walk = following_walk(60.0, rate_hz, seed)
-    tracker = PersonTracker.learned()
+    tracker = PersonTracker.learned(classifier)
     score, absorbed = ClearMot(), 0
     for pose, scan, world, local, beams in zip(walk.poses, walk.scans, walk.walker, walk.walker_in_laser, walk.beams):
         result = tracker.process(scan, pose if odometry else Pose2D())
