@@ -70,10 +70,23 @@ LABELLED_RANGE = 5.0
 SENSORS = {"default": (LidarSpec(), BodyModel()), "fitted": (LidarSpec.fitted(), BodyModel.fitted())}
 
 
+#: The moving robot's loop through the room: centre (m), radius (m) and seconds a lap (0.31 m/s).
+LOOP_CENTRE, LOOP_RADIUS, LOOP_PERIOD = (4.5, 0.0), 1.5, 30.0
+
+
+def lidar_poses(times: np.ndarray, moving: bool) -> list[Pose2D]:
+    """The lidar's pose at each time: standing at the origin, or driving the loop facing along it."""
+    if not moving:
+        return [Pose2D()] * len(times)
+    angle = 2.0 * np.pi * times / LOOP_PERIOD
+    x, y = LOOP_CENTRE[0] + LOOP_RADIUS * np.sin(angle), LOOP_CENTRE[1] - LOOP_RADIUS * np.cos(angle)
+    return [Pose2D(float(a), float(b), float(h)) for a, b, h in zip(x, y, angle)]
+
+
 def simulate(seed: int, duration: float, shape: str, clutter: bool, rate_hz: float = 10.0, sensor: str = "default",
-             people: int = PEOPLE):
-    """Ground truth, scans and (T, N) beams on each person of one simulated walk, seen from a
-    lidar at the origin."""
+             people: int = PEOPLE, moving: bool = False):
+    """Ground truth, the lidar's poses, its scans and (T, N) beams on each person of one simulated
+    walk, seen from a lidar at the origin or driving a loop through the room (`moving`)."""
     crowd = walking_crowd(people, duration, rate_hz, seed=seed)
     room = furnished_room(seed) if clutter else None
     spec, body = SENSORS[sensor]
@@ -81,8 +94,9 @@ def simulate(seed: int, duration: float, shape: str, clutter: bool, rate_hz: flo
         spec, replace(body, shape=shape), seed=seed,
         walls=None if room is None else room.walls, posts=None if room is None else (room.centres, room.radii),
     )
-    seen = [lidar.observe(t, Pose2D(), p, v) for t, p, v in zip(crowd.times, crowd.positions, crowd.velocities)]
-    return crowd, [scan for scan, _ in seen], np.array([beams for _, beams in seen]).reshape(-1, people)
+    poses = lidar_poses(crowd.times, moving)
+    seen = [lidar.observe(t, pose, p, v) for t, pose, p, v in zip(crowd.times, poses, crowd.positions, crowd.velocities)]
+    return crowd, poses, [scan for scan, _ in seen], np.array([beams for _, beams in seen]).reshape(-1, people)
 
 
 def make_tracker(setup: str, classifier: LegClassifier | None = None) -> PersonTracker:
@@ -98,7 +112,7 @@ def make_tracker(setup: str, classifier: LegClassifier | None = None) -> PersonT
 def speed(duration: float, setup: str, classifier: LegClassifier | None = None) -> float:
     """Scans per CPU second of detection plus tracking in clutter (best of three passes); CPU time
     of this one-thread process, so other work on a shared machine does not count against it."""
-    _, scans, _ = simulate(seed=1, duration=duration, shape="legs", clutter=True, rate_hz=40.0)
+    _, _, scans, _ = simulate(seed=1, duration=duration, shape="legs", clutter=True, rate_hz=40.0)
     best = 0.0
     for _ in range(3):
         tracker = make_tracker(setup, classifier)
@@ -135,24 +149,26 @@ SETTLE_S = 5.0
 
 
 def quality(seeds: range, duration: float, shape: str, clutter: bool, setup: str, sensor: str = "default",
-            people: int = PEOPLE, classifier: LegClassifier | None = None) -> tuple[ClearMot, ClearMot, ClearMot, ClearMot]:
+            people: int = PEOPLE, classifier: LegClassifier | None = None,
+            moving: bool = False) -> tuple[ClearMot, ClearMot, ClearMot, ClearMot]:
     """CLEAR-MOT summed over seeds: over every scan, over the scans after SETTLE_S, over every
     scan with every person as ground truth, seen or not (hidden ones count as misses), and over
-    every scan with the people seen within LABELLED_RANGE as ground truth (the others hidden)."""
+    every scan with the people seen within LABELLED_RANGE of the lidar as ground truth (the others
+    hidden). A `moving` lidar is tracked in the room's frame, as odometry would place it."""
     totals = ClearMot(), ClearMot(), ClearMot(), ClearMot()
     for seed in seeds:
-        crowd, scans, beams = simulate(seed, duration, shape, clutter, sensor=sensor, people=people)
+        crowd, poses, scans, beams = simulate(seed, duration, shape, clutter, sensor=sensor, people=people, moving=moving)
         tracker = make_tracker(setup, classifier)
         scores = ClearMot(), ClearMot(), ClearMot(), ClearMot()
-        for when, walkers, scan, on in zip(crowd.times, crowd.positions, scans, beams):
-            tracks = tracker.process(scan).tracks
+        for when, walkers, pose, scan, on in zip(crowd.times, crowd.positions, poses, scans, beams):
+            tracks = tracker.process(scan, pose).tracks
             ids, where = np.array([t.track_id for t in tracks], dtype=int), np.array([[t.x, t.y] for t in tracks]).reshape(-1, 2)
             seen = on >= VISIBLE_BEAMS
             visible = ScoredScan(np.flatnonzero(seen), walkers[seen], ids, where, hidden=walkers[~seen])
             for score in scores[: 1 + (when >= SETTLE_S)]:
                 score.update(visible, radius=0.5)
             scores[2].update(ScoredScan(np.arange(people), walkers, ids, where), radius=0.5)
-            near = seen & (np.hypot(*walkers.T) <= LABELLED_RANGE)
+            near = seen & (np.hypot(walkers[:, 0] - pose.x, walkers[:, 1] - pose.y) <= LABELLED_RANGE)
             scores[3].update(ScoredScan(np.flatnonzero(near), walkers[near], ids, where, hidden=walkers[~near]), radius=0.5)
         for total, score in zip(totals, scores):
             total.add(score)
@@ -296,13 +312,14 @@ def main() -> None:
     print(f"scan odometry (robot_logs.scan_odometry) along {min(args.duration, 15.0):.0f} s of a moving robot's path among "
           f"furniture and people: {rate:.0f} scans/s on one core, largest position error {error:.3f} m")
     seeds = range(100, 100 + args.seeds)
-    rows = [("legs", False, "rules", "default", PEOPLE), ("disc", False, "rules", "default", PEOPLE),
-            ("legs", True, "rules", "default", PEOPLE), ("legs", True, "rules+grid", "default", PEOPLE)]
-    rows += [("legs", clutter, "learned", sensor, people) for people in (PEOPLE, 1) for clutter in (False, True)
+    rows = [("legs", False, "rules", "default", PEOPLE, False), ("disc", False, "rules", "default", PEOPLE, False),
+            ("legs", True, "rules", "default", PEOPLE, False), ("legs", True, "rules+grid", "default", PEOPLE, False)]
+    rows += [("legs", clutter, "learned", sensor, people, False) for people in (PEOPLE, 1) for clutter in (False, True)
              for sensor in SENSORS]
-    for shape, clutter, setup, sensor, people in rows:
-        q, settled, everyone, near = quality(seeds, args.duration, shape, clutter, setup, sensor, people, detector)
-        where = "among furniture" if clutter else "open space"
+    rows += [("legs", True, "learned", "fitted", PEOPLE, True)]
+    for shape, clutter, setup, sensor, people, moving in rows:
+        q, settled, everyone, near = quality(seeds, args.duration, shape, clutter, setup, sensor, people, detector, moving)
+        where = ("among furniture" if clutter else "open space") + (", lidar driving a loop (room frame)" if moving else "")
         print(f"CLEAR-MOT, {setup}, {shape} model, {sensor} lidar and legs, {people} walker{'s' * (people > 1)}, {where}, "
               f"{len(seeds)} seeds x {args.duration:.0f} s at 10 Hz: "
               f"MOTA {q.mota:.3f} (goal >= 0.9), MOTP {q.motp:.3f} m, false positives {q.false_positives} "
