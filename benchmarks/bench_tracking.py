@@ -17,9 +17,10 @@ Leigh et al.'s protocol (robot_logs.clear_mot; match radius 0.5 m here) on held-
 6 walkers, and false positives per scan (goals in clutter: MOTA >= 0.9, under 0.1 per scan).
 As in a labelled log, only people the lidar sees (at least 3 beams on their legs) are ground
 truth; a track on someone hidden is neither a match nor a false positive. Each row is also scored
-within 5 m of the lidar, the range within which the bags label legs. The learned setup runs on the simulator's default legs and lidar and on those fitted to
-the labelled bags (`BodyModel.fitted()`, `LidarSpec.fitted()`), with 6 walkers and with one, and with the
-lidar driving a loop among the furniture, tracked in the room's frame as odometry places it. Leg
+within 5 m of the lidar, the range within which the bags label legs. The learned setup runs on
+the simulator's default legs and lidar and on those fitted to the labelled bags
+(`BodyModel.fitted()`, `LidarSpec.fitted()`), with 6 walkers and with one, and with the lidar
+driving a loop among the furniture, tracked in the room's frame as odometry places it. Leg
 precision and recall cross-validated by bag, for the classifier alone and followed by static-world
 rejection, over every log, the labelled bags and the standing log, come from the shipped detector's
 training record (the protocol is in docs/leg_detector.md), and what the shipped detector makes of

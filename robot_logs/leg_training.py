@@ -11,8 +11,8 @@ training and of the protocol's scores. Each labelled and standing log is also tr
 copies (`AUGMENTATIONS`): as a laser of half its resolution sees it, the same with every segment
 taken for twice as far, and with beams lost; copies are never scored. Precision and recall are
 cross-validated with whole groups held out (each labelled or standing log with its copies, or
-blocks of time), so neighbouring scans of one walk never sit on both sides of a split; the stricter figure that counts every unlabelled
-segment as a negative is reported beside it.
+blocks of time), so neighbouring scans of one walk never sit on both sides of a split; the
+stricter figure that counts every unlabelled segment as a negative is reported beside it.
 
 Each figure is given over every log's segments, over the labelled logs' and over the standing
 logs' alone, and for the

@@ -7,8 +7,8 @@ and the detector's mean confidence over its hits so far reaches `confirm_confide
 that does not walk and whose mean confidence is under `sure_confidence` also waits `still_wait`
 seconds, long enough for the static world to tell; an infinite wait lasts until it walks),
 dropped after `tentative_misses` misses in a row while still tentative (a detection on the static
-world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row, and deleted after
-`death_misses` consecutive misses once confirmed. A detection beside a confirmed track
+world counts as a miss for a tentative track), reported while it has missed at most
+`report_misses` scans in a row, and deleted after `death_misses` consecutive misses once confirmed. A detection beside a confirmed track
 (`birth_clearance`) starts no track: it is that person's other leg. A confirmed person who stands
 still is kept: only confirmation may ask for motion.
 
