@@ -20,7 +20,9 @@ truth; a track on someone hidden is neither a match nor a false positive. Each r
 within 5 m of the lidar, the range within which the bags label legs. The learned setup runs on
 the simulator's default legs and lidar and on those fitted to the labelled bags
 (`BodyModel.fitted()`, `LidarSpec.fitted()`), with 6 walkers and with one, and with the lidar
-driving a loop among the furniture, tracked in the room's frame as odometry places it. Leg
+driving a loop among the furniture, tracked in the room's frame as odometry places it. The standing
+log's passers-by (legs by background subtraction) are tracked by a detector trained without that log,
+the figure that predicts tracking on a new laser and place. Leg
 precision and recall cross-validated by bag, for the classifier alone and followed by static-world
 rejection, over every log, the labelled bags and the standing log, come from the shipped detector's
 training record (the protocol is in docs/leg_detector.md), and what the shipped detector makes of
