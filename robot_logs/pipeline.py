@@ -9,8 +9,10 @@ the static-world grid and confirmation by the classifier's mean confidence;
 
 The rule for a person: a tentative track is confirmed after 3 consecutive hits once the mean leg
 probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
-labelled legs reach); legs on static cells are dropped before pairing, so clutter confirmed
-early loses its detections once its cells turn static and dies. A tentative track below the
+labelled legs reach), or only its leg threshold while it strides (its legs' spread changes 0.07 m
+within 2 s): a gait tells a person whom a laser the detector was not trained on scores low.
+Legs on static cells are dropped before pairing, so clutter confirmed early loses its detections
+once its cells turn static and dies. A tentative track below the
 `protect` level (what half the labelled legs reach) is not confirmed until it walks (moves 0.3 m,
 or changes its legs' spread with a stride, within 2 s): still, it is furniture or a person the grid
 would hold static within 1.5 s anyway, and a moving robot's grid can miss a thin post for longer. A
@@ -99,13 +101,13 @@ class PersonTracker:
     @classmethod
     def learned(cls, classifier: LegClassifier | None = None, detector: DetectorConfig = DetectorConfig()) -> PersonTracker:
         """The setup for real scans: a leg classifier (default: the shipped one), static-world
-        rejection, and tracks confirmed and protected at the classifier's levels; a still track under the
-        protecting level is not confirmed until it walks."""
+        rejection, and tracks confirmed and protected at the classifier's levels (a striding track at its
+        threshold); a still track under the protecting level is not confirmed until it walks."""
         classifier = classifier if classifier is not None else shipped_detector()
         world = StaticWorldConfig(protect_confidence=classifier.protect)
         return cls(
             detector,
-            TrackerConfig(confirm_confidence=classifier.confirm, still_wait=math.inf,
+            TrackerConfig(confirm_confidence=classifier.confirm, walking_confidence=classifier.threshold, still_wait=math.inf,
                           sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
                           gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
             classifier,

@@ -3,9 +3,10 @@ assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, wit
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
-and the detector's mean confidence over its hits so far reaches `confirm_confidence` (a track
-that does not walk and whose mean confidence is under `sure_confidence` also waits `still_wait`
-seconds, long enough for the static world to tell; an infinite wait lasts until it walks),
+and the detector's mean confidence over its hits so far reaches `confirm_confidence`
+(`walking_confidence` for a track that strides; one that does not walk and whose mean confidence
+is under `sure_confidence` also waits `still_wait` seconds, long enough for the static world to
+tell; an infinite wait lasts until it walks),
 dropped after `tentative_misses` misses in a row while still tentative (a detection on the static
 world counts as a miss for a tentative track), reported while it has missed at most
 `report_misses` scans in a row, and deleted after `death_misses` consecutive misses once confirmed. A detection beside a confirmed track
@@ -56,6 +57,9 @@ class TrackerConfig:
         birth_clearance: an unassigned detection closer than this (m) to a confirmed track starts
             no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
+        walking_confidence: the mean a tentative track that strides (see `gait_spread`) needs
+            instead (None: the same): a gait is evidence of a person beside the detector's scores,
+            in any frame (displacement is not, where the robot's motion moves furniture).
         still_wait, still_distance, sure_confidence: a tentative track that has not walked
             (see `walk_window`), with a mean confidence under `sure_confidence`, is confirmed no
             earlier than `still_wait` seconds after its birth (inf: not until it walks).
@@ -76,6 +80,7 @@ class TrackerConfig:
     death_misses: int = 5
     death_time: float = 0.0
     confirm_confidence: float = 0.0
+    walking_confidence: float | None = None
     still_wait: float = 0.0
     still_distance: float = 0.3
     gait_spread: float = np.inf
@@ -125,14 +130,18 @@ class Track:
 
     def walking(self, config: TrackerConfig) -> bool:
         """Whether it is `still_distance` from where it was `walk_window` ago (or at its birth,
-        if younger), or its legs' spread changed by `gait_spread` since: a walker, not furniture
-        (which neither moves nor strides)."""
+        if younger), or strides: a walker, not furniture (which neither moves nor strides)."""
         if not self.recent:
             return False
-        recent = np.array(self.recent)
-        moved = np.hypot(*(self.kf.x[:2] - recent[0, 1:3])) >= config.still_distance
-        spread = recent[:, 3][np.isfinite(recent[:, 3])]
-        return bool(moved or (len(spread) > 1 and np.ptp(spread) >= config.gait_spread))
+        return bool(np.hypot(*(self.kf.x[:2] - np.array(self.recent[0][1:3]))) >= config.still_distance
+                    or self.striding(config))
+
+    def striding(self, config: TrackerConfig) -> bool:
+        """Whether its legs' spread changed by `gait_spread` within `walk_window`: a gait, which
+        furniture never shows, even where the robot's own motion moves it in the output frame."""
+        spread = np.array([r[3] for r in self.recent], dtype=float)
+        spread = spread[np.isfinite(spread)]
+        return bool(len(spread) > 1 and np.ptp(spread) >= config.gait_spread)
 
     def note(self, time: float, position: np.ndarray, spread: float, window: float) -> None:
         """Remember a detection (where it put the filter), forgetting those older than `window` seconds."""
@@ -190,10 +199,13 @@ class Tracker:
         """Whether a tentative track with enough hits is confident enough, or has waited enough."""
         config = self.config
         mean = track.confidence_sum / track.hits
-        if mean < config.confirm_confidence:
+        walking = track.walking(config)
+        striding = config.walking_confidence is not None and track.striding(config)
+        needed = config.walking_confidence if striding else config.confirm_confidence
+        if mean < needed:
             return False
         assert track.born is not None
-        return track.walking(config) or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return walking or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
