@@ -12,10 +12,10 @@ probability of its detections reaches the detector's `confirm` level (what 75 % 
 labelled legs reach), or only its leg threshold while it strides (its legs' spread changes 0.07 m
 within 2 s): a gait tells a person whom a laser the detector was not trained on scores low.
 Legs on static cells are dropped before pairing, so clutter confirmed early loses its detections
-once its cells turn static and dies. A tentative track below the
-`protect` level (what half the labelled legs reach) is not confirmed until it walks (moves 0.3 m,
-or changes its legs' spread with a stride, within 2 s): still, it is furniture or a person the grid
-would hold static within 1.5 s anyway, and a moving robot's grid can miss a thin post for longer. A
+once its cells turn static and dies. A tentative track below the `protect` level (what half the
+labelled legs reach) is not confirmed until it walks (moves 0.3 m, or changes its legs' spread
+with a stride, within 2 s): still, it is furniture or a person the grid would hold static within
+1.5 s anyway, and a moving robot's grid can miss a thin post for longer. A
 confirmed track that walks is kept through the scans where the classifier doubts the legs
 (`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a detection at any scan
 rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
@@ -107,8 +107,8 @@ class PersonTracker:
         world = StaticWorldConfig(protect_confidence=classifier.protect)
         return cls(
             detector,
-            TrackerConfig(confirm_confidence=classifier.confirm, walking_confidence=classifier.threshold, still_wait=math.inf,
-                          sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
+            TrackerConfig(confirm_confidence=classifier.confirm, striding_confidence=classifier.threshold,
+                          still_wait=math.inf, sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
                           gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
             classifier,
             world,

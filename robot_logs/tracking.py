@@ -4,12 +4,12 @@ assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, wit
 Life of a track: it is born tentative from an unassigned detection that is not on the static
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
 and the detector's mean confidence over its hits so far reaches `confirm_confidence`
-(`walking_confidence` for a track that strides; one that does not walk and whose mean confidence
-is under `sure_confidence` also waits `still_wait` seconds, long enough for the static world to
-tell; an infinite wait lasts until it walks),
-dropped after `tentative_misses` misses in a row while still tentative (a detection on the static
-world counts as a miss for a tentative track), reported while it has missed at most
-`report_misses` scans in a row, and deleted after `death_misses` consecutive misses once confirmed. A detection beside a confirmed track
+(`striding_confidence` for a track whose legs stride; one that does not walk and whose mean
+confidence is under `sure_confidence` also waits `still_wait` seconds, long enough for the static
+world to tell; an infinite wait lasts until it walks), dropped after `tentative_misses` misses in
+a row while still tentative (a detection on the static world counts as a miss for a tentative
+track), reported while it has missed at most `report_misses` scans in a row, and deleted after
+`death_misses` consecutive misses once confirmed. A detection beside a confirmed track
 (`birth_clearance`) starts no track: it is that person's other leg. A confirmed person who stands
 still is kept: only confirmation may ask for motion.
 
@@ -57,7 +57,7 @@ class TrackerConfig:
         birth_clearance: an unassigned detection closer than this (m) to a confirmed track starts
             no track (a person's second leg or a piece of them, not a second person).
         confirm_confidence: the mean detection confidence a tentative track needs to be confirmed.
-        walking_confidence: the mean a tentative track that strides (see `gait_spread`) needs
+        striding_confidence: the mean a tentative track that strides (see `gait_spread`) needs
             instead (None: the same): a gait is evidence of a person beside the detector's scores,
             in any frame (displacement is not, where the robot's motion moves furniture).
         still_wait, still_distance, sure_confidence: a tentative track that has not walked
@@ -80,7 +80,7 @@ class TrackerConfig:
     death_misses: int = 5
     death_time: float = 0.0
     confirm_confidence: float = 0.0
-    walking_confidence: float | None = None
+    striding_confidence: float | None = None
     still_wait: float = 0.0
     still_distance: float = 0.3
     gait_spread: float = np.inf
@@ -200,8 +200,8 @@ class Tracker:
         config = self.config
         mean = track.confidence_sum / track.hits
         walking = track.walking(config)
-        striding = config.walking_confidence is not None and track.striding(config)
-        needed = config.walking_confidence if striding else config.confirm_confidence
+        striding = config.striding_confidence is not None and track.striding(config)
+        needed = config.striding_confidence if striding else config.confirm_confidence
         if mean < needed:
             return False
         assert track.born is not None

@@ -233,7 +233,7 @@ def test_a_striding_track_is_confirmed_on_weaker_evidence_than_a_still_or_glidin
     """Detections at a mean confidence of 0.3, under the confirming 0.5 but over the walking 0.2:
     legs whose spread changes with a stride are confirmed; a pair of posts standing still, and one
     gliding at 1 m/s (furniture in the frame of a robot moving without odometry), never are."""
-    config = TrackerConfig(confirm_confidence=0.5, walking_confidence=0.2, still_wait=math.inf, sure_confidence=0.9,
+    config = TrackerConfig(confirm_confidence=0.5, striding_confidence=0.2, still_wait=math.inf, sure_confidence=0.9,
                            gait_spread=0.07)
     walker, post, glider = Tracker(config), Tracker(config), Tracker(config)
     confidence = np.array([0.3])
@@ -244,7 +244,7 @@ def test_a_striding_track_is_confirmed_on_weaker_evidence_than_a_still_or_glidin
         glider.step(0.1 * k, np.array([[2.0 + 0.1 * k, -1.0]]), confidence, spread=np.array([0.3]))
     assert walker.tracks[0].confirmed and walker.tracks[0].striding(config)
     assert not post.tracks[0].confirmed and not glider.tracks[0].confirmed and glider.tracks[0].walking(config)
-    assert not Tracker(replace(config, walking_confidence=None))._ready(walker.tracks[0], 3.0)  # 0.3 < 0.5
+    assert not Tracker(replace(config, striding_confidence=None))._ready(walker.tracks[0], 3.0)  # 0.3 < 0.5
 
 
 def test_a_person_s_spread_is_the_distance_between_their_legs() -> None:
