@@ -51,7 +51,7 @@ from robot_logs.background_labels import Background, background_labels
 from robot_logs.clear_mot import ClearMot, ScoredScan
 from robot_logs.clutter import furnished_room
 from robot_logs.convert import to_scan
-from robot_logs.detection import DetectorConfig, detect, pair_legs
+from robot_logs.detection import DetectorConfig, detect, people_of
 from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import LegClassifier, shipped_detector
 from robot_logs.leg_training import candidates, collect, train, validate
@@ -293,8 +293,7 @@ def standing_tracking(classifier: LegClassifier) -> ClearMot:
     for scan in scans:
         segments, mask = candidates(scan, config)
         legs = segments.centroids[mask][background_labels(background, segments, mask, config.leg_width)[0]]
-        pairs, singles = pair_legs(legs, config.pair_distance)
-        people = np.array([legs[[i, j]].mean(axis=0) for i, j in pairs] + [legs[i] for i in singles]).reshape(-1, 2)
+        people = people_of(legs, config.pair_distance)
         tracks = tracker.process(scan).tracks
         where = np.array([[t.x, t.y] for t in tracks]).reshape(-1, 2)
         score.update(ScoredScan(np.arange(len(people)), people, np.array([t.track_id for t in tracks], dtype=int), where))
@@ -319,8 +318,7 @@ def labelled_tracking(classifier: LegClassifier | None = None) -> ClearMot:
     for bag in LABELLED:
         tracker, score = PersonTracker.learned(classifier), ClearMot()
         for scan, legs in bag_labels(bag):
-            pairs, singles = pair_legs(legs, DetectorConfig().pair_distance)
-            people = np.array([legs[[i, j]].mean(axis=0) for i, j in pairs] + [legs[i] for i in singles]).reshape(-1, 2)
+            people = people_of(legs, DetectorConfig().pair_distance)
             people = people[inside(people)]
             tracks = tracker.process(scan).tracks
             where = np.array([[t.x, t.y] for t in tracks]).reshape(-1, 2)

@@ -145,6 +145,12 @@ def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, in
     return pairs, [i for i in range(count) if not used[i]]
 
 
+def people_of(legs: np.ndarray, max_distance: float) -> np.ndarray:
+    """(P, 2) people of (L, 2) legs (`pair_legs`): each pair's midpoint, then each lone leg."""
+    pairs, singles = pair_legs(legs, max_distance)
+    return np.array([legs[[i, j]].mean(axis=0) for i, j in pairs] + [legs[i] for i in singles], dtype=float).reshape(-1, 2)
+
+
 def leg_probabilities(segments: Segments, config: DetectorConfig, classifier: LegClassifier) -> np.ndarray:
     """(K,) each segment's probability of being a leg; 0 for those too small or too wide to be one."""
     candidates = (segments.counts >= config.min_points) & (segments.widths < config.candidate_width)
@@ -198,8 +204,5 @@ def detect(
     spread = [float(np.hypot(*(legs[i] - legs[j]))) for i, j in pairs]
     spread.extend(np.full(len(singles) + int(is_body.sum()), np.nan))
     people_array = np.array(people, dtype=float).reshape(-1, 2)
-    doubted = centres[is_unsure]
-    doubted_pairs, doubted_singles = pair_legs(doubted, config.pair_distance)
-    unsure = [doubted[[i, j]].mean(axis=0) for i, j in doubted_pairs] + [doubted[i] for i in doubted_singles]
     return Detections(legs=segments.centroids[is_leg], people=people_array, confidence=np.array(confidence, dtype=float),
-                      spread=np.array(spread, dtype=float), unsure=np.array(unsure, dtype=float).reshape(-1, 2))
+                      spread=np.array(spread, dtype=float), unsure=people_of(centres[is_unsure], config.pair_distance))
