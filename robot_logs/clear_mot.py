@@ -106,6 +106,33 @@ class ClearMot:
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
+class Identities:
+    """Ids for people labelled without them (legs paired by position, passers-by found by
+    background subtraction): each scan's people take the ids of the previous scan's people they
+    pair with one to one within `reach` (m; the Hungarian method on distance), the rest new
+    ones, so labels listed in another order do not count as id switches."""
+
+    def __init__(self, reach: float = 0.5) -> None:
+        self.reach = reach
+        self._ids = np.zeros(0, dtype=int)
+        self._points = np.zeros((0, 2))
+        self._next = 0
+
+    def __call__(self, people: np.ndarray) -> np.ndarray:
+        """(N,) ids of one scan's (N, 2) people."""
+        people = np.asarray(people, dtype=float).reshape(-1, 2)
+        ids = np.full(len(people), -1, dtype=int)
+        if len(people) and len(self._points):
+            distance = np.hypot(*(people[:, None, :] - self._points[None, :, :]).transpose(2, 0, 1))
+            rows, cols = linear_sum_assignment(np.where(distance <= self.reach, distance, 1e6))
+            kept = distance[rows, cols] <= self.reach
+            ids[rows[kept]] = self._ids[cols[kept]]
+        for index in np.flatnonzero(ids < 0):
+            ids[index], self._next = self._next, self._next + 1
+        self._ids, self._points = ids, people
+        return ids
+
+
 def _within(hidden: np.ndarray, tracks: np.ndarray, radius: float) -> int:
     """How many tracks the Hungarian method can pair one to one with hidden people within `radius`."""
     if len(hidden) == 0 or len(tracks) == 0:

@@ -47,7 +47,8 @@ class DetectorConfig:
 class Segments:
     """Contiguous groups of scan points: (K, 2) centroids, (K,) widths and point counts, and
     the (M, 2) points they split with (K,) the index of each segment's first point; `beam_angle`
-    is the scan's angle between neighbouring beams (rad)."""
+    is the scan's angle between neighbouring beams (rad); (M, 2) `open_sides` is True where the
+    beam just before (column 0) or after (column 1) a point returned nothing valid."""
 
     centroids: np.ndarray
     widths: np.ndarray
@@ -55,10 +56,11 @@ class Segments:
     points: np.ndarray
     starts: np.ndarray
     beam_angle: float
+    open_sides: np.ndarray
 
     def features(self, select: np.ndarray) -> np.ndarray:
         """The classifier's features (`robot_logs.segment_features`) of the `select`ed segments."""
-        return segment_features(self.points, self.starts, self.beam_angle, select)
+        return segment_features(self.points, self.starts, self.beam_angle, select, self.open_sides)
 
     def middles(self) -> np.ndarray:
         """(K, 2) the middle point of each segment: a point the lidar hit, unlike the centroid of
@@ -102,6 +104,18 @@ def _covers_circle(scan: Scan) -> bool:
     return len(scan.ranges) * scan.angle_increment >= 2.0 * math.pi - 1e-6
 
 
+def open_beams(scan: Scan) -> np.ndarray:
+    """(M, 2) for each valid beam's point, whether the beam just before it and the one just after
+    returned nothing valid: nothing seen there within the laser's range, whatever value the
+    laser writes for it (inf, NaN, 0). Beyond the first and last beam of a partial scan nothing
+    was looked at, which is not open."""
+    valid = scan.valid()
+    circle = _covers_circle(scan)
+    before = np.concatenate(([circle and not valid[-1]], ~valid[:-1]))
+    after = np.concatenate((~valid[1:], [circle and not valid[0]]))
+    return np.column_stack((before, after))[valid]
+
+
 def segment(scan: Scan, jump_distance: float) -> Segments:
     """Split a scan's valid points at every jump longer than `jump_distance`.
 
@@ -111,18 +125,20 @@ def segment(scan: Scan, jump_distance: float) -> Segments:
     points = scan_points(scan)
     if len(points) == 0:
         empty = np.zeros((0, 2))
-        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int), empty, np.zeros(0, dtype=int), scan.angle_increment)
+        return Segments(empty, np.zeros(0), np.zeros(0, dtype=int), empty, np.zeros(0, dtype=int), scan.angle_increment,
+                        np.zeros((0, 2), dtype=bool))
+    opening = open_beams(scan)
     jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
     if _covers_circle(scan) and jumps.any() and np.hypot(*(points[0] - points[-1])) <= jump_distance:
         shift = int(np.flatnonzero(jumps)[0]) + 1
-        points = np.roll(points, -shift, axis=0)
+        points, opening = np.roll(points, -shift, axis=0), np.roll(opening, -shift, axis=0)
         jumps = np.hypot(*np.diff(points, axis=0).T) > jump_distance
     starts = np.concatenate(([0], np.flatnonzero(jumps) + 1))
     ends = np.concatenate((starts[1:], [len(points)]))
     counts = ends - starts
     centroids = np.add.reduceat(points, starts, axis=0) / counts[:, None]
     widths = np.hypot(*(points[ends - 1] - points[starts]).T)
-    return Segments(centroids, widths, counts, points, starts, scan.angle_increment)
+    return Segments(centroids, widths, counts, points, starts, scan.angle_increment, opening)
 
 
 def pair_legs(legs: np.ndarray, max_distance: float) -> tuple[list[tuple[int, int]], list[int]]:

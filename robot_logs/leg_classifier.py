@@ -23,8 +23,9 @@ import numpy as np
 from robot_logs.errors import LogError
 
 #: The detector file format this code reads and writes; bump it when the arrays or the features
-#: change (3: `robot_logs.segment_features` counts no beams).
-FORMAT_VERSION = 3
+#: change (4: `foreground` takes a beam without a return for open space and reads at most
+#: `segment_features.STANDS_FREE`).
+FORMAT_VERSION = 4
 
 #: The detector shipped with the package, trained on tests/data/robot_logs (its record says how).
 SHIPPED_DETECTOR = "leg_detector.npz"
@@ -106,6 +107,8 @@ class LegClassifier:
                     )
                 arrays = {name: stored[name] for name in _ARRAYS}
                 record = json.loads(str(stored["record"]))
+        except LogError:
+            raise
         except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
             raise LogError(f"{path}: not a leg detector file ({type(exc).__name__}: {exc})") from None
         return cls(

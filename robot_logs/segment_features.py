@@ -46,8 +46,13 @@ FEATURE_NAMES = SHAPE_NAMES + CONTEXT_NAMES
 CLUTTER_RADII = (0.5, 1.0)
 
 
-#: Cap of the context features (m): no neighbour, or nothing behind, reads as this far.
+#: Cap of the context features (m): no neighbour reads as this far.
 FAR = 3.0
+
+#: How far (m) in front of what its neighbouring beams hit a segment stands free: `foreground`
+#: reads no more, as what lies farther behind tells the room's size and the laser's range, not
+#: what the segment is.
+STANDS_FREE = 1.0
 
 #: Largest fitted circle radius reported (m): a nearly straight segment fits a huge circle.
 MAX_RADIUS = 5.0
@@ -58,7 +63,8 @@ def _sums(labels: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
 
 
 def segment_features(
-    points: np.ndarray, starts: np.ndarray, beam_angle: float, select: np.ndarray | None = None
+    points: np.ndarray, starts: np.ndarray, beam_angle: float, select: np.ndarray | None = None,
+    open_beams: np.ndarray | None = None,
 ) -> np.ndarray:
     """(K, len(FEATURE_NAMES)) features of K segments (or of the `select`ed ones).
 
@@ -68,6 +74,8 @@ def segment_features(
         beam_angle: the angle between neighbouring beams (rad).
         select: (K,) True for the segments wanted (default: all); the context features still
             look at every segment.
+        open_beams: (M, 2) True where the beam just before or after a point returned nothing
+            (`detection.open_beams`; default: every neighbouring beam returned a point).
 
     The columns: end-to-end width; centroid distance from the sensor; root mean
     square distance of the points from their centroid; root mean square residual of the best
@@ -77,7 +85,8 @@ def segment_features(
     middle of the segment bulges from its chord (sagitta). Then its context: the distance to
     the nearest other segment's centroid (a leg's partner is near) and that segment's width;
     how far in front of its neighbouring beams the segment stands, on the nearer side
-    (foreground; 0 beyond the first or last point); the distance from its centroid to the nearest point of
+    (foreground, at most STANDS_FREE; a beam that saw nothing within range counts as far behind,
+    whatever that range, and beyond the first or last beam as 0); the distance from its centroid to the nearest point of
     any other segment (clearance: people walk in the open, furniture legs stand by tables and
     walls) and the length of other segments' surface within CLUTTER_RADII of it (each point
     standing for the arc its beam spans at its range); how many other wanted segments lie within
@@ -92,11 +101,14 @@ def segment_features(
     first = np.cumsum(lengths) - lengths
     taken = np.repeat(starts[wanted] - first, lengths) + np.arange(lengths.sum())
     shape = _shape_features(points[taken], first)
-    return np.column_stack((shape, _context_features(points, starts, ends, wanted, beam_angle)))
+    if open_beams is None:
+        open_beams = np.zeros((len(points), 2), dtype=bool)
+    return np.column_stack((shape, _context_features(points, starts, ends, wanted, beam_angle, open_beams)))
 
 
 def _context_features(
-    points: np.ndarray, starts: np.ndarray, ends: np.ndarray, wanted: np.ndarray, beam_angle: float
+    points: np.ndarray, starts: np.ndarray, ends: np.ndarray, wanted: np.ndarray, beam_angle: float,
+    open_beams: np.ndarray,
 ) -> np.ndarray:
     """The CONTEXT_NAMES columns: what surrounds each wanted segment in its scan."""
     chosen = np.flatnonzero(wanted)
@@ -122,11 +134,15 @@ def _context_features(
     total = len(points)
     head, tail = starts[chosen], ends[chosen]
     previous, following = np.maximum(head - 1, 0), np.minimum(tail, total - 1)
-    # Beyond the first and last point nothing was seen: no step there, rather than the open
+    # Beyond the first and last beam nothing was looked at: no step there, rather than the open
     # space that would make a segment cut by the field of view look like a lone leg.
     before = np.where(head > 0, ranges[previous] - ranges[head], 0.0)
     after = np.where(tail < total, ranges[following] - ranges[tail - 1], 0.0)
-    foreground = np.clip(np.minimum(before, after), -FAR, FAR)
+    # Next to a beam that saw nothing the segment stands before open space, not before whatever
+    # the next beam with a return hit: the laser's range and how it writes a lost beam must not matter.
+    before = np.where(open_beams[head, 0], STANDS_FREE, before)
+    after = np.where(open_beams[tail - 1, 1], STANDS_FREE, after)
+    foreground = np.clip(np.minimum(before, after), -FAR, STANDS_FREE)
 
     return np.column_stack((neighbour, foreground, neighbour_width, clearance, *surface, candidates_around))
 

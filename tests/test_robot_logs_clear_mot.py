@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from rosbags.typesys import get_types_from_msg
 
-from robot_logs.clear_mot import ScoredScan, clear_mot
+from robot_logs.clear_mot import Identities, ScoredScan, clear_mot
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
 from robot_logs.records import PointSet
@@ -42,6 +42,31 @@ SEQUENCE = [
     scan({1: (3.0, 0.0), 2: (3.0, 2.0)}, {11: (3.0, 0.0), 20: (3.0, 2.0), 30: (5.0, -1.0)}),
 ]
 
+
+
+def test_people_labelled_without_ids_keep_theirs_from_scan_to_scan() -> None:
+    """Two walkers whose labels (legs paired by position) come in either order, each followed by
+    its own track: numbered by position they seem to swap tracks; `Identities` numbers them by
+    continuity, so only a real swap of tracks counts."""
+    walkers = [np.array([[1.0 + 0.1 * k, 0.0], [1.0 + 0.1 * k, 2.0]]) for k in range(6)]
+    listed = [people[::-1] if k % 2 else people for k, people in enumerate(walkers)]
+    tracks = np.array([10, 20])
+
+    def scored(ids_of, swap_at: int | None = None) -> list[ScoredScan]:
+        scans = []
+        for k, (people, truth) in enumerate(zip(listed, walkers)):
+            ids = tracks[::-1] if swap_at is not None and k >= swap_at else tracks
+            scans.append(ScoredScan(ids_of(people), people, ids, truth + [0.05, 0.0]))
+        return scans
+
+    assert clear_mot(scored(lambda people: np.arange(len(people)))).id_switches == 10  # both, at each of 5 reorderings
+    continuity = clear_mot(scored(Identities()))
+    assert (continuity.id_switches, continuity.matches, continuity.misses) == (0, 12, 0)
+    assert clear_mot(scored(Identities(), swap_at=3)).id_switches == 2
+    # One walker steps 0.6 m between scans, beyond the 0.5 m reach: a new person, and the other keeps its id.
+    ids = Identities()
+    assert ids(np.array([[0.0, 0.0], [0.0, 2.0]])).tolist() == [0, 1]
+    assert ids(np.array([[0.0, 2.1], [0.6, 0.0]])).tolist() == [1, 2]
 
 def test_counts_on_a_hand_made_sequence_with_a_known_switch() -> None:
     score = clear_mot(SEQUENCE)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robot_logs.detection import DetectorConfig
+from robot_logs.detection import DetectorConfig, open_beams, segment
 from robot_logs.errors import LogError
 from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import FORMAT_VERSION, LegClassifier, from_hist_gradient_boosting, shipped_detector
@@ -27,7 +27,8 @@ from robot_logs.leg_training import (
     threshold_for_recall,
 )
 from robot_logs.lidar_sim import LidarSimulator
-from robot_logs.segment_features import CONTEXT_NAMES, FEATURE_NAMES, MAX_RADIUS, SHAPE_NAMES, segment_features
+from robot_logs.records import Scan
+from robot_logs.segment_features import CONTEXT_NAMES, FEATURE_NAMES, MAX_RADIUS, SHAPE_NAMES, STANDS_FREE, segment_features
 from trials.cli import main
 
 COLUMN = {name: k for k, name in enumerate(FEATURE_NAMES)}
@@ -192,8 +193,10 @@ def test_a_detector_of_another_format_is_one_error_line(small_model, tmp_path: P
     header = json.loads(str(arrays["header"]))
     arrays["header"] = np.array(json.dumps({**header, "format": FORMAT_VERSION + 1}))
     np.savez(path, **arrays)
-    with pytest.raises(LogError, match=f"detector format {FORMAT_VERSION + 1}, but this version reads format {FORMAT_VERSION}"):
+    with pytest.raises(LogError) as refused:
         LegClassifier.load(path)
+    assert str(refused.value) == (f"{path}: detector format {FORMAT_VERSION + 1}, but this version reads format "
+                                  f"{FORMAT_VERSION}; retrain it with `trials log train-detector`")
     out = tmp_path / "tracks.csv"
     code = main(["log", "track", str(robot_logs_dir / "stationary_ros1.bag"), "--detector", str(path), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
@@ -227,14 +230,14 @@ def test_the_shipped_detector_carries_its_training_record() -> None:
     assert labelled["legs"] == 1825 and labelled["legs"] + standing["legs"] == figures["logs"]["legs"] == record["legs"]
     assert figures["logs"]["segments"] == record["segments"] - record["ignored"] == figures["logs, strict"]["segments"] - record["ignored"]
     # The goal, leg precision 0.8 at recall 0.9 held out by bag over the labelled sample bags, for the detection
-    # stage the tracker uses, under the protocol (measured 0.855). Strictly (0.787), which also counts the
+    # stage the tracker uses, under the protocol (measured 0.813). Strictly (0.750), which also counts the
     # segments near a label, it is missed (docs/leg_detector.md).
     goal = figures["logs, labelled logs, static world"]
     assert goal["precision"] >= 0.8 and goal["recall"] >= record["settings"]["recall"]
-    assert figures["logs, labelled logs, static world, strict"]["precision"] > 0.75
+    assert figures["logs, labelled logs, static world, strict"]["precision"] > 0.74
     # Held out whole, the standing log is another laser in another place: what a new robot's log gets
-    # (recall 0.485, measured); held out by time blocks, a laser and place trained on (0.979).
-    assert figures["logs, standing logs, static world"]["recall"] > 0.4
+    # (recall 0.671, measured); held out by time blocks, a laser and place trained on (0.986).
+    assert figures["logs, standing logs, static world"]["recall"] > 0.6
     assert figures["time blocks, standing logs, static world"]["recall"] > 0.95
     for design in ("logs", "time blocks"):
         for stage in ("", ", static world"):  # the strict figure counts the ignored segments as negatives
@@ -297,6 +300,45 @@ def test_the_tree_walk_follows_splits_and_missing_values_and_stops_at_the_depth(
     np.testing.assert_array_equal(stumps, [0.5 - 1 + 10, 0.5 + 1 + 20, 0.5 - 1 + 20])
     looped = log_odds(features[:1], feature, split, left, right, missing_left, value, np.array([6], dtype=np.int32), 3, 0.0)
     assert looped.tolist() == [200.0]  # 6 -> 7 -> 6 -> 7, three steps, then stopped
+
+
+def leg_scan(behind: float) -> Scan:
+    """A 90-degree scan at 0.25 degrees of a leg (radius 0.07 m) 2 m ahead; every other beam reads
+    `behind` (m): a wall's range, or what the laser writes for a beam without a return."""
+    angles = np.arange(-math.pi / 4, math.pi / 4, BEAM)
+    # Where each beam meets the circle about (2, 0): the nearer root of |t u - c|^2 = r^2.
+    along = 2.0 * np.cos(angles)
+    across = 4.0 - along**2
+    hits = across <= 0.07**2
+    ranges = np.where(hits, along - np.sqrt(np.clip(0.07**2 - across, 0.0, None)), behind)
+    return Scan(0, "laser", float(angles[0]), BEAM, 0.03, 5.6, ranges)
+
+
+def test_a_leg_before_beams_without_return_stands_free_however_the_laser_writes_them() -> None:
+    """A laser writes a beam that saw nothing as inf, NaN, 0 (below its range_min) or beyond its
+    range_max; each is open space behind the leg, as is a wall farther than STANDS_FREE."""
+    def leg_row(behind: float) -> np.ndarray:
+        segments = segment(leg_scan(behind), DetectorConfig().jump_distance)
+        leg = np.flatnonzero(np.abs(segments.centroids[:, 1]) < 0.1)
+        return segments.features(np.isin(np.arange(len(segments.starts)), leg))[0]
+
+    open_space = leg_row(np.inf)
+    assert open_space[COLUMN["foreground"]] == STANDS_FREE
+    for written in (np.nan, 0.0, 0.01, 7.0):
+        np.testing.assert_array_equal(leg_row(written), open_space)
+    assert leg_row(3.5)[COLUMN["foreground"]] == STANDS_FREE  # a wall 1.5 m behind
+    # A wall 0.4 m behind the leg's front: its edge beams (about 2.0 m) stand about 0.34 m before it.
+    near_wall = leg_row(2.33)
+    assert 0.3 < near_wall[COLUMN["foreground"]] < 0.4
+    assert near_wall[COLUMN["clearance"]] < 0.5 < open_space[COLUMN["clearance"]]
+
+
+def test_open_beams_wrap_around_a_full_circle_but_not_past_a_field_of_view() -> None:
+    ranges = np.array([np.inf, 2.0, 2.0, 0.0, 2.0])  # beams 0 and 3 return nothing
+    circle = Scan(0, "laser", 0.0, 2.0 * math.pi / 5, 0.03, 5.6, ranges)
+    assert open_beams(circle).tolist() == [[True, False], [False, True], [True, True]]  # beams 1, 2 and 4
+    partial = replace(circle, angle_increment=BEAM)
+    assert open_beams(partial).tolist() == [[True, False], [False, True], [True, False]]  # nothing after the last beam
 
 
 def test_surface_around_a_segment_does_not_depend_on_the_beams() -> None:
