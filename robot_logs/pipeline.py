@@ -7,10 +7,11 @@ lidar perception use: hand it each scan with the sensor's pose in the output fra
 the static-world grid and confirmation by the classifier's mean confidence;
 `PersonTracker.rules_with_grid()` the one for simulated scans among furniture.
 
-The rule for a person: a tentative track is confirmed after 3 consecutive hits once the mean leg
-probability of its detections reaches the detector's `confirm` level (what 75 % of held-out
-labelled legs reach), or only its leg threshold while it strides (its legs' spread changes 0.07 m
-within 2 s): a gait tells a person whom a laser the detector was not trained on scores low.
+The rule for a person: a tentative track is confirmed after 3 consecutive hits (2 while its mean
+reaches `protect`) once the mean leg probability of its detections reaches the detector's
+`confirm` level (what 75 % of held-out labelled legs reach), or only its leg threshold while it
+strides (its legs' spread changes 0.07 m within 2 s): a gait tells a person whom a laser the
+detector was not trained on scores low.
 Legs on static cells are dropped before pairing, so clutter confirmed early loses its detections
 once its cells turn static and dies. A tentative track below the `protect` level (what half the
 labelled legs reach) is not confirmed until it walks (moves 0.3 m, or changes its legs' spread
@@ -66,6 +67,9 @@ LEARNED_COAST_S = 0.5
 #: Seconds after its last detection a walking confirmed track of the learned setup takes unsure ones.
 UNSURE_S = 0.5
 
+#: Hits that confirm a track of the learned setup whose mean leg probability reaches `protect` (3 otherwise).
+SURE_HITS = 2
+
 #: Change of the distance between a track's two legs (m) that the learned setup takes for a stride.
 GAIT_SPREAD = 0.07
 
@@ -108,8 +112,8 @@ class PersonTracker:
         return cls(
             detector,
             TrackerConfig(confirm_confidence=classifier.confirm, striding_confidence=classifier.threshold,
-                          still_wait=math.inf, sure_confidence=classifier.protect, death_time=LEARNED_COAST_S,
-                          gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
+                          still_wait=math.inf, sure_confidence=classifier.protect, sure_hits=SURE_HITS,
+                          death_time=LEARNED_COAST_S, gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
             classifier,
             world,
         )

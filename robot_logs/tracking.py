@@ -3,7 +3,8 @@ assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, wit
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
-and the detector's mean confidence over its hits so far reaches `confirm_confidence`
+(`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean
+confidence over its hits so far reaches `confirm_confidence`
 (`striding_confidence` for a track whose legs stride; one that does not walk and whose mean
 confidence is under `sure_confidence` also waits `still_wait` seconds, long enough for the static
 world to tell; an infinite wait lasts until it walks), dropped after `tentative_misses` misses in
@@ -47,6 +48,7 @@ class TrackerConfig:
         initial_speed_std: velocity uncertainty of a newborn track (m/s).
         gate: largest squared Mahalanobis distance of an accepted detection.
         birth_hits: hits that confirm a tentative track (it dies at `tentative_misses` misses in a row).
+        sure_hits: the hits that do while its mean confidence reaches `sure_confidence` (None: as many).
         death_misses: consecutive misses that delete a confirmed track, once it has also
             missed for `death_time` seconds.
         death_time: seconds without a hit a confirmed track outlives (0: scans alone count).
@@ -77,6 +79,7 @@ class TrackerConfig:
     initial_speed_std: float = 1.0
     gate: float = CHI2_2DOF_99
     birth_hits: int = 3
+    sure_hits: int | None = None
     death_misses: int = 5
     death_time: float = 0.0
     confirm_confidence: float = 0.0
@@ -196,9 +199,12 @@ class Tracker:
         return [(index[r], int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
 
     def _ready(self, track: Track, time: float) -> bool:
-        """Whether a tentative track with enough hits is confident enough, or has waited enough."""
+        """Whether a tentative track has enough hits and is confident enough, or has waited enough."""
         config = self.config
         mean = track.confidence_sum / track.hits
+        sure = config.sure_hits is not None and mean >= config.sure_confidence
+        if track.hits < (config.sure_hits if sure else config.birth_hits):
+            return False
         walking = track.walking(config)
         striding = config.striding_confidence is not None and track.striding(config)
         needed = config.striding_confidence if striding else config.confirm_confidence
@@ -267,7 +273,7 @@ class Tracker:
         for track in self.tracks:
             if track.born is None:
                 track.born = time
-            if not track.confirmed and track.hits >= self.config.birth_hits and self._ready(track, time):
+            if not track.confirmed and self._ready(track, time):
                 track.track_id = self._next_id
                 self._next_id += 1
         return [t.state() for t in self.tracks if t.confirmed and t.misses <= self.config.report_misses]

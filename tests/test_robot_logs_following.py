@@ -20,6 +20,6 @@ def test_the_followed_walker_is_kept_in_nearly_every_scan(rate_hz: float, odomet
     assert absorbed == 0  # a person walking ahead of the robot is never static world
     if odometry:  # in a fixed frame the posts and walls turn static; in the robot's they move with it
         # A leg-sized post the classifier is sure of (at the protecting level) is tracked until the grid
-        # holds it; one under that level never, as it does not walk (measured 7 of 600 scans at 10 Hz, 0 of
-        # 2,400 at 40 Hz).
+        # holds it; one under that level never, as it does not walk (measured 0 of 600 scans at 10 Hz, 0 of
+        # 2,400 at 40 Hz, seed 0).
         assert score.false_positives <= 0.02 * score.scans

@@ -32,6 +32,18 @@ def test_a_track_is_born_after_three_hits_and_dies_after_five_misses() -> None:
     assert coasting == [1, 1, 1, 1, 0]  # reported while coasting, deleted at the fifth miss
 
 
+def test_a_person_the_detector_is_sure_of_is_confirmed_at_the_second_hit() -> None:
+    """`sure_hits`: two people, one scored 0.95 (over `sure_confidence`), one 0.7 (over the confirming
+    level only); the sure one gets its id a scan earlier, and the other still needs `birth_hits`."""
+    config = TrackerConfig(birth_hits=3, sure_hits=2, confirm_confidence=0.6, sure_confidence=0.9)
+    tracker, people = Tracker(config), np.array([[2.0, 1.0], [2.0, -1.0]])
+    scores = np.array([0.95, 0.7])
+    confirmed = [[(round(s.y), s.track_id) for s in tracker.step(0.1 * k, people, scores)] for k in range(3)]
+    assert confirmed == [[], [(1, 1)], [(1, 1), (-1, 2)]]
+    without = Tracker(replace(config, sure_hits=None))
+    assert [len(without.step(0.1 * k, people, scores)) for k in range(3)] == [0, 0, 2]
+
+
 def test_a_tentative_track_dies_at_its_first_miss() -> None:
     tracker = Tracker()
     tracker.step(0.0, np.array([[2.0, 1.0]]))
