@@ -6,7 +6,11 @@ Two passes: a coarse one whose wide correspondence distance takes up what the se
 fine one that leaves out every point with no partner close by, so people who walked since the
 keyframe pull little on the pose. A scan that moved far enough from its keyframe becomes the
 next one; matching against a keyframe rather than the scan before keeps the drift of a robot
-standing still at zero. Poses are of the scan's frame in the frame of the first scan matched.
+standing still at zero. A scan that cannot be placed moves the expected pose on by the last
+motion (dead reckoning), and after a few such scans in a row the next one with enough points
+becomes the keyframe where the robot is expected to be: the keyframe may have left the view (a
+robot driving along a street), and nothing could be placed again. Poses are of the scan's frame
+in the frame of the first scan matched.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ class ScanOdometryConfig:
             `fine_distance` for its match to count.
         keyframe_distance, keyframe_angle: a scan this far (m) or turned this much (rad) from
             its keyframe becomes the next keyframe.
+        reanchor_after: after this many scans in a row not placed, a scan with enough points that
+            does not match becomes the keyframe at the pose dead reckoning expects (still not placed).
     """
 
     voxel: float = 0.05
@@ -46,6 +52,7 @@ class ScanOdometryConfig:
     min_inliers: float = 0.5
     keyframe_distance: float = 0.3
     keyframe_angle: float = math.radians(10.0)
+    reanchor_after: int = 5
 
 
 def _matrix(pose: Pose2D) -> np.ndarray:
@@ -64,7 +71,8 @@ class ScanOdometry:
     """The pose of one laser's scans, each matched to a keyframe; `update` once per scan, in order.
 
     `update` returns None for a scan it cannot place (too few points, or too few of them matched),
-    counted in `lost`; the next scan is matched to the same keyframe from the last pose known.
+    counted in `lost`; the next scan is matched to the same keyframe from the pose the last motion
+    leads to, until `reanchor_after` scans in a row were lost.
     """
 
     def __init__(self, config: ScanOdometryConfig = ScanOdometryConfig()) -> None:
@@ -75,6 +83,7 @@ class ScanOdometry:
         self._keyframe_pose = Pose2D()
         self._pose = Pose2D()
         self._motion = Pose2D()
+        self._missed = 0
 
     def _cloud(self, scan: Scan) -> small_gicp.PointCloud:
         """The scan's valid points at z = 0, thinned to one per `voxel` square."""
@@ -95,22 +104,31 @@ class ScanOdometry:
         """The pose of `scan`'s frame in the frame of the first scan placed; None if it cannot be placed."""
         config = self.config
         cloud = self._cloud(scan)
-        if cloud.size() < config.min_points:
-            self.lost += 1
-            return None
         if self._keyframe is None:
+            if cloud.size() < config.min_points:
+                self.lost += 1
+                return None
             self._set_keyframe(cloud, Pose2D())
             return self._pose
-        predicted = self._keyframe_pose.inverse().compose(self._pose.compose(self._motion))
-        relative, inliers = self._align(cloud, predicted)
+        expected = self._pose.compose(self._motion)
+        if cloud.size() < config.min_points:
+            return self._lose(expected)
+        relative, inliers = self._align(cloud, self._keyframe_pose.inverse().compose(expected))
         if inliers < config.min_inliers:
-            self.lost += 1
-            return None
+            if self._missed + 1 >= config.reanchor_after:
+                self._set_keyframe(cloud, expected)
+            return self._lose(expected)
         pose = self._keyframe_pose.compose(relative)
-        self._motion, self._pose = self._pose.inverse().compose(pose), pose
+        self._motion, self._pose, self._missed = self._pose.inverse().compose(pose), pose, 0
         if math.hypot(relative.x, relative.y) >= config.keyframe_distance or abs(relative.yaw) >= config.keyframe_angle:
             self._set_keyframe(cloud, pose)
         return pose
+
+    def _lose(self, expected: Pose2D) -> None:
+        """Count a scan not placed; the robot is taken to have moved on as it did."""
+        self.lost += 1
+        self._missed += 1
+        self._pose = expected
 
     def _set_keyframe(self, cloud: small_gicp.PointCloud, pose: Pose2D) -> None:
         self._keyframe, self._keyframe_pose = cloud, pose

@@ -71,6 +71,24 @@ def test_a_scan_that_matches_nothing_is_not_placed() -> None:
     assert back is not None and back.x == pytest.approx(0.05, abs=0.02)
 
 
+def test_another_place_becomes_the_keyframe_after_five_scans_are_lost() -> None:
+    """The robot drives 4 cm a scan out of the room into a 3 m box (another place, as a street's walls
+    leave a narrow laser's view): the box matches nothing of the room, and after 5 scans lost in a row
+    its next scan becomes the keyframe where the last motion leads; every later scan is placed, each
+    as far on as the robot drives."""
+    room = LidarSimulator(seed=3, walls=ROOM.walls)
+    corners = np.array([[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]]) + [1.8, 0.0]
+    box = LidarSimulator(seed=3, walls=np.stack((corners, np.roll(corners, -1, axis=0)), axis=1))
+    odometry, nobody = ScanOdometry(), np.zeros((0, 2))
+    poses = [odometry.update((room if k < 10 else box).scan(0.1 * k, Pose2D(1.0 + 0.04 * k, 0.0, 0.0), nobody))
+             for k in range(30)]
+    assert all(pose is not None for pose in poses[:10]) and poses[10:15] == [None] * 5 and odometry.lost == 5
+    placed = np.array([[pose.x, pose.y] for pose in poses[15:] if pose is not None])
+    assert len(placed) == 15
+    assert placed[0, 0] == pytest.approx(0.6, abs=0.05)  # dead reckoning carried it across the 5 scans
+    assert np.mean(np.diff(placed[:, 0])) == pytest.approx(0.04, abs=0.005) and np.abs(placed[:, 1]).max() < 0.05
+
+
 @pytest.mark.parametrize(("odometry", "static_from"), [(ScanOdometryConfig(), 16), (None, None)])
 def test_a_post_beside_a_walker_turns_static_while_the_robot_drives(odometry: ScanOdometryConfig | None, static_from: int | None) -> None:
     """The robot drives at 0.5 m/s turning 0.1 rad/s past a post 4 m ahead while a person walks
