@@ -112,12 +112,14 @@ class ScanOdometry:
             return self._pose
         expected = self._pose.compose(self._motion)
         if cloud.size() < config.min_points:
-            return self._lose(expected)
+            self._lose(expected)
+            return None
         relative, inliers = self._align(cloud, self._keyframe_pose.inverse().compose(expected))
         if inliers < config.min_inliers:
             if self._missed + 1 >= config.reanchor_after:
                 self._set_keyframe(cloud, expected)
-            return self._lose(expected)
+            self._lose(expected)
+            return None
         pose = self._keyframe_pose.compose(relative)
         self._motion, self._pose, self._missed = self._pose.inverse().compose(pose), pose, 0
         if math.hypot(relative.x, relative.y) >= config.keyframe_distance or abs(relative.yaw) >= config.keyframe_angle:

@@ -86,12 +86,12 @@ def segment_features(
     the nearest other segment's centroid (a leg's partner is near) and that segment's width;
     how far in front of its neighbouring beams the segment stands, on the nearer side
     (foreground, at most STANDS_FREE; a beam that saw nothing within range counts as far behind,
-    whatever that range, and beyond the first or last beam as 0); the distance from its centroid to the nearest point of
-    any other segment (clearance: people walk in the open, furniture legs stand by tables and
-    walls) and the length of other segments' surface within CLUTTER_RADII of it (each point
-    standing for the arc its beam spans at its range); how many other wanted segments lie within
-    the larger radius (a person's other leg, or the three other legs of a chair).
-    Distances are capped at FAR.
+    whatever that range, and beyond the first or last beam as 0); the distance from its centroid
+    to the nearest point of any other segment (clearance: people walk in the open, furniture legs
+    stand by tables and walls) and the length of other segments' surface within CLUTTER_RADII of
+    it (each point standing for the arc its beam spans at its range); how many other wanted
+    segments lie within the larger radius (a person's other leg, or the three other legs of a
+    chair). Distances are capped at FAR.
     """
     ends = np.append(starts[1:], len(points))
     wanted = np.ones(len(starts), dtype=bool) if select is None else np.asarray(select, dtype=bool)
