@@ -4,12 +4,11 @@ assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, wit
 Life of a track: it is born tentative from an unassigned detection that is not on the static
 world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
 (`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean
-confidence over its hits so far reaches `confirm_confidence`
-(`striding_confidence` for a track whose legs stride; one that does not walk and whose mean
-confidence is under `sure_confidence` also waits `still_wait` seconds, long enough for the static
-world to tell; an infinite wait lasts until it walks), dropped after `tentative_misses` misses in
-a row while still tentative (a detection on the static world counts as a miss for a tentative
-track), reported while it has missed at most `report_misses` scans in a row, and deleted after
+confidence over its hits so far reaches `confirm_confidence` (`striding_confidence` for a track
+whose legs stride; one that does not walk and whose mean confidence is under `sure_confidence`
+also waits `still_wait` seconds, long enough for the static world to tell; an infinite wait lasts
+until it walks), dropped after `tentative_misses` misses in a row while still tentative (a
+detection on the static world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row, and deleted after
 `death_misses` consecutive misses once confirmed. A detection beside a confirmed track
 (`birth_clearance`) starts no track: it is that person's other leg. A confirmed person who stands
 still is kept: only confirmation may ask for motion.
@@ -205,13 +204,11 @@ class Tracker:
         sure = config.sure_hits is not None and mean >= config.sure_confidence
         if track.hits < (config.sure_hits if sure else config.birth_hits):
             return False
-        walking = track.walking(config)
         striding = config.striding_confidence is not None and track.striding(config)
-        needed = config.striding_confidence if striding else config.confirm_confidence
-        if mean < needed:
+        if mean < (config.striding_confidence if striding else config.confirm_confidence):
             return False
         assert track.born is not None
-        return walking or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return striding or track.walking(config) or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
