@@ -6,7 +6,9 @@ is then placed by the pose of its frame in the odometry frame at the scan's head
 
 A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
 (`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
-the first scan placed, named `SCAN_ODOMETRY_FRAME`.
+the first scan placed, named `SCAN_ODOMETRY_FRAME`. Tracked in the scan's own frame, the scans are
+matched too, and only to judge which tracks walk (`PersonTracker.process`'s `motion`): the frame
+moves with the robot, and furniture it drives past must not walk.
 
 A ROS map (`occupancy_map`) is placed the same way: at each scan, the pose of the tracking frame
 (the odometry frame, or the scan's own) in the map's frame is looked up in the same tree, where a
@@ -78,7 +80,8 @@ class LogTracking:
 
     Args:
         log: an open log.
-        frame: "sensor" (the scan's own frame) or "odom" (the odometry frame).
+        frame: "sensor" (the scan's own frame; scan matching tells how it moves) or "odom" (the
+            odometry frame).
         odometry: with frame "odom", "log" reads the log's odometry topic and tf; "scan" places
             each scan by scan matching instead (for a log without odometry), and a scan it cannot
             place is skipped.
@@ -110,6 +113,8 @@ class LogTracking:
         self.tree: FrameTree | None = None
         self.output_frame: str | None = None
         self.scan_odometry: ScanOdometry | None = None
+        #: Places the scan's own frame, to judge motion in, when that is the output frame.
+        self.motion: ScanOdometry | None = ScanOdometry() if frame == "sensor" else None
         tree = odometry_frame = None
         if frame == "odom" and odometry == "scan":
             if occupancy is not None:
@@ -170,7 +175,11 @@ class LogTracking:
                 self.skipped += 1
                 continue
             self._place_map(scan)
-            yield scan, self._tracker.process(scan, pose, self.output_frame, index)
+            motion = None
+            if self.motion is not None:
+                self.motion.update(scan)
+                motion = self.motion.pose
+            yield scan, self._tracker.process(scan, pose, self.output_frame, index, motion)
         if self.scan_odometry is not None and seen and self.skipped == seen:
             raise LogError(f"scan matching placed none of the {seen} scans of {self.log.path} (too few points in each)")
         if self.tree is not None and seen and self.skipped == seen:

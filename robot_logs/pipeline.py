@@ -133,7 +133,8 @@ class PersonTracker:
                                 report_misses=1, tentative_misses=2, birth_clearance=0.6)
         return cls(detector, tracker, None, world)
 
-    def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0) -> ScanResult:
+    def process(self, scan: Scan, sensor_pose: Pose2D = Pose2D(), frame: str | None = None, scan_index: int = 0,
+                motion: Pose2D | None = None) -> ScanResult:
         """Detect people in `scan`, move them into the output frame, update the tracks.
 
         Args:
@@ -142,17 +143,22 @@ class PersonTracker:
                 (identity: track in the scan's own frame).
             frame: output frame name; defaults to the scan's frame.
             scan_index: position of the scan on its topic, carried into the result.
+            motion: where the output frame is in a frame fixed to the world, when it moves with
+                the robot (the scan's own frame on a moving robot, placed by `ScanOdometry`):
+                tracks are judged walking by their motion there, so furniture that the robot
+                drives past is not taken for a walker.
         """
         world = self.world
         reject = None if world is None else (lambda legs: world.is_static(sensor_pose.apply(legs)))
         found = detect(scan, self.detector, self.classifier, reject)
         moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence, found.spread,
                            sensor_pose.apply(found.unsure))
-        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, spread=found.spread, unsure=moved.unsure)
+        tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, spread=found.spread, unsure=moved.unsure,
+                                   motion=motion)
         if world is not None:
             sure = world.config.protect_confidence
             walkers = world.config.protect_walkers
             people = [t.kf.x[:2] for t in self.tracker.tracks
-                      if t.confirmed and (t.confidence_sum >= sure * t.hits or walkers and t.walking(self.tracker.config))]
+                      if t.confirmed and (t.confidence_sum >= sure * t.hits or walkers and self.tracker.walking(t))]
             world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

@@ -100,6 +100,12 @@ class ScanOdometry:
             seed_matrix = result.T_target_source
         return _pose(result.T_target_source), result.num_inliers / cloud.size()
 
+    @property
+    def pose(self) -> Pose2D:
+        """The latest scan's pose: placed, or where the last motion led when it could not be
+        placed (the origin before any scan was placed)."""
+        return self._pose
+
     def update(self, scan: Scan) -> Pose2D | None:
         """The pose of `scan`'s frame in the frame of the first scan placed; None if it cannot be placed."""
         config = self.config

@@ -15,7 +15,9 @@ still is kept: only confirmation may ask for motion.
 
 A track walks while it is `still_distance` from where it was `walk_window` seconds before, or
 its legs' spread changes with a stride; a walker needs no wait, however still they are in the
-output frame. A confirmed track that walks and that no detection reached takes the nearest
+output frame. Where the output frame moves with the robot (the laser's own), `step` may be told
+where that frame is in a frame fixed to the world (scan odometry's), and motion is judged there:
+a post that the robot drives past moves in the laser's frame but does not walk. A confirmed track that walks and that no detection reached takes the nearest
 unsure one (a leg-sized segment off the static world that the classifier scored low) inside the
 gate its filter predicts, for `unsure_time` seconds after its last detection, so a person
 already followed is kept through the scans where the classifier doubts their legs. A confirmed
@@ -32,6 +34,8 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from scipy.optimize import linear_sum_assignment
+
+from robot_logs.frames import Pose2D
 
 #: Chi-square quantile with 2 degrees of freedom: 99 % of true matches fall inside the gate.
 CHI2_2DOF_99 = 9.21
@@ -122,7 +126,8 @@ class Track:
         self.misses = 0
         self.last_hit: float | None = None
         self.last_sure: float | None = None
-        #: (time, x, y, spread) of its detections within `walk_window`, oldest first.
+        #: (time, x, y, spread) of its detections within `walk_window`, oldest first; x, y where
+        #: the filter put it, in the frame motion is judged in (`Tracker.place`).
         self.recent: list[tuple[float, float, float, float]] = []
         self.confidence_sum = 0.0
 
@@ -130,12 +135,12 @@ class Track:
     def confirmed(self) -> bool:
         return self.track_id is not None
 
-    def walking(self, config: TrackerConfig) -> bool:
-        """Whether it is `still_distance` from where it was `walk_window` ago (or at its birth,
-        if younger), or strides: a walker, not furniture (which neither moves nor strides)."""
+    def walking(self, config: TrackerConfig, place: np.ndarray) -> bool:
+        """Whether, now at `place`, it is `still_distance` from where it was `walk_window` ago (or
+        at its birth, if younger), or strides: a walker, not furniture (which neither moves nor strides)."""
         if not self.recent:
             return False
-        return bool(np.hypot(*(self.kf.x[:2] - np.array(self.recent[0][1:3]))) >= config.still_distance
+        return bool(np.hypot(*(place - np.array(self.recent[0][1:3]))) >= config.still_distance
                     or self.striding(config))
 
     def striding(self, config: TrackerConfig) -> bool:
@@ -163,6 +168,8 @@ class Tracker:
         self.config = config
         self.tracks: list[Track] = []
         self.time: float | None = None
+        #: The output frame's pose in the frame motion is judged in (see `step`).
+        self.motion = Pose2D()
         self._next_id = 1
 
     def _predict(self, time: float) -> None:
@@ -197,6 +204,14 @@ class Tracker:
         index = list(range(len(self.tracks))) if tracks is None else tracks
         return [(index[r], int(c)) for r, c in zip(rows, cols) if cost[r, c] <= self.config.gate]
 
+    def place(self, track: Track) -> np.ndarray:
+        """(2,) where the track's filter is, in the frame motion is judged in."""
+        return self.motion.apply(track.kf.x[:2])[0]
+
+    def walking(self, track: Track) -> bool:
+        """Whether the track walks (`Track.walking`), judged in the frame motion is judged in."""
+        return track.walking(self.config, self.place(track))
+
     def _ready(self, track: Track, time: float) -> bool:
         """Whether a tentative track has enough hits and is confident enough, or has waited enough."""
         config = self.config
@@ -208,7 +223,7 @@ class Tracker:
         if mean < (config.striding_confidence if striding else config.confirm_confidence):
             return False
         assert track.born is not None
-        return striding or track.walking(config) or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return striding or self.walking(track) or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the
@@ -221,7 +236,7 @@ class Tracker:
 
     def step(
         self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None,
-        spread: np.ndarray | None = None, unsure: np.ndarray | None = None,
+        spread: np.ndarray | None = None, unsure: np.ndarray | None = None, motion: Pose2D | None = None,
     ) -> list[TrackState]:
         """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
 
@@ -232,6 +247,8 @@ class Tracker:
             static: (D,) True for detections on the static world (default: none).
             spread: (D,) the distance between each detection's two legs, NaN for one (default: none).
             unsure: (U, 2) people the detector doubts, which only keep confirmed tracks that walk (default: none).
+            motion: where the output frame is in a frame fixed to the world, when the output frame
+                moves with the robot: tracks walk by their motion there (default: the output frame is fixed).
 
         A confirmed track is reported while it coasts through up to `report_misses` misses.
         """
@@ -239,6 +256,7 @@ class Tracker:
         confidence = np.ones(len(detections)) if confidence is None else np.asarray(confidence, dtype=float)
         static = np.zeros(len(detections), dtype=bool) if static is None else np.asarray(static, dtype=bool)
         self._predict(time)
+        self.motion = motion if motion is not None else Pose2D()
         pairs = [(t, d) for t, d in self.associate(detections) if self.tracks[t].confirmed or not static[d]]
         hit = {t for t, _ in pairs}
         for t, d in pairs:
@@ -246,10 +264,10 @@ class Tracker:
             track.kf.update(detections[d])
             track.hits += 1
             track.confidence_sum += confidence[d]
-            track.note(time, track.kf.x[:2], np.nan if spread is None else spread[d], self.config.walk_window)
+            track.note(time, self.place(track), np.nan if spread is None else spread[d], self.config.walk_window)
         if unsure is not None and len(unsure):
             waiting = [t for t, track in enumerate(self.tracks) if t not in hit and track.confirmed
-                       and time - (track.last_sure or -np.inf) <= self.config.unsure_time and track.walking(self.config)]
+                       and time - (track.last_sure or -np.inf) <= self.config.unsure_time and self.walking(track)]
             for t, u in self.associate(np.asarray(unsure, dtype=float).reshape(-1, 2), waiting) if waiting else []:
                 self.tracks[t].kf.update(unsure[u])
                 hit.add(t)
@@ -266,7 +284,7 @@ class Tracker:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
                 self.tracks[-1].last_hit = time
-                self.tracks[-1].note(time, detections[d], np.nan if spread is None else spread[d], self.config.walk_window)
+                self.tracks[-1].note(time, self.place(self.tracks[-1]), np.nan if spread is None else spread[d], self.config.walk_window)
         for track in self.tracks:
             if track.born is None:
                 track.born = time

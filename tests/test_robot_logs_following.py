@@ -23,3 +23,8 @@ def test_the_followed_walker_is_kept_in_nearly_every_scan(rate_hz: float, odomet
         # holds it; one under that level never, as it does not walk (measured 0 of 600 scans at 10 Hz, 0 of
         # 2,400 at 40 Hz, seed 0).
         assert score.false_positives <= 0.02 * score.scans
+    elif rate_hz == 10.0:
+        # Posts and walls move through the laser's frame; scan matching tells that they stand, so only
+        # those the classifier is sure of are tracked (measured 0.115 per scan, seed 0; 0.185 when every
+        # track that moves in the laser's frame walks).
+        assert score.false_positives <= 0.13 * score.scans

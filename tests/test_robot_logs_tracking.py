@@ -234,11 +234,11 @@ def test_a_stride_shows_a_walker_who_keeps_still_in_the_output_frame() -> None:
         spread = 0.17 + 0.15 * abs(math.sin(k * 0.5))
         walker.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([spread]))
         furniture.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([0.4 + 0.01 * (k % 2)]))
-    assert walker.tracks[0].walking(config) and walker.tracks[0].confirmed
-    assert not furniture.tracks[0].walking(config) and not furniture.tracks[0].confirmed
+    assert walker.walking(walker.tracks[0]) and walker.tracks[0].confirmed
+    assert not furniture.walking(furniture.tracks[0]) and not furniture.tracks[0].confirmed
     for k in range(6, 30):  # the walker stops: 2 s later their stride no longer shows
         walker.step(0.1 * k, np.array([[2.0, 0.0]]), np.array([0.5]), spread=np.array([0.17]))
-    assert not walker.tracks[0].walking(config)
+    assert not walker.walking(walker.tracks[0])
 
 
 def test_a_striding_track_is_confirmed_on_weaker_evidence_than_a_still_or_gliding_one() -> None:
@@ -255,8 +255,26 @@ def test_a_striding_track_is_confirmed_on_weaker_evidence_than_a_still_or_glidin
         post.step(0.1 * k, np.array([[2.0, 1.0]]), confidence, spread=np.array([0.3]))
         glider.step(0.1 * k, np.array([[2.0 + 0.1 * k, -1.0]]), confidence, spread=np.array([0.3]))
     assert walker.tracks[0].confirmed and walker.tracks[0].striding(config)
-    assert not post.tracks[0].confirmed and not glider.tracks[0].confirmed and glider.tracks[0].walking(config)
+    assert not post.tracks[0].confirmed and not glider.tracks[0].confirmed and glider.walking(glider.tracks[0])
     assert not Tracker(replace(config, striding_confidence=None))._ready(walker.tracks[0], 3.0)  # 0.3 < 0.5
+
+
+def test_told_how_the_laser_frame_moves_a_passing_post_stands_and_a_followed_walker_walks() -> None:
+    """A robot drives along x at 1 m/s, tracking in its laser's frame: a post beside its way glides
+    back through that frame, a walker 2 m ahead keeps still there. Judged in the laser's frame the
+    post walks and is confirmed, the walker waits; told where the laser frame is (`motion`), the post
+    stands and the walker walks."""
+    config = TrackerConfig(confirm_confidence=0.5, still_wait=math.inf, sure_confidence=0.9)
+    confirmed = {}
+    for told in (False, True):
+        tracker = Tracker(config)
+        for k in range(20):
+            t = 0.1 * k
+            laser = Pose2D(t, 0.0, 0.0)  # the laser's pose in the world
+            people = laser.inverse().apply(np.array([[5.0, 1.0], [2.0 + t, 0.0]]))
+            tracker.step(t, people, np.array([0.6, 0.6]), motion=laser if told else None)
+        confirmed[told] = [track.confirmed for track in tracker.tracks]  # [post, walker]
+    assert confirmed == {False: [True, False], True: [False, True]}
 
 
 def test_a_person_s_spread_is_the_distance_between_their_legs() -> None:

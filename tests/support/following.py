@@ -19,6 +19,7 @@ from robot_logs.frames import Pose2D
 from robot_logs.leg_classifier import LegClassifier
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.pipeline import PersonTracker
+from robot_logs.scan_odometry import ScanOdometry
 
 #: A narrow outdoor lidar like the following log's: 245 beams over 86 degrees, 0.05-5.6 m, 1 cm noise.
 FOLLOWING_LIDAR = LidarSpec(angle_min=math.radians(-43.0), angle_max=math.radians(43.0),
@@ -91,12 +92,17 @@ VISIBLE_BEAMS = 3
 
 def follow(rate_hz: float, odometry: bool, seed: int = 0, classifier: LegClassifier | None = None) -> tuple[ClearMot, int]:
     """CLEAR-MOT of the walker (0.75 m match radius) over 60 s with the learned setup (`classifier`,
-    default: the shipped one), and how many scans found the walker's place on the static world."""
+    default: the shipped one), and how many scans found the walker's place on the static world.
+    Without odometry the walk is tracked in the laser's frame as `trials log track` tracks it:
+    scan matching tells how that frame moves."""
     walk = following_walk(60.0, rate_hz, seed)
     tracker = PersonTracker.learned(classifier)
+    matching = None if odometry else ScanOdometry()
     score, absorbed = ClearMot(), 0
     for pose, scan, world, local, beams in zip(walk.poses, walk.scans, walk.walker, walk.walker_in_laser, walk.beams):
-        result = tracker.process(scan, pose if odometry else Pose2D())
+        if matching is not None:
+            matching.update(scan)
+        result = tracker.process(scan, pose if odometry else Pose2D(), motion=None if matching is None else matching.pose)
         truth = (world if odometry else local)[None, :]
         assert tracker.world is not None
         absorbed += int(tracker.world.is_static(truth)[0])
