@@ -154,7 +154,7 @@ class PersonTracker:
         moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence, found.spread,
                            sensor_pose.apply(found.unsure))
         tracks = self.tracker.step(scan.stamp, moved.people, moved.confidence, spread=found.spread, unsure=moved.unsure,
-                                   motion=motion)
+                                   motion=motion, sensor=sensor_pose)
         if world is not None:
             sure = world.config.protect_confidence
             walkers = world.config.protect_walkers

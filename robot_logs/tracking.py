@@ -17,7 +17,10 @@ A track walks while it is `still_distance` from where it was `walk_window` secon
 its legs' spread changes with a stride; a walker needs no wait, however still they are in the
 output frame. Where the output frame moves with the robot (the laser's own), `step` may be told
 where that frame is in a frame fixed to the world (scan odometry's), and motion is judged there:
-a post that the robot drives past moves in the laser's frame but does not walk. A confirmed track that walks and that no detection reached takes the nearest
+a post that the robot drives past moves in the laser's frame but does not walk. Seen from a
+moving sensor two posts seem to change their spread as one hides the other, so a change of spread
+seen while the sensor moved `view_shift` confirms a track on the weaker evidence of a stride only
+if the track moved as well. A confirmed track that walks and that no detection reached takes the nearest
 unsure one (a leg-sized segment off the static world that the classifier scored low) inside the
 gate its filter predicts, for `unsure_time` seconds after its last detection, so a person
 already followed is kept through the scans where the classifier doubts their legs. A confirmed
@@ -29,6 +32,7 @@ same gap at any scan rate.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
@@ -71,6 +75,10 @@ class TrackerConfig:
         gait_spread: a change of the distance between a track's two legs (m) that shows a
             stride, however still the person is in the output frame (someone followed by the
             robot, tracked in the robot's frame); inf leaves strides out.
+        view_shift: a change of spread seen while the sensor moved this far (m) confirms a
+            tentative track at `striding_confidence` only if the track also moved
+            `still_distance`: from a moving sensor two posts seem to change their spread as one
+            hides the other.
         walk_window: a track walks while its detections of the last this many seconds moved
             `still_distance` or changed their spread by `gait_spread`.
         unsure_time: a confirmed track that walks takes unsure detections for this many seconds
@@ -90,6 +98,7 @@ class TrackerConfig:
     still_wait: float = 0.0
     still_distance: float = 0.3
     gait_spread: float = np.inf
+    view_shift: float = 0.1
     walk_window: float = 2.0
     unsure_time: float = 0.0
     sure_confidence: float = 1.0
@@ -109,6 +118,19 @@ class TrackState:
     vy: float
 
 
+class Seen(NamedTuple):
+    """One detection of a track as remembered for judging its motion: when, where the filter put
+    the track and where the sensor was (m, in the frame motion is judged in), and the legs' spread
+    (m; NaN for one leg)."""
+
+    time: float
+    x: float
+    y: float
+    spread: float
+    sensor_x: float
+    sensor_y: float
+
+
 class Track:
     """One person's filter (state x, y, vx, vy) and its hit and miss counts."""
 
@@ -126,33 +148,45 @@ class Track:
         self.misses = 0
         self.last_hit: float | None = None
         self.last_sure: float | None = None
-        #: (time, x, y, spread) of its detections within `walk_window`, oldest first; x, y where
-        #: the filter put it, in the frame motion is judged in (`Tracker.place`).
-        self.recent: list[tuple[float, float, float, float]] = []
+        #: Its detections within `walk_window`, oldest first.
+        self.recent: list[Seen] = []
         self.confidence_sum = 0.0
 
     @property
     def confirmed(self) -> bool:
         return self.track_id is not None
 
-    def walking(self, config: TrackerConfig, place: np.ndarray) -> bool:
+    def moved(self, config: TrackerConfig, place: np.ndarray) -> bool:
         """Whether, now at `place`, it is `still_distance` from where it was `walk_window` ago (or
-        at its birth, if younger), or strides: a walker, not furniture (which neither moves nor strides)."""
-        if not self.recent:
-            return False
-        return bool(np.hypot(*(place - np.array(self.recent[0][1:3]))) >= config.still_distance
-                    or self.striding(config))
+        at its birth, if younger)."""
+        return bool(self.recent) and bool(np.hypot(place[0] - self.recent[0].x, place[1] - self.recent[0].y)
+                                          >= config.still_distance)
+
+    def walking(self, config: TrackerConfig, place: np.ndarray) -> bool:
+        """Whether it moved (see `moved`) or strides: a walker, not furniture (which neither moves nor strides)."""
+        return self.moved(config, place) or self.striding(config)
 
     def striding(self, config: TrackerConfig) -> bool:
         """Whether its legs' spread changed by `gait_spread` within `walk_window`: a gait, which
         furniture never shows, even where the robot's own motion moves it in the output frame."""
-        spread = np.array([r[3] for r in self.recent], dtype=float)
+        spread = np.array([seen.spread for seen in self.recent], dtype=float)
         spread = spread[np.isfinite(spread)]
         return bool(len(spread) > 1 and np.ptp(spread) >= config.gait_spread)
 
-    def note(self, time: float, position: np.ndarray, spread: float, window: float) -> None:
-        """Remember a detection (where it put the filter), forgetting those older than `window` seconds."""
-        self.recent = [r for r in self.recent if time - r[0] <= window] + [(time, position[0], position[1], spread)]
+    def gait(self, config: TrackerConfig, place: np.ndarray) -> bool:
+        """Whether it strides as a person does: seen from a sensor that stayed within `view_shift`
+        of where it was, or while the track moved too (see `moved`)."""
+        if not self.striding(config):
+            return False
+        first, last = self.recent[0], self.recent[-1]
+        view = np.hypot(last.sensor_x - first.sensor_x, last.sensor_y - first.sensor_y)
+        return bool(view < config.view_shift) or self.moved(config, place)
+
+    def note(self, time: float, place: np.ndarray, spread: float, sensor: np.ndarray, window: float) -> None:
+        """Remember a detection (where it put the filter, and where the sensor was), forgetting
+        those older than `window` seconds."""
+        self.recent = [seen for seen in self.recent if time - seen.time <= window]
+        self.recent.append(Seen(time, float(place[0]), float(place[1]), spread, float(sensor[0]), float(sensor[1])))
         self.last_sure = time
 
     def state(self) -> TrackState:
@@ -168,8 +202,9 @@ class Tracker:
         self.config = config
         self.tracks: list[Track] = []
         self.time: float | None = None
-        #: The output frame's pose in the frame motion is judged in (see `step`).
+        #: The output frame's pose in the frame motion is judged in, and the sensor's place there (see `step`).
         self.motion = Pose2D()
+        self.sensor = np.zeros(2)
         self._next_id = 1
 
     def _predict(self, time: float) -> None:
@@ -219,7 +254,7 @@ class Tracker:
         sure = config.sure_hits is not None and mean >= config.sure_confidence
         if track.hits < (config.sure_hits if sure else config.birth_hits):
             return False
-        striding = config.striding_confidence is not None and track.striding(config)
+        striding = config.striding_confidence is not None and track.gait(config, self.place(track))
         if mean < (config.striding_confidence if striding else config.confirm_confidence):
             return False
         assert track.born is not None
@@ -237,6 +272,7 @@ class Tracker:
     def step(
         self, time: float, detections: np.ndarray, confidence: np.ndarray | None = None, static: np.ndarray | None = None,
         spread: np.ndarray | None = None, unsure: np.ndarray | None = None, motion: Pose2D | None = None,
+        sensor: Pose2D | None = None,
     ) -> list[TrackState]:
         """Advance to `time` (s), take this scan's (D, 2) detections, return confirmed tracks.
 
@@ -249,6 +285,8 @@ class Tracker:
             unsure: (U, 2) people the detector doubts, which only keep confirmed tracks that walk (default: none).
             motion: where the output frame is in a frame fixed to the world, when the output frame
                 moves with the robot: tracks walk by their motion there (default: the output frame is fixed).
+            sensor: the sensor's pose in the output frame (default: its origin), so a change of
+                spread seen while it moved is not taken for a stride (`view_shift`).
 
         A confirmed track is reported while it coasts through up to `report_misses` misses.
         """
@@ -257,6 +295,8 @@ class Tracker:
         static = np.zeros(len(detections), dtype=bool) if static is None else np.asarray(static, dtype=bool)
         self._predict(time)
         self.motion = motion if motion is not None else Pose2D()
+        at = sensor if sensor is not None else Pose2D()
+        self.sensor = self.motion.apply([at.x, at.y])[0]
         pairs = [(t, d) for t, d in self.associate(detections) if self.tracks[t].confirmed or not static[d]]
         hit = {t for t, _ in pairs}
         for t, d in pairs:
@@ -264,7 +304,7 @@ class Tracker:
             track.kf.update(detections[d])
             track.hits += 1
             track.confidence_sum += confidence[d]
-            track.note(time, self.place(track), np.nan if spread is None else spread[d], self.config.walk_window)
+            track.note(time, self.place(track), np.nan if spread is None else spread[d], self.sensor, self.config.walk_window)
         if unsure is not None and len(unsure):
             waiting = [t for t, track in enumerate(self.tracks) if t not in hit and track.confirmed
                        and time - (track.last_sure or -np.inf) <= self.config.unsure_time and self.walking(track)]
@@ -284,7 +324,8 @@ class Tracker:
                 self.tracks.append(Track(detections[d], self.config))
                 self.tracks[-1].confidence_sum = confidence[d]
                 self.tracks[-1].last_hit = time
-                self.tracks[-1].note(time, self.place(self.tracks[-1]), np.nan if spread is None else spread[d], self.config.walk_window)
+                self.tracks[-1].note(time, self.place(self.tracks[-1]), np.nan if spread is None else spread[d], self.sensor,
+                                     self.config.walk_window)
         for track in self.tracks:
             if track.born is None:
                 track.born = time
