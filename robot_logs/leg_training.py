@@ -96,8 +96,8 @@ class TrainingSettings:
 class LabelledSegments:
     """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
     but near a label), (N,) log index, (N,) time block (numbered across logs), (N,) on the
-    static world (`StaticFlags`) and (N,) from an augmented copy (`AUGMENTATIONS`; trained on,
-    never scored); `logs` names each log with its kind, its scan count and how many of them scan
+    static world (`StaticFlags`), (N,) from an augmented copy (`AUGMENTATIONS`; trained on,
+    never scored) and (N, 2) centroids in their scan's frame (m); `logs` names each log with its kind, its scan count and how many of them scan
     matching could not place (`unplaced`): labelled logs first, then standing, then empty ones."""
 
     features: np.ndarray
@@ -108,6 +108,7 @@ class LabelledSegments:
     static: np.ndarray
     logs: list[dict[str, object]]
     augmented: np.ndarray
+    centroids: np.ndarray
 
     def count(self, kind: str) -> int:
         """How many logs of a `kind` ("labelled", "standing", "nobody present")."""
@@ -268,17 +269,18 @@ class _Gathered:
     ignored: list[np.ndarray]
     static: list[np.ndarray]
     stamps: list[np.ndarray]
+    centroids: list[np.ndarray]
 
     def extend(self, other: _Gathered) -> None:
         """Append another gathering's segments (an augmented copy's)."""
-        for name in ("features", "is_leg", "ignored", "static", "stamps"):
+        for name in ("features", "is_leg", "ignored", "static", "stamps", "centroids"):
             getattr(self, name).extend(getattr(other, name))
 
 
 def _gather(scans: Iterable[Scan], label: Labeller, config: DetectorConfig, flags: StaticFlags | None) -> _Gathered:
     """The labelled candidate segments of `scans`, each flagged on the static world by `flags`
     (None: none is)."""
-    gathered = _Gathered([], [], [], [], [])
+    gathered = _Gathered([], [], [], [], [], [])
     for scan in scans:
         segments, mask = candidates(scan, config)
         on_static = flags(scan, segments, mask) if flags is not None else np.zeros(int(mask.sum()), dtype=bool)
@@ -290,6 +292,7 @@ def _gather(scans: Iterable[Scan], label: Labeller, config: DetectorConfig, flag
         gathered.ignored.append(near)
         gathered.static.append(on_static)
         gathered.stamps.append(np.full(len(positive), scan.stamp))
+        gathered.centroids.append(segments.centroids[mask])
     return gathered
 
 
@@ -379,7 +382,7 @@ def collect(
             their background (the robot moved) or no leg in front of it; a log has no candidate
             segment.
     """
-    every = _Gathered([], [], [], [], [])
+    every = _Gathered([], [], [], [], [], [])
     log_index, blocks, logs, augmented = [], [], [], []
     next_block = 0
     kinds = [("labelled", path) for path in labelled] + [("standing", path) for path in standing]
@@ -412,6 +415,7 @@ def collect(
     data = LabelledSegments(
         np.concatenate(every.features), np.concatenate(every.is_leg), np.concatenate(every.ignored),
         np.concatenate(log_index), np.concatenate(blocks), np.concatenate(every.static), logs, np.concatenate(augmented),
+        np.concatenate(every.centroids),
     )
     if not data.is_leg[(data.log < data.labelled_logs) & ~data.augmented].any():
         raise LogError(f"no segment lies within {settings.label_radius} m of a labelled leg in {', '.join(map(str, labelled))}")

@@ -21,7 +21,9 @@ confirmed track that walks is kept through the scans where the classifier doubts
 (`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a detection at any scan
 rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
 person standing still nor one walking at a steady distance ahead of a moving robot turns into
-static world.
+static world. Tracking in a frame that moves with the robot, `process` may be told where that
+frame is (`motion`, from scan matching): walking is judged there, so a post the robot drives
+past does not walk.
 """
 
 from __future__ import annotations

@@ -120,7 +120,7 @@ def test_folds_by_log_hold_out_each_log_with_legs_and_deal_out_the_empty_ones() 
     logs = [{"kind": "labelled"}, {"kind": "labelled"}, {"kind": "standing"}, {"kind": "nobody present"}]
     none = np.zeros(10, bool)
     data = LabelledSegments(features=np.zeros((10, 1)), is_leg=none, ignored=none, log=log, block=block, static=none,
-                            logs=logs, augmented=none)
+                            logs=logs, augmented=none, centroids=np.zeros((10, 2)))
     assert (data.labelled_logs, data.logs_with_legs) == (2, 3)
     assert folds(data, "log").tolist() == [0, 0, 1, 1, 2, 2, 1, 2, 0, 1]
     by_time = folds(data, "time", TrainingSettings(folds=3))
