@@ -7,8 +7,9 @@ is then placed by the pose of its frame in the odometry frame at the scan's head
 A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
 (`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
 the first scan placed, named `SCAN_ODOMETRY_FRAME`. Tracked in the scan's own frame, the scans are
-matched too, and only to judge which tracks walk (`PersonTracker.process`'s `motion`): the frame
-moves with the robot, and furniture it drives past must not walk.
+matched too, to judge which tracks walk and to keep the static-world grid in a fixed frame
+(`PersonTracker.process`'s `motion`): the scan's frame moves with the robot, and furniture it drives
+past must neither walk nor escape the grid; tracks stay in the scan's frame.
 
 A ROS map (`occupancy_map`) is placed the same way: at each scan, the pose of the tracking frame
 (the odometry frame, or the scan's own) in the map's frame is looked up in the same tree, where a
@@ -158,12 +159,15 @@ class LogTracking:
             raise LogError(f"{self.log.path}: {exc}: the map {self.occupancy.source} is in frame {self.occupancy.frame!r}; "
                            "name the frame it is drawn in (--map-frame), or record the localiser's transform") from None
 
-    def _place_map(self, scan: Scan) -> None:
+    def _place_map(self, scan: Scan, motion: Pose2D | None) -> None:
+        """Place the map in the grid's frame: the tracking frame's, or the one `motion` places it in."""
         world = self._tracker.world
         if self.occupancy is None or world is None:
             return
         pose = self._map_pose(self.output_frame or scan.frame_id, scan.stamp_ns)
         self.unmapped += pose is None
+        if pose is not None and motion is not None:
+            pose = pose.compose(motion.inverse())
         world.known_static = None if pose is None else self.occupancy.placed(pose)
 
     def __iter__(self) -> Iterator[tuple[Scan, ScanResult]]:
@@ -174,11 +178,11 @@ class LogTracking:
             if pose is None:
                 self.skipped += 1
                 continue
-            self._place_map(scan)
             motion = None
             if self.motion is not None:
                 self.motion.update(scan)
                 motion = self.motion.pose
+            self._place_map(scan, motion)
             yield scan, self._tracker.process(scan, pose, self.output_frame, index, motion)
         if self.scan_odometry is not None and seen and self.skipped == seen:
             raise LogError(f"scan matching placed none of the {seen} scans of {self.log.path} (too few points in each)")

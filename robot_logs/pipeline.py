@@ -22,8 +22,8 @@ confirmed track that walks is kept through the scans where the classifier doubts
 rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
 person standing still nor one walking at a steady distance ahead of a moving robot turns into
 static world. Tracking in a frame that moves with the robot, `process` may be told where that
-frame is (`motion`, from scan matching): walking is judged there, so a post the robot drives
-past does not walk.
+frame is (`motion`, from scan matching): walking is judged there and the grid kept there, so a
+post the robot drives past neither walks nor escapes the grid.
 """
 
 from __future__ import annotations
@@ -147,11 +147,12 @@ class PersonTracker:
             scan_index: position of the scan on its topic, carried into the result.
             motion: where the output frame is in a frame fixed to the world, when it moves with
                 the robot (the scan's own frame on a moving robot, placed by `ScanOdometry`):
-                tracks are judged walking by their motion there, so furniture that the robot
-                drives past is not taken for a walker.
+                tracks are judged walking by their motion there, and the static-world grid is
+                kept there, so furniture that the robot drives past is not taken for a walker.
         """
         world = self.world
-        reject = None if world is None else (lambda legs: world.is_static(sensor_pose.apply(legs)))
+        placed = sensor_pose if motion is None else motion.compose(sensor_pose)  # the sensor in the grid's frame
+        reject = None if world is None else (lambda legs: world.is_static(placed.apply(legs)))
         found = detect(scan, self.detector, self.classifier, reject)
         moved = Detections(sensor_pose.apply(found.legs), sensor_pose.apply(found.people), found.confidence, found.spread,
                            sensor_pose.apply(found.unsure))
@@ -160,7 +161,7 @@ class PersonTracker:
         if world is not None:
             sure = world.config.protect_confidence
             walkers = world.config.protect_walkers
-            people = [t.kf.x[:2] for t in self.tracker.tracks
+            people = [self.tracker.place(t) for t in self.tracker.tracks
                       if t.confirmed and (t.confidence_sum >= sure * t.hits or walkers and self.tracker.walking(t))]
-            world.update(scan, sensor_pose.apply(scan_points(scan)), sensor_pose, np.array(people).reshape(-1, 2))
+            world.update(scan, placed.apply(scan_points(scan)), placed, np.array(people).reshape(-1, 2))
         return ScanResult(scan_index, scan.stamp_ns, frame or scan.frame_id, sensor_pose, moved, tracks)

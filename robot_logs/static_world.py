@@ -81,7 +81,7 @@ class StaticWorld:
         self._is_known = np.zeros(self.side * self.side, dtype=bool)
         self._marked = np.zeros(self.side * self.side, dtype=np.int64)
         self._scans = 0
-        #: Set before each scan by whoever places a map in the output frame (`robot_logs.log_tracking`).
+        #: Set before each scan by whoever places a map in the grid's frame (`robot_logs.log_tracking`).
         self.known_static: KnownStatic | None = None
 
     def cells(self, points: np.ndarray) -> np.ndarray:
