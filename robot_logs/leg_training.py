@@ -94,11 +94,12 @@ class TrainingSettings:
 
 @dataclass(frozen=True)
 class LabelledSegments:
-    """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored (unmatched
-    but near a label), (N,) log index, (N,) time block (numbered across logs), (N,) on the
-    static world (`StaticFlags`), (N,) from an augmented copy (`AUGMENTATIONS`; trained on,
-    never scored) and (N, 2) centroids in their scan's frame (m); `logs` names each log with its kind, its scan count and how many of them scan
-    matching could not place (`unplaced`): labelled logs first, then standing, then empty ones."""
+    """Candidate segments of some logs: (N, F) features, (N,) leg or not, (N,) ignored
+    (unmatched but near a label), (N,) log index, (N,) time block (numbered across logs), (N,)
+    on the static world (`StaticFlags`), (N,) from an augmented copy (`AUGMENTATIONS`; trained
+    on, never scored) and (N, 2) centroids in their scan's frame (m); `logs` names each log with
+    its kind, its scan count and how many of them scan matching could not place (`unplaced`):
+    labelled logs first, then standing, then empty ones."""
 
     features: np.ndarray
     is_leg: np.ndarray
