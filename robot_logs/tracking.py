@@ -1,17 +1,17 @@
 """Multi-person tracking: one constant-velocity Kalman filter per track (filterpy), detections
 assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
 
-Life of a track: it is born tentative from an unassigned detection that is not on the static
-world, confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
-(`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean
-confidence over its hits so far reaches `confirm_confidence` (`striding_confidence` for a track
-whose legs stride; one that does not walk and whose mean confidence is under `sure_confidence`
-also waits `still_wait` seconds, long enough for the static world to tell; an infinite wait lasts
-until it walks), dropped after `tentative_misses` misses in a row while still tentative (a
-detection on the static world counts as a miss for a tentative track), reported while it has missed at most `report_misses` scans in a row, and deleted after
-`death_misses` consecutive misses once confirmed. A detection beside a confirmed track
-(`birth_clearance`) starts no track: it is that person's other leg. A confirmed person who stands
-still is kept: only confirmation may ask for motion.
+Life of a track: it is born tentative from an unassigned detection that is not on the static world,
+confirmed (and given the next id, never reused) once it has `birth_hits` consecutive hits
+(`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean confidence
+over its hits so far reaches `confirm_confidence` (`striding_confidence` for a track whose legs
+stride; one that does not walk and whose mean confidence is under `sure_confidence` also waits
+`still_wait` seconds, long enough for the static world to tell; an infinite wait lasts until it
+walks), dropped after `tentative_misses` misses in a row while still tentative (a detection on the
+static world counts as a miss for a tentative track), reported while it has missed at most
+`report_misses` scans in a row, and deleted after `death_misses` consecutive misses once confirmed.
+A detection beside a confirmed track (`birth_clearance`) starts no track: it is that person's other
+leg. A confirmed person who stands still is kept: only confirmation may ask for motion.
 
 A track walks while it is `still_distance` from where it was `walk_window` seconds before, or its
 legs' spread changes with a stride; a walker needs no wait, however still they are in the output
