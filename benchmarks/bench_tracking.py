@@ -22,7 +22,7 @@ within 5 m of the lidar, the range within which the bags label legs. The learned
 simulator's default legs and lidar and on those fitted to the labelled bags (`BodyModel.fitted()`,
 `LidarSpec.fitted()`), with 6 walkers and with one, and with the lidar driving a loop among the
 furniture, tracked in the room's frame as odometry places it and in the laser's own frame as
-`trials log track` tracks a log (scan matching tells how it moves). The standing log's passers-by (legs by
+`trials log track` tracks a log (odometry, or scan matching, tells how it moves). The standing log's passers-by (legs by
 background subtraction) are tracked by a detector trained without that log, the figure that predicts
 tracking on a new laser and place, and the log recorded with nobody present by a driving robot,
 where every track is false. Leg precision and recall cross-validated by bag, for the classifier
@@ -174,24 +174,27 @@ SETTLE_S = 5.0
 
 def quality(seeds: range, duration: float, shape: str, clutter: bool, setup: str, sensor: str = "default",
             people: int = PEOPLE, classifier: LegClassifier | None = None,
-            moving: bool = False, laser_frame: bool = False) -> tuple[ClearMot, ClearMot, ClearMot, ClearMot]:
+            moving: bool = False, laser_frame: str | None = None) -> tuple[ClearMot, ClearMot, ClearMot, ClearMot]:
     """CLEAR-MOT summed over seeds: over every scan, over the scans after SETTLE_S, over every
     scan with every person as ground truth, seen or not (hidden ones count as misses), and over
     every scan with the people seen within LABELLED_RANGE of the lidar as ground truth (the others
-    hidden). A `moving` lidar is tracked in the room's frame, as odometry would place it, or with
-    `laser_frame` in its own, as `trials log track` tracks a log (scan matching tells how it moves)."""
+    hidden). A `moving` lidar is tracked in the room's frame, as odometry would place it, or in its
+    own, as `trials log track` tracks a log, told how it moves by `laser_frame`: "odometry" (the
+    log's, here the true path) or "scan matching" (a log without odometry)."""
     totals = ClearMot(), ClearMot(), ClearMot(), ClearMot()
     for seed in seeds:
         crowd, poses, scans, beams = simulate(seed, duration, shape, clutter, sensor=sensor, people=people, moving=moving)
         tracker = make_tracker(setup, classifier)
         scores = ClearMot(), ClearMot(), ClearMot(), ClearMot()
-        matching = ScanOdometry() if laser_frame else None
+        matching = ScanOdometry() if laser_frame == "scan matching" else None
         for when, walkers, pose, scan, on in zip(crowd.times, crowd.positions, poses, scans, beams):
-            if matching is None:
+            if laser_frame is None:
                 tracks = tracker.process(scan, pose).tracks
             else:
-                matching.update(scan)
-                tracks = tracker.process(scan, motion=matching.pose).tracks
+                if matching is not None:
+                    matching.update(scan)
+                motion = poses[0].inverse().compose(pose) if matching is None else matching.pose
+                tracks = tracker.process(scan, motion=motion).tracks
                 walkers, pose = pose.inverse().apply(walkers), Pose2D()
             ids, where = np.array([t.track_id for t in tracks], dtype=int), np.array([[t.x, t.y] for t in tracks]).reshape(-1, 2)
             seen = on >= VISIBLE_BEAMS
@@ -415,11 +418,12 @@ def main() -> None:
             ("legs", True, "rules", "default", PEOPLE, False), ("legs", True, "rules+grid", "default", PEOPLE, False)]
     rows += [("legs", clutter, "learned", sensor, people, False) for people in (PEOPLE, 1) for clutter in (False, True)
              for sensor in SENSORS]
-    rows = [(*row, False) for row in rows] + [("legs", True, "learned", "fitted", PEOPLE, True, laser) for laser in (False, True)]
+    rows = [(*row, None) for row in rows] + [("legs", True, "learned", "fitted", PEOPLE, True, laser)
+                                             for laser in (None, "odometry", "scan matching")]
     for shape, clutter, setup, sensor, people, moving, laser in rows:
         q, settled, everyone, near = quality(seeds, args.duration, shape, clutter, setup, sensor, people, detector, moving,
                                              laser)
-        frame = "laser frame, moved by scan matching" if laser else "room frame"
+        frame = f"laser frame, moved by {laser}" if laser else "room frame"
         where = ("among furniture" if clutter else "open space") + (f", lidar driving a loop ({frame})" if moving else "")
         print(f"CLEAR-MOT, {setup}, {shape} model, {sensor} lidar and legs, {people} walker{'s' * (people > 1)}, {where}, "
               f"{len(seeds)} seeds x {args.duration:.0f} s at 10 Hz: "

@@ -130,6 +130,13 @@ class FrameTree:
             edge = self._edges[child] = PoseTrack(parent, child, static=static)
         edge.add(stamp_ns, pose)
 
+    def moving_root(self, frame: str) -> str | None:
+        """The topmost frame above `frame`, where some transform between them changes over time (a
+        frame the robot moves in, as odom or map is for its laser); None where none does."""
+        chain = self._chain(frame_name(frame))
+        moves = any(len(set(self._edges[child].poses)) > 1 for child in chain[:-1])
+        return chain[-1] if moves else None
+
     def _chain(self, frame: str) -> list[str]:
         chain = [frame]
         while chain[-1] in self._edges and len(chain) <= len(self._edges):

@@ -7,9 +7,10 @@ is then placed by the pose of its frame in the odometry frame at the scan's head
 A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
 (`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
 the first scan placed, named `SCAN_ODOMETRY_FRAME`. Tracked in the scan's own frame, the scans are
-matched too, to judge which tracks walk and to keep the static-world grid in a fixed frame
+placed in a fixed frame too, to judge which tracks walk and to keep the static-world grid there
 (`PersonTracker.process`'s `motion`): the scan's frame moves with the robot, and furniture it drives
-past must neither walk nor escape the grid; tracks stay in the scan's frame.
+past must neither walk nor escape the grid; tracks stay in the scan's frame. The log's odometry
+places them where it has some (an Odometry topic, or tf alone), scan matching where it has none.
 
 A ROS map (`occupancy_map`) is placed the same way: at each scan, the pose of the tracking frame
 (the odometry frame, or the scan's own) in the map's frame is looked up in the same tree, where a
@@ -54,6 +55,14 @@ def read_scans(log: LogReader, topic: str) -> Iterator[Scan]:
         yield to_scan(message.data, message.record_ns, f"scan {index} on {topic} of {log.path}")
 
 
+def _add_tf(tree: FrameTree, log: LogReader, skip_child: str | None = None) -> None:
+    """Add every transform on the log's tf topics to `tree`, but those into `skip_child`."""
+    for message in log.messages({t.name for t in tf_topics(log.topics)}):
+        for edge in to_transforms(message.data, message.record_ns, is_static_tf(message.topic)):
+            if edge.child != skip_child:
+                tree.add(edge.parent, edge.child, edge.stamp_ns, edge.pose, static=edge.static)
+
+
 def read_frame_tree(log: LogReader, odometry_topic: str) -> tuple[FrameTree, str]:
     """The odometry and tf of a log as one frame tree, and the odometry frame's name.
 
@@ -68,12 +77,51 @@ def read_frame_tree(log: LogReader, odometry_topic: str) -> tuple[FrameTree, str
         tree.add(odometry.frame_id, odometry.child_frame_id, odometry.stamp_ns, odometry.pose)
     if odometry_frame is None:
         raise LogError(f"topic {odometry_topic} of {log.path} holds no odometry messages")
-    topics = tf_topics(log.topics)
-    for message in log.messages({t.name for t in topics}):
-        for edge in to_transforms(message.data, message.record_ns, is_static_tf(message.topic)):
-            if edge.child != base_frame:
-                tree.add(edge.parent, edge.child, edge.stamp_ns, edge.pose, static=edge.static)
+    _add_tf(tree, log, skip_child=base_frame)
     return tree, odometry_frame
+
+
+class OdometryMotion:
+    """Where the log's odometry places the scan's frame, relative to the first scan it places: the
+    frame that tracking in the scan's own frame judges motion in. A scan it does not place (outside
+    the odometry's time span, or across a gap) keeps the pose before it, as if the robot stood."""
+
+    def __init__(self, tree: FrameTree, frame: str, path: Path) -> None:
+        self.tree, self.frame, self.path = tree, frame, path
+        self.pose = Pose2D()
+        self._origin: Pose2D | None = None
+
+    def update(self, scan: Scan) -> None:
+        """Move `pose` to the scan's."""
+        try:
+            placed = self.tree.lookup(self.frame, scan.frame_id, scan.stamp_ns)
+        except LogError as exc:
+            raise LogError(f"{self.path}: {exc}") from None
+        if placed is not None:
+            if self._origin is None:
+                self._origin = placed.inverse()
+            self.pose = self._origin.compose(placed)
+
+
+def log_odometry(log: LogReader, topics: TopicNames, scan_frame: str) -> tuple[FrameTree, str, str] | None:
+    """The log's own record of how the scan's frame moves: a frame tree, the fixed frame it moves in,
+    and where that comes from in words. An Odometry topic with tf comes first (one named with
+    `topics.odometry` must reach the scan's frame); without one, tf alone, where a transform above
+    the scan's frame changes; None when the log has neither."""
+    if topics.odometry is not None or any(t.msgtype in ODOMETRY_TYPES for t in log.topics):
+        topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
+        tree, frame = read_frame_tree(log, topic.name)
+        try:
+            tree.lookup(frame, scan_frame, 0)
+        except LogError as exc:
+            if topics.odometry is not None:
+                raise LogError(f"{log.path}: {exc}") from None
+            return None
+        return tree, frame, f"odometry on {topic.name}"
+    tree = FrameTree()
+    _add_tf(tree, log)
+    frame = tree.moving_root(scan_frame)
+    return None if frame is None else (tree, frame, f"tf ({frame} frame)")
 
 
 class LogTracking:
@@ -81,11 +129,13 @@ class LogTracking:
 
     Args:
         log: an open log.
-        frame: "sensor" (the scan's own frame; scan matching tells how it moves) or "odom" (the
+        frame: "sensor" (the scan's own frame; `motion` tells how it moves) or "odom" (the
             odometry frame).
-        odometry: with frame "odom", "log" reads the log's odometry topic and tf; "scan" places
-            each scan by scan matching instead (for a log without odometry), and a scan it cannot
-            place is skipped.
+        odometry: "log" reads the log's odometry topic and tf; "scan" places each scan by scan
+            matching instead (for a log without odometry), and with frame "odom" a scan it cannot
+            place is skipped. In the scan's own frame, "log" falls back on tf alone where the log
+            has no odometry topic, and on scan matching where neither reaches the scan's frame
+            (`motion_source` says which).
         topics: topic names that override the choice by type.
         tracker: detection and tracking (default: `PersonTracker.learned()`, the shipped leg
             classifier with static-world rejection).
@@ -114,9 +164,7 @@ class LogTracking:
         self.tree: FrameTree | None = None
         self.output_frame: str | None = None
         self.scan_odometry: ScanOdometry | None = None
-        #: Places the scan's own frame, to judge motion in, when that is the output frame.
-        self.motion: ScanOdometry | None = ScanOdometry() if frame == "sensor" else None
-        tree = odometry_frame = None
+        tree = odometry_frame = read = None
         if frame == "odom" and odometry == "scan":
             if occupancy is not None:
                 raise LogError(f"{log.path}: a map is placed by the log's odometry and tf; scan odometry has no map frame")
@@ -126,8 +174,14 @@ class LogTracking:
             hint = "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead"
             odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
             tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
+            read = (tree, odometry_frame, f"odometry on {odometry_topic.name}")
             if frame == "odom":
                 self.tree, self.output_frame = tree, odometry_frame
+        #: Places the scan's own frame, to judge motion in, when that is the output frame; in words.
+        self.motion: OdometryMotion | ScanOdometry | None = None
+        self.motion_source: str | None = None
+        if frame == "sensor":
+            self.motion, self.motion_source = self._sensor_motion(odometry, topics, read)
         self._tracker = tracker if tracker is not None else PersonTracker.learned()
         self.occupancy = occupancy
         self._map_tree = tree
@@ -138,6 +192,20 @@ class LogTracking:
             self._map_pose(odometry_frame, 0)  # the map's frame must be reachable from the odometry frame
         self.skipped = 0
         self.unmapped = 0
+
+    def _sensor_motion(self, odometry: Odometry, topics: TopicNames,
+                       read: tuple[FrameTree, str, str] | None) -> tuple[OdometryMotion | ScanOdometry, str]:
+        """What places the scan's frame as the robot moves, and in words: the log's odometry (`read`
+        already for a map), else what `log_odometry` finds, else scan matching."""
+        if odometry == "log" and read is None:
+            scans = read_scans(self.log, self.scan_topic.name)
+            first = next(scans, None)
+            scans.close()
+            read = None if first is None else log_odometry(self.log, topics, first.frame_id)
+        if odometry == "scan" or read is None:
+            return ScanOdometry(), "scan matching"
+        tree, fixed, source = read
+        return OdometryMotion(tree, fixed, self.log.path), source
 
     def _sensor_pose(self, scan: Scan) -> Pose2D | None:
         if self.scan_odometry is not None:

@@ -90,10 +90,11 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=types.output_file, metavar="CSV", help="write the tracks here (default: standard output)")
     parser.add_argument("--mcap", type=types.output_file, metavar="FILE", help="also write scans, detections and tracks as an MCAP for Foxglove")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
-    parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic for --frame odom (default: the log's only one)")
+    parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic (default: the log's only one)")
     parser.add_argument("--odometry", choices=("log", "scan"), default="log",
-                        help="the robot's motion for --frame odom: the log's odometry and tf (default), or matching each "
-                        "scan to the earlier ones, for a log recorded without odometry (implies --frame odom; frame 'scan_odom')")
+                        help="the robot's motion: the log's odometry and tf (default; in the scan's frame, tf alone or scan "
+                        "matching where the log has no odometry), or matching each scan to the earlier ones, for a log "
+                        "recorded without odometry (implies --frame odom; frame 'scan_odom')")
     parser.add_argument("--detector", type=types.input_file, metavar="FILE",
                         help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
     types.add_map(parser)
@@ -254,5 +255,6 @@ def track(args: argparse.Namespace) -> int:
                          "they were tracked without the map\n")
     where = f" -> {args.out}" if args.out else ""
     if not args.quiet:
-        sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}\n")
+        moved = f"; motion from {tracking.motion_source}" if tracking.motion_source else ""
+        sys.stderr.write(f"{len(table.ids)} tracks, {len(table)} rows from {tracking.scan_topic.name} of {args.file}{where}{moved}\n")
     return 0
