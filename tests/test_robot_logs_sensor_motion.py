@@ -18,6 +18,7 @@ from robot_logs.records import Odometry, Transform
 from robot_logs.scan_odometry import ScanOdometry
 from robot_logs.topics import TopicNames
 from tests.support.bag_writer import BagWriter
+from trials.cli import main
 
 MOUNT = Pose2D(0.3, 0.0, 0.0)  # the laser on the robot's base
 POST = np.array([[8.0, 1.2]])  # a leg-sized post beside the robot's way, in the odometry frame
@@ -134,3 +135,9 @@ def test_with_odometry_the_post_stands_and_the_followed_walker_is_kept(drives, s
     assert found["none"][0] == 1
     if setup == "rules_with_grid":
         assert found["none"][2] <= SCANS - 40
+
+
+def test_trials_log_track_names_what_moved_the_scan_frame(drives, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for motion, source in (("tf", "tf (odom frame)"), ("none", "scan matching")):
+        assert main(["log", "track", str(drives[motion]), "--out", str(tmp_path / f"{motion}.csv")]) == 0
+        assert capsys.readouterr().err.rstrip().endswith(f"; motion from {source}")
