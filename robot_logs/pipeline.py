@@ -7,10 +7,10 @@ lidar perception use: hand it each scan with the sensor's pose in the output fra
 the static-world grid and confirmation by the classifier's mean confidence;
 `PersonTracker.rules_with_grid()` the one for simulated scans among furniture.
 
-The rule for a person: a tentative track is confirmed after 3 consecutive hits (2 while its mean
-reaches `protect`) once the mean leg probability of its detections reaches the detector's
-`confirm` level (what 75 % of held-out labelled legs reach), or only its leg threshold while it
-strides (its legs' spread changes 0.07 m within 2 s): a gait tells a person whom a laser the
+The rule for a person: a tentative track is confirmed after 3 hits, missing no two scans in a
+row (2 hits while its mean reaches `protect`), once the mean leg probability of its detections
+reaches the detector's `confirm` level (what 75 % of held-out labelled legs reach), or only its
+leg threshold while it strides (its legs' spread changes 0.07 m within 2 s): a gait tells a person whom a laser the
 detector was not trained on scores low.
 Legs on static cells are dropped before pairing, so clutter confirmed early loses its detections
 once its cells turn static and dies. A tentative track below the `protect` level (what half the
@@ -75,6 +75,10 @@ SURE_HITS = 2
 #: Change of the distance between a track's two legs (m) that the learned setup takes for a stride.
 GAIT_SPREAD = 0.07
 
+#: Misses in a row that drop a tentative track of the learned setup: it outlives one scan without
+#: its legs, as the classifier loses a person close to the laser now and then.
+TENTATIVE_MISSES = 2
+
 
 def still_wait(world: StaticWorldConfig) -> float:
     """How long a still, unsure track waits: half a second more than a cell needs to turn static,
@@ -115,7 +119,8 @@ class PersonTracker:
             detector,
             TrackerConfig(confirm_confidence=classifier.confirm, striding_confidence=classifier.threshold,
                           still_wait=math.inf, sure_confidence=classifier.protect, sure_hits=SURE_HITS,
-                          death_time=LEARNED_COAST_S, gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S),
+                          death_time=LEARNED_COAST_S, gait_spread=GAIT_SPREAD, unsure_time=UNSURE_S,
+                          tentative_misses=TENTATIVE_MISSES),
             classifier,
             world,
         )

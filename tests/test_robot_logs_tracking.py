@@ -192,6 +192,22 @@ def test_a_tentative_track_may_survive_a_missed_scan() -> None:
     assert [t.hits for t in tracker.tracks] == [1]  # two misses in a row: dropped, born again
 
 
+def test_the_learned_setup_confirms_a_walker_whose_legs_were_lost_for_one_scan() -> None:
+    """Someone walking up to the laser at 1.5 m/s, scored between the confirming and the protecting
+    level, whom the classifier loses at the third scan: the learned setup confirms them at the
+    fourth; dropped at its first miss, the track starts again and is confirmed three scans later."""
+    config = PersonTracker.learned().tracker.config
+    score = (config.confirm_confidence + config.sure_confidence) / 2
+    confirmed_at = {}
+    for misses in (config.tentative_misses, 1):
+        tracker = Tracker(replace(config, tentative_misses=misses))
+        for k in range(10):
+            people = np.zeros((0, 2)) if k == 2 else np.array([[3.0 - 0.15 * k, 0.0]])
+            if tracker.step(0.1 * k, people, np.full(len(people), score)) and misses not in confirmed_at:
+                confirmed_at[misses] = k
+    assert confirmed_at == {2: 3, 1: 6}
+
+
 def test_a_walking_confirmed_track_takes_unsure_detections_for_a_while() -> None:
     """A walker confirmed at 1.5 m/s: ten scans the classifier doubts keep them (in the gate, no
     confidence gained); a tentative track and a standing one are never kept so, and after
