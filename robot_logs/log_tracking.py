@@ -107,7 +107,7 @@ def log_odometry(log: LogReader, topics: TopicNames, scan_frame: str) -> tuple[F
     """The log's own record of how the scan's frame moves: a frame tree, the fixed frame it moves in,
     and where that comes from in words. An Odometry topic with tf comes first (one named with
     `topics.odometry` must reach the scan's frame); without one, tf alone, where a transform above
-    the scan's frame changes; None when the log has neither."""
+    the scan's frame changes; None when neither places the scan's frame."""
     if topics.odometry is not None or any(t.msgtype in ODOMETRY_TYPES for t in log.topics):
         topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
         tree, frame = read_frame_tree(log, topic.name)

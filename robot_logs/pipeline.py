@@ -10,8 +10,8 @@ the static-world grid and confirmation by the classifier's mean confidence;
 The rule for a person: a tentative track is confirmed after 3 hits, missing no two scans in a
 row (2 hits while its mean reaches `protect`), once the mean leg probability of its detections
 reaches the detector's `confirm` level (what 75 % of held-out labelled legs reach), or only its
-leg threshold while it strides (its legs' spread changes 0.07 m within 2 s): a gait tells a person whom a laser the
-detector was not trained on scores low.
+leg threshold while it strides (its legs' spread changes 0.07 m within 2 s): a gait tells a
+person whom a laser the detector was not trained on scores low.
 Legs on static cells are dropped before pairing, so clutter confirmed early loses its detections
 once its cells turn static and dies. A tentative track below the `protect` level (what half the
 labelled legs reach) is not confirmed until it walks (moves 0.3 m, or changes its legs' spread

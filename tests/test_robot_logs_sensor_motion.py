@@ -102,6 +102,26 @@ def test_odometry_that_does_not_reach_the_laser(drives) -> None:
         motions(drives["unmounted"], TopicNames(odometry="/odom"))
 
 
+def test_two_odometry_topics_must_be_told_apart(tmp_path: Path) -> None:
+    """A log with two Odometry topics is tracked in the scan's frame once one is named; unnamed,
+    it is a one-line error that says how."""
+    path = tmp_path / "two.bag"
+    with BagWriter(path, "ros1") as bag:
+        bag.transforms([Transform(1_000_000_000, "base_link", "laser", MOUNT, True)], "/tf_static")
+        lidar = LidarSimulator(seed=3, posts=(POST, np.array([0.06])))
+        for k in range(5):
+            t = 1.0 + 0.1 * k
+            for topic in ("/odom", "/odometry/filtered"):
+                bag.odometry(Odometry(int(round(t * 1e9)), "odom", "base_link", base_pose(t), SPEED, 0.0), topic)
+            bag.scan(lidar.scan(t, base_pose(t).compose(MOUNT), np.zeros((0, 2)), None))
+    with pytest.raises(LogError, match=r"several Odometry topics \(/odom, /odometry/filtered\); choose one with --odom-topic"):
+        motions(path)
+    source, placed = motions(path, TopicNames(odometry="/odometry/filtered"))
+    last = base_pose(1.0).compose(MOUNT).inverse().compose(base_pose(1.4).compose(MOUNT))
+    assert source == "odometry on /odometry/filtered"
+    assert (placed[-1].x, placed[-1].y, placed[-1].yaw) == pytest.approx((last.x, last.y, last.yaw), abs=1e-6)
+
+
 def test_scan_odometry_asked_for_is_used_though_the_log_has_odometry(drives) -> None:
     with LogReader(drives["odometry"]) as log:
         tracking = LogTracking(log, "sensor", tracker=PersonTracker(), odometry="scan")
