@@ -6,11 +6,10 @@ detector against the labelled legs.
 
 Real logs: the learned setup tracking the labelled bags' walkers inside their labelled sector, each
 bag by a detector trained without it (the figure that predicts a new log of their laser) and by the
-shipped one, which learned them. Following: a walker 1 to 3 m ahead of a robot
-driving an outdoor path for 60 s, seen by a narrow lidar like the person-following benchmark log's,
-tracked by the learned setup at 10 and 40 Hz with odometry (odometry frame) and without (laser
-frame): recall, misses, id switches, MOTP (goals: misses at most 1.7 % of person-scans, MOTP at most
-0.09 m).
+shipped one, which learned them. Following: a walker 1 to 3 m ahead of a robot driving an outdoor
+path for 60 s, seen by a narrow lidar like the person-following benchmark log's, tracked by the
+learned setup at 10 and 40 Hz with odometry (odometry frame) and without (laser frame): recall,
+misses, id switches, MOTP (goals: misses at most 1.7 % of person-scans, MOTP at most 0.09 m).
 
 Speed: detection plus tracking of pre-simulated 40 Hz scans with 6 walking people among furniture,
 one thread (goal: 200 scans/s, five times a 40 Hz lidar); scan-matching odometry
@@ -23,17 +22,17 @@ within 5 m of the lidar, the range within which the bags label legs. The learned
 simulator's default legs and lidar and on those fitted to the labelled bags (`BodyModel.fitted()`,
 `LidarSpec.fitted()`), with 6 walkers and with one, and with the lidar driving a loop among the
 furniture, tracked in the room's frame as odometry places it and in the laser's own frame as
-`trials log track` tracks a log (odometry, or scan matching, tells how it moves). The standing log's passers-by (legs by
-background subtraction) are tracked by a detector trained without that log, the figure that predicts
-tracking on a new laser and place, and the log recorded with nobody present by a driving robot,
-where every track is false. Leg precision and recall cross-validated by bag, for the classifier
-alone and followed by static-world rejection, over every log, the labelled bags and the standing
-log, come from the shipped detector's training record (the protocol is in docs/leg_detector.md),
-with the held-out calls on the labelled bags inside their labelled sector and outside it, and what
-the shipped detector makes of the simulator's legs, default and fitted, and of the fitted legs seen
-by the following log's narrow lidar, is printed beside it; legs against the hand labels count over
-whole scans and inside the labelled sector. `--detector` measures another detector file in the
-shipped one's place.
+`trials log track` tracks a log (odometry, or scan matching, tells how it moves). The standing log's
+passers-by (legs by background subtraction) are tracked by a detector trained without that log, the
+figure that predicts tracking on a new laser and place, and the log recorded with nobody present by
+a driving robot, where every track is false. Leg precision and recall cross-validated by bag, for
+the classifier alone and followed by static-world rejection, over every log, the labelled bags and
+the standing log, come from the shipped detector's training record (the protocol is in
+docs/leg_detector.md), with the held-out calls on the labelled bags inside their labelled sector and
+outside it, and what the shipped detector makes of the simulator's legs, default and fitted, and of
+the fitted legs seen by the following log's narrow lidar, is printed beside it; legs against the
+hand labels count over whole scans and inside the labelled sector. `--detector` measures another
+detector file in the shipped one's place.
 """
 
 from __future__ import annotations
