@@ -96,6 +96,7 @@ def test_foxglove_output_holds_scans_detections_and_tracks(tracked: dict[str, Pa
     log = FoxgloveReader(tracked["foxglove"])
     assert log.topics == {"/scan": "foxglove.LaserScan", "/detections": "foxglove.SceneUpdate", "/tracks": "foxglove.SceneUpdate"}
     assert log.metadata["tracking"]["scan_topic"] == "/scan"
+    assert log.metadata["tracking"]["motion"] == "scan matching"  # the log has no odometry
     scans = list(log.messages(["/scan"]))
     assert len(scans) == 1265
     assert len(scans[0].data["ranges"]) == 512

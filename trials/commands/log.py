@@ -225,6 +225,8 @@ def track(args: argparse.Namespace) -> int:
         writer = None
         if args.mcap is not None:
             meta = {"source": str(args.file), "frame": frame, "odometry": args.odometry, "scan_topic": tracking.scan_topic.name}
+            if tracking.motion_source is not None:
+                meta["motion"] = tracking.motion_source  # what placed the scan's frame
             writer = outputs.enter_context(FoxgloveWriter(args.mcap, metadata={"tracking": meta}))
         bar = outputs.enter_context(tqdm(total=tracking.scan_topic.count, unit="scan", desc="tracking",
                                          disable=not show_bars(args.quiet), leave=False))
