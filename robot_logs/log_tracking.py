@@ -2,7 +2,8 @@
 
 For the odometry frame, the robot's odometry and the tf transforms are read first; each scan
 is then placed by the pose of its frame in the odometry frame at the scan's header stamp
-(odometry gives odom -> base, tf gives base -> laser; both interpolated in time).
+(odometry gives odom -> base, tf gives base -> laser; both interpolated in time). A log without
+an Odometry topic whose tf moves the scan's frame is placed by tf alone, in tf's topmost frame.
 
 A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
 (`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
@@ -103,12 +104,17 @@ class OdometryMotion:
             self.pose = self._origin.compose(placed)
 
 
+def has_odometry_topic(log: LogReader, topics: TopicNames) -> bool:
+    """Whether the log's odometry is to come from an Odometry topic: one is named, or it has some."""
+    return topics.odometry is not None or any(t.msgtype in ODOMETRY_TYPES for t in log.topics)
+
+
 def log_odometry(log: LogReader, topics: TopicNames, scan_frame: str) -> tuple[FrameTree, str, str] | None:
     """The log's own record of how the scan's frame moves: a frame tree, the fixed frame it moves in,
     and where that comes from in words. An Odometry topic with tf comes first (one named with
     `topics.odometry` must reach the scan's frame); without one, tf alone, where a transform above
     the scan's frame changes; None when neither places the scan's frame."""
-    if topics.odometry is not None or any(t.msgtype in ODOMETRY_TYPES for t in log.topics):
+    if has_odometry_topic(log, topics):
         topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
         tree, frame = read_frame_tree(log, topic.name)
         try:
@@ -131,11 +137,11 @@ class LogTracking:
         log: an open log.
         frame: "sensor" (the scan's own frame; `motion` tells how it moves) or "odom" (the
             odometry frame).
-        odometry: "log" reads the log's odometry topic and tf; "scan" places each scan by scan
-            matching instead (for a log without odometry), and with frame "odom" a scan it cannot
-            place is skipped. In the scan's own frame, "log" falls back on tf alone where the log
-            has no odometry topic, and on scan matching where neither reaches the scan's frame
-            (`motion_source` says which).
+        odometry: "log" reads the log's odometry topic and tf, or tf alone where the log has no
+            odometry topic (`log_odometry`); "scan" places each scan by scan matching instead (for
+            a log without odometry), and with frame "odom" a scan it cannot place is skipped. In
+            the scan's own frame, "log" falls back on scan matching where neither places the
+            scan's frame (`motion_source` says which).
         topics: topic names that override the choice by type.
         tracker: detection and tracking (default: `PersonTracker.learned()`, the shipped leg
             classifier with static-world rejection).
@@ -170,11 +176,15 @@ class LogTracking:
                 raise LogError(f"{log.path}: a map is placed by the log's odometry and tf; scan odometry has no map frame")
             self.scan_odometry, self.output_frame = ScanOdometry(), SCAN_ODOMETRY_FRAME
         elif frame == "odom" or occupancy is not None:
-            # A map needs the log's own odometry; tracking alone can do without it.
-            hint = "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead"
-            odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
-            tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
-            read = (tree, odometry_frame, f"odometry on {odometry_topic.name}")
+            read = None if has_odometry_topic(log, topics) else self._log_odometry(topics)  # tf alone
+            if read is None:
+                # A map needs the log's own odometry; tracking alone can do without it.
+                hint = "; no tf moves its scan frame either" + (
+                    "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead")
+                odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
+                tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
+                read = (tree, odometry_frame, f"odometry on {odometry_topic.name}")
+            tree, odometry_frame, _ = read
             if frame == "odom":
                 self.tree, self.output_frame = tree, odometry_frame
         #: Places the scan's own frame, to judge motion in, when that is the output frame; in words.
@@ -198,14 +208,18 @@ class LogTracking:
         """What places the scan's frame as the robot moves, and in words: the log's odometry (`read`
         already for a map), else what `log_odometry` finds, else scan matching."""
         if odometry == "log" and read is None:
-            scans = read_scans(self.log, self.scan_topic.name)
-            first = next(scans, None)
-            scans.close()
-            read = None if first is None else log_odometry(self.log, topics, first.frame_id)
+            read = self._log_odometry(topics)
         if odometry == "scan" or read is None:
             return ScanOdometry(), "scan matching"
         tree, fixed, source = read
         return OdometryMotion(tree, fixed, self.log.path), source
+
+    def _log_odometry(self, topics: TopicNames) -> tuple[FrameTree, str, str] | None:
+        """`log_odometry` for the frame of the log's first scan."""
+        scans = read_scans(self.log, self.scan_topic.name)
+        first = next(scans, None)
+        scans.close()
+        return None if first is None else log_odometry(self.log, topics, first.frame_id)
 
     def _sensor_pose(self, scan: Scan) -> Pose2D | None:
         if self.scan_odometry is not None:

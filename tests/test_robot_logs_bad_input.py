@@ -74,6 +74,7 @@ def test_missing_topic_lists_the_topics_there_are(robot_logs_dir: Path, capsys: 
     code, _, err = run(capsys, "track", robot_logs_dir / "stationary_ros1.bag", "--frame", "odom")
     assert code == 2
     assert one_error_line(err).endswith("has no Odometry topic; its topics: /scan (sensor_msgs/msg/LaserScan, 1265); "
+                                        "no tf moves its scan frame either; "
                                         "scan odometry (--odometry scan) places its scans by scan matching instead")
     code, _, err = run(capsys, "track", robot_logs_dir / "legs_labelled_ros1.bag", "--scan-topic", "/scan")
     assert code == 2

@@ -11,7 +11,7 @@ import pytest
 from robot_logs.errors import LogError
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import LidarSimulator
-from robot_logs.log_tracking import LogTracking, OdometryMotion
+from robot_logs.log_tracking import LogTracking, OdometryMotion, track_log
 from robot_logs.pipeline import PersonTracker
 from robot_logs.reader import LogReader
 from robot_logs.records import Odometry, Transform
@@ -127,6 +127,17 @@ def test_scan_odometry_asked_for_is_used_though_the_log_has_odometry(drives) -> 
         tracking = LogTracking(log, "sensor", tracker=PersonTracker(), odometry="scan")
         assert isinstance(tracking.motion, ScanOdometry) and tracking.motion_source == "scan matching"
         assert isinstance(LogTracking(log, "sensor", tracker=PersonTracker()).motion, OdometryMotion)
+
+
+def test_tf_alone_gives_the_odometry_frame(drives) -> None:
+    """A log whose robot moves only on /tf tracks in `--frame odom` too: the followed walker's
+    track runs along x at the robot's pace in frame odom."""
+    table = track_log(drives["tf"], frame="odom", tracker=PersonTracker.rules_with_grid())
+    assert {row.frame for row in table.rows} == {"odom"}
+    walker = max(table.ids, key=lambda i: len(table.track(i)[0]))
+    stamps, xy = table.track(walker)
+    speed = np.diff(xy[:, 0]).sum() / (stamps[-1] - stamps[0])
+    assert len(stamps) >= SCANS - 10 and speed == pytest.approx(SPEED, abs=0.05)
 
 
 def tracked(path: Path, tracker: PersonTracker) -> dict[int, list[tuple[int, float, float]]]:

@@ -92,8 +92,8 @@ def _register_track(group: argparse._SubParsersAction) -> None:
     parser.add_argument("--scan-topic", metavar="TOPIC", help="LaserScan topic (default: the log's only one)")
     parser.add_argument("--odom-topic", metavar="TOPIC", help="Odometry topic (default: the log's only one)")
     parser.add_argument("--odometry", choices=("log", "scan"), default="log",
-                        help="the robot's motion: the log's odometry and tf (default; in the scan's frame, tf alone or scan "
-                        "matching where the log has no odometry), or matching each scan to the earlier ones, for a log "
+                        help="the robot's motion: the log's odometry and tf, or tf alone (default; in the scan's frame, scan "
+                        "matching where the log has neither), or matching each scan to the earlier ones, for a log "
                         "recorded without odometry (implies --frame odom; frame 'scan_odom')")
     parser.add_argument("--detector", type=types.input_file, metavar="FILE",
                         help="a leg detector from `trials log train-detector` (default: the one shipped with the package)")
