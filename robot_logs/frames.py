@@ -130,10 +130,13 @@ class FrameTree:
             edge = self._edges[child] = PoseTrack(parent, child, static=static)
         edge.add(stamp_ns, pose)
 
-    def moving_root(self, frame: str) -> str | None:
-        """The topmost frame above `frame`, where some transform between them changes over time (a
-        frame the robot moves in, as odom or map is for its laser); None where none does."""
+    def moving_root(self, frame: str, prefer: str | None = None) -> str | None:
+        """The topmost frame above `frame`, or `prefer` where that lies above it, when some
+        transform between the two changes over time (a frame the robot moves in, as odom is for its
+        laser); None where none does."""
         chain = self._chain(frame_name(frame))
+        if prefer is not None and prefer in chain[1:]:
+            chain = chain[: chain.index(prefer) + 1]
         moves = any(len(set(self._edges[child].poses)) > 1 for child in chain[:-1])
         return chain[-1] if moves else None
 

@@ -3,7 +3,7 @@
 For the odometry frame, the robot's odometry and the tf transforms are read first; each scan
 is then placed by the pose of its frame in the odometry frame at the scan's header stamp
 (odometry gives odom -> base, tf gives base -> laser; both interpolated in time). A log without
-an Odometry topic whose tf moves the scan's frame is placed by tf alone, in tf's topmost frame.
+an Odometry topic whose tf moves the scan's frame is placed by tf alone, in `ODOM_FRAME`.
 
 A log recorded without odometry can still be tracked in a fixed frame: with scan odometry
 (`scan_odometry`) each scan is placed by matching it to the laser's earlier scans, in the frame of
@@ -48,6 +48,9 @@ Frame = Literal["sensor", "odom"]
 Odometry = Literal["log", "scan"]
 #: The output frame's name with scan odometry: the laser's pose at the first scan placed.
 SCAN_ODOMETRY_FRAME = "scan_odom"
+#: The frame tf alone places scans in where it lies above them (REP 105's odometry frame, which
+#: moves smoothly; a localiser's map frame above it may jump), else tf's topmost frame.
+ODOM_FRAME = "odom"
 
 
 def read_scans(log: LogReader, topic: str) -> Iterator[Scan]:
@@ -126,7 +129,7 @@ def log_odometry(log: LogReader, topics: TopicNames, scan_frame: str) -> tuple[F
         return tree, frame, f"odometry on {topic.name}"
     tree = FrameTree()
     _add_tf(tree, log)
-    frame = tree.moving_root(scan_frame)
+    frame = tree.moving_root(scan_frame, prefer=ODOM_FRAME)
     return None if frame is None else (tree, frame, f"tf ({frame} frame)")
 
 

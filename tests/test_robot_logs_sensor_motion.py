@@ -34,7 +34,8 @@ def base_pose(t: float) -> Pose2D:
 def write_drive(path: Path, motion: str, mount: bool = True) -> None:
     """A robot driving 12 m through open ground past a post, a walker 2.5 m ahead of it keeping its
     pace: nothing for scan matching to hold on to. `motion` is how the log records the drive: "odometry"
-    (nav_msgs/Odometry), "tf" (odom -> base_link on /tf) or "none"; `mount`: base_link -> laser on /tf_static."""
+    (nav_msgs/Odometry), "tf" (odom -> base_link on /tf, under a localiser's map -> odom) or "none";
+    `mount`: base_link -> laser on /tf_static."""
     lidar = LidarSimulator(seed=3, posts=(POST, np.array([0.06])))
     with BagWriter(path, "ros1") as bag:
         if mount:
@@ -46,6 +47,8 @@ def write_drive(path: Path, motion: str, mount: bool = True) -> None:
                 bag.odometry(Odometry(stamp, "odom", "base_link", base, SPEED, 0.02))
             elif motion == "tf":
                 bag.transforms([Transform(stamp, "odom", "base_link", base, False)])
+                if k % 10 == 0:  # a localiser's corrections: map -> odom jumps once a second
+                    bag.transforms([Transform(stamp, "map", "odom", Pose2D(0.05 * k / 10, 0.0, 0.0), False)])
             laser = base.compose(MOUNT)
             walker = laser.apply(np.array([[2.5, -0.3]]))
             heading = np.array([[np.cos(laser.yaw), np.sin(laser.yaw)]]) * SPEED
@@ -77,7 +80,8 @@ def motions(path: Path, topics: TopicNames = TopicNames()) -> tuple[str | None, 
 
 @pytest.mark.parametrize(("motion", "source"), [("odometry", "odometry on /odom"), ("tf", "tf (odom frame)")])
 def test_the_log_s_odometry_places_the_scan_frame(drives, motion: str, source: str) -> None:
-    """Each scan's frame is where odometry (or tf alone) and the laser's mount put it, relative to the first scan."""
+    """Each scan's frame is where odometry (or tf alone, in odom rather than the jumping map frame
+    above it) and the laser's mount put it, relative to the first scan."""
     found, placed = motions(drives[motion])
     assert found == source and len(placed) == SCANS
     first = base_pose(1.0).compose(MOUNT).inverse()
