@@ -185,8 +185,7 @@ class LogTracking:
                 hint = "; no tf moves its scan frame either" + (
                     "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead")
                 odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
-                tree, odometry_frame = read_frame_tree(log, odometry_topic.name)
-                read = (tree, odometry_frame, f"odometry on {odometry_topic.name}")
+                read = (*read_frame_tree(log, odometry_topic.name), f"odometry on {odometry_topic.name}")
             tree, odometry_frame, _ = read
             if frame == "odom":
                 self.tree, self.output_frame = tree, odometry_frame
