@@ -16,16 +16,16 @@ leg. A confirmed person who stands still is kept: only confirmation may ask for 
 A track walks while it is `still_distance` from where it was `walk_window` seconds before, or its
 legs' spread changes with a stride; a walker needs no wait, however still they are in the output
 frame. Where the output frame moves with the robot (the laser's own), `step` may be told where that
-frame is in a frame fixed to the world (scan odometry's), and motion is judged there: a post that
-the robot drives past moves in the laser's frame but does not walk. Seen from a moving sensor two
-posts seem to change their spread as one hides the other, so a change of spread seen while the
-sensor moved `view_shift` confirms a track on the weaker evidence of a stride only if the track
-moved as well. A confirmed track that walks and that no detection reached takes the nearest unsure
-one (a leg-sized segment off the static world that the classifier scored low) inside the gate its
-filter predicts, for `unsure_time` seconds after its last detection, so a person already followed is
-kept through the scans where the classifier doubts their legs. A confirmed track coasts on its
-filter's prediction, its gate growing with the filter's uncertainty, and lives `death_misses` scans
-and at least `death_time` seconds without a hit, so it outlives the same gap at any scan rate.
+frame is in a frame fixed to the world (odometry's or scan matching's), and motion is judged there:
+a post that the robot drives past moves in the laser's frame but does not walk. Seen from a moving
+sensor two posts seem to change their spread as one hides the other, so a change of spread seen
+while the sensor moved `view_shift` confirms a track on the weaker evidence of a stride only if the
+track moved as well. A confirmed track that walks and that no detection reached takes the nearest
+unsure one (a leg-sized segment off the static world that the classifier scored low) inside the gate
+its filter predicts, for `unsure_time` seconds after its last detection, so a person already
+followed is kept through the scans where the classifier doubts their legs. A confirmed track coasts
+on its filter's prediction, its gate growing with the filter's uncertainty, and lives `death_misses`
+scans and at least `death_time` seconds without a hit, so it outlives the same gap at any scan rate.
 """
 
 from __future__ import annotations
