@@ -2,7 +2,7 @@
 assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static world,
-confirmed (and given the next id, never reused) once it has `birth_hits` hits
+confirmed (and given the next id, never reused) on a scan that detects it, once it has `birth_hits` hits
 (`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean confidence
 over its hits so far reaches `confirm_confidence` (`striding_confidence` for a track whose legs
 stride; one that does not walk and whose mean confidence is under `sure_confidence` also waits
@@ -328,7 +328,8 @@ class Tracker:
         for track in self.tracks:
             if track.born is None:
                 track.born = time
-            if not track.confirmed and self._ready(track, time):
+            # A prediction is no evidence: a tentative track coasting through a miss waits for its next hit.
+            if not track.confirmed and track.misses == 0 and self._ready(track, time):
                 track.track_id = self._next_id
                 self._next_id += 1
         return [t.state() for t in self.tracks if t.confirmed and t.misses <= self.config.report_misses]

@@ -192,6 +192,18 @@ def test_a_tentative_track_may_survive_a_missed_scan() -> None:
     assert [t.hits for t in tracker.tracks] == [1]  # two misses in a row: dropped, born again
 
 
+def test_a_tentative_track_is_confirmed_only_on_a_scan_that_detects_it() -> None:
+    """A walker seen three times at 1 m/s, 0.2 m along (a track must walk 0.3 m), then lost for
+    0.6 s: coasting, the filter's prediction passes 0.3 m, but a prediction is no evidence; the
+    track is confirmed at its next detection."""
+    tracker = Tracker(TrackerConfig(still_wait=np.inf, sure_confidence=np.inf, tentative_misses=2))
+    for when, x in ((0.0, 2.0), (0.1, 2.1), (0.2, 2.2)):
+        assert tracker.step(when, np.array([[x, 1.0]])) == []
+    assert tracker.step(0.8, np.zeros((0, 2))) == []
+    assert tracker.walking(tracker.tracks[0])  # its prediction has walked; it has not been seen to
+    assert [s.track_id for s in tracker.step(0.9, np.array([[2.9, 1.0]]))] == [1]
+
+
 def test_the_learned_setup_confirms_a_walker_whose_legs_were_lost_for_one_scan() -> None:
     """Someone walking up to the laser at 1.5 m/s, scored between the confirming and the protecting
     level, whom the classifier loses at the third scan: the learned setup confirms them at the
