@@ -19,8 +19,8 @@ frame. Where the output frame moves with the robot (the laser's own), `step` may
 frame is in a frame fixed to the world (odometry's or scan matching's), and motion is judged there:
 a post that the robot drives past moves in the laser's frame but does not walk. Seen from a moving
 sensor two posts seem to change their spread as one hides the other, so a change of spread seen
-while the sensor moved `view_shift` confirms a track on the weaker evidence of a stride only if the
-track moved as well. A confirmed track that walks and that no detection reached takes the nearest
+while the sensor moved `view_shift` counts as a stride towards confirming a track only if the track
+moved as well. A confirmed track that walks and that no detection reached takes the nearest
 unsure one (a leg-sized segment off the static world that the classifier scored low) inside the gate
 its filter predicts, for `unsure_time` seconds after its last detection, so a person already
 followed is kept through the scans where the classifier doubts their legs. A confirmed track coasts
@@ -74,10 +74,10 @@ class TrackerConfig:
         gait_spread: a change of the distance between a track's two legs (m) that shows a
             stride, however still the person is in the output frame (someone followed by the
             robot, tracked in the robot's frame); inf leaves strides out.
-        view_shift: a change of spread seen while the sensor moved this far (m) confirms a
-            tentative track at `striding_confidence` only if the track also moved
-            `still_distance`: from a moving sensor two posts seem to change their spread as one
-            hides the other.
+        view_shift: a change of spread seen while the sensor moved this far (m) counts as a
+            stride for a tentative track (a walk, and confirmation at `striding_confidence`) only
+            if the track also moved `still_distance`: from a moving sensor two posts seem to
+            change their spread as one hides the other.
         walk_window: a track walks while its detections of the last this many seconds moved
             `still_distance` or changed their spread by `gait_spread`.
         unsure_time: a confirmed track that walks takes unsure detections for this many seconds
@@ -247,17 +247,20 @@ class Tracker:
         return track.walking(self.config, self.place(track))
 
     def _ready(self, track: Track, time: float) -> bool:
-        """Whether a tentative track has enough hits and is confident enough, or has waited enough."""
+        """Whether a tentative track has enough hits, is confident enough and walks (moved, or
+        strides as `Track.gait` judges), is sure, or has waited enough."""
         config = self.config
         mean = track.confidence_sum / track.hits
         sure = config.sure_hits is not None and mean >= config.sure_confidence
         if track.hits < (config.sure_hits if sure else config.birth_hits):
             return False
-        striding = config.striding_confidence is not None and track.gait(config, self.place(track))
+        place = self.place(track)
+        gait = track.gait(config, place)  # a stride, not one a moving sensor's change of view could show
+        striding = config.striding_confidence is not None and gait
         if mean < (config.striding_confidence if striding else config.confirm_confidence):
             return False
         assert track.born is not None
-        return striding or self.walking(track) or mean >= config.sure_confidence or time - track.born >= config.still_wait
+        return gait or track.moved(config, place) or mean >= config.sure_confidence or time - track.born >= config.still_wait
 
     def _beside_confirmed(self, detections: np.ndarray) -> np.ndarray:
         """(D,) True for detections closer than `birth_clearance` to a confirmed track: the

@@ -290,20 +290,22 @@ def test_a_striding_track_is_confirmed_on_weaker_evidence_than_a_still_or_glidin
 def test_a_change_of_spread_seen_from_a_moving_sensor_is_no_stride_of_a_still_pair() -> None:
     """Two posts 1 m beside the path of a sensor driving 1 m/s seem to change their spread as one
     hides the other: at a mean confidence of 0.3, under the confirming 0.5, the pair is confirmed
-    on that "stride" if the sensor stood, never while it moves; a walker whose legs stride as they
+    on that "stride" if the sensor stood, never while it moves; at 0.6, over the confirming level, a
+    still track must walk, and that "stride" is no walk either; a walker whose legs stride as they
     walk beside it is confirmed either way."""
     config = TrackerConfig(confirm_confidence=0.5, striding_confidence=0.2, still_wait=math.inf, sure_confidence=0.9,
                            gait_spread=0.07)
     confirmed = {}
     for speed in (0.0, 1.0):
-        posts, walker = Tracker(config), Tracker(config)
+        posts, confident_posts, walker = Tracker(config), Tracker(config), Tracker(config)
         for k in range(30):
             t, stride = 0.1 * k, np.array([0.17 + 0.15 * abs(math.sin(k * 0.5))])
             sensor = Pose2D(speed * t, 0.0, 0.0)
             posts.step(t, np.array([[3.0, 1.0]]), np.array([0.3]), spread=stride, sensor=sensor)
+            confident_posts.step(t, np.array([[3.0, 1.0]]), np.array([0.6]), spread=stride, sensor=sensor)
             walker.step(t, np.array([[3.0 + 1.2 * t, -1.0]]), np.array([0.3]), spread=stride, sensor=sensor)
-        confirmed[speed] = (posts.tracks[0].confirmed, walker.tracks[0].confirmed)
-    assert confirmed == {0.0: (True, True), 1.0: (False, True)}
+        confirmed[speed] = tuple(tracker.tracks[0].confirmed for tracker in (posts, confident_posts, walker))
+    assert confirmed == {0.0: (True, True, True), 1.0: (False, False, True)}
 
 
 def test_told_how_the_laser_frame_moves_a_passing_post_stands_and_a_followed_walker_walks() -> None:
