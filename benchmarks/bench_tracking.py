@@ -315,7 +315,9 @@ def labelled_legs(detector: LegClassifier) -> str:
 def labelled_calls_by_sector() -> str:
     """The shipped training's held-out stage calls on the labelled bags (by log, at the threshold
     that keeps 0.9 of their legs, as `validate` sets it) inside the labelled sector and outside
-    it, where the protocol counts every call on something unlabelled as false."""
+    it, where the protocol counts every call on something unlabelled as false; the unlabelled
+    calls outside it by where they stand: beyond the labels' reach, or before each bag's
+    background (someone passing the standing laser, by `robot_logs.background_labels`' rule) or on it."""
     data = collect(LABELLED, [EMPTY], standing=[STANDING])
     probability = held_out_probability(data, "log")
     labelled = ~data.augmented & (data.log < data.labelled_logs)
@@ -326,6 +328,15 @@ def labelled_calls_by_sector() -> str:
     for name, where in (("inside the labelled sector", sector), ("outside it", ~sector)):
         legs, other = int((called & where & data.is_leg).sum()), int((called & where & ~data.is_leg).sum())
         parts.append(f"{name} {legs + other} calls, {legs} on labelled legs (precision {legs / max(legs + other, 1):.3f})")
+    before = np.zeros(len(called), dtype=bool)
+    for index, bag in enumerate(LABELLED):
+        log = data.log == index
+        before[log] = Background.of([scan for scan, _ in bag_labels(bag)], str(bag)).in_front(data.centroids[log])
+    unlabelled = called & ~sector & ~data.is_leg
+    far = np.hypot(*data.centroids.T) > LABELLED_REACH
+    near = unlabelled & ~far
+    parts.append(f"of its unlabelled calls {int((unlabelled & far).sum())} beyond {LABELLED_REACH:.0f} m, "
+                 f"{int((near & before).sum())} nearer before the bag's background, {int((near & ~before).sum())} on it")
     return "; ".join(parts)
 
 
