@@ -7,22 +7,22 @@ lidar perception use: hand it each scan with the sensor's pose in the output fra
 the static-world grid and confirmation by the classifier's mean confidence;
 `PersonTracker.rules_with_grid()` the one for simulated scans among furniture.
 
-The rule for a person: a tentative track is confirmed after 3 hits, missing no two scans in a row (2
-hits while its mean reaches `protect`), once the mean leg probability of its detections reaches the
-detector's `confirm` level (what 75 % of held-out labelled legs reach), or only its leg threshold
-while it strides (its legs' spread changes 0.07 m within 2 s): a gait tells a person whom a laser
-the detector was not trained on scores low. Legs on static cells are dropped before pairing, so
-clutter confirmed early loses its detections once its cells turn static and dies. A tentative track
-below the `protect` level (what half the labelled legs reach) is not confirmed until it walks (moves
-0.3 m, or changes its legs' spread with a stride, within 2 s): still, it is furniture or a person
-the grid would hold static within 1.5 s anyway, and a moving robot's grid can miss a thin post for
-longer. A confirmed track that walks is kept through the scans where the classifier doubts the legs
-(`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a detection at any scan
-rate, and a track that walks or reaches `protect` keeps its cells out of the grid, so neither a
-person standing still nor one walking at a steady distance ahead of a moving robot turns into static
-world. Tracking in a frame that moves with the robot, `process` may be told where that frame is
-(`motion`, from odometry or scan matching): walking is judged there and the grid kept there, so a
-post the robot drives past neither walks nor escapes the grid.
+The rule for a person: a tentative track is confirmed at a hit, its 3rd or later, missing no two
+scans in a row (its 2nd while its mean reaches `protect`), once the mean leg probability of its
+detections reaches the detector's `confirm` level (what 75 % of held-out labelled legs reach), or
+only its leg threshold while it strides (its legs' spread changes 0.07 m within 2 s): a gait tells a
+person whom a laser the detector was not trained on scores low. Legs on static cells are dropped
+before pairing, so clutter confirmed early loses its detections once its cells turn static and dies.
+A tentative track below the `protect` level (what half the labelled legs reach) is not confirmed
+until it walks (moves 0.3 m, or changes its legs' spread with a stride, within 2 s): still, it is
+furniture or a person the grid would hold static within 1.5 s anyway, and a moving robot's grid can
+miss a thin post for longer. A confirmed track that walks is kept through the scans where the
+classifier doubts the legs (`robot_logs.tracking`), a confirmed track coasts through 0.5 s without a
+detection at any scan rate, and a track that walks or reaches `protect` keeps its cells out of the
+grid, so neither a person standing still nor one walking at a steady distance ahead of a moving
+robot turns into static world. Tracking in a frame that moves with the robot, `process` may be told
+where that frame is (`motion`, from odometry or scan matching): walking is judged there and the grid
+kept there, so a post the robot drives past neither walks nor escapes the grid.
 """
 
 from __future__ import annotations

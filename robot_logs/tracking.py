@@ -2,8 +2,8 @@
 assigned to tracks by the Hungarian method (scipy) on Mahalanobis distances, with gating.
 
 Life of a track: it is born tentative from an unassigned detection that is not on the static world,
-confirmed (and given the next id, never reused) on a scan that detects it, once it has `birth_hits` hits
-(`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean confidence
+confirmed (and given the next id, never reused) on a scan that detects it, once it has `birth_hits`
+hits (`sure_hits` while its mean confidence reaches `sure_confidence`) and the detector's mean confidence
 over its hits so far reaches `confirm_confidence` (`striding_confidence` for a track whose legs
 stride; one that does not walk and whose mean confidence is under `sure_confidence` also waits
 `still_wait` seconds, long enough for the static world to tell; an infinite wait lasts until it
