@@ -85,6 +85,13 @@ def read_frame_tree(log: LogReader, odometry_topic: str) -> tuple[FrameTree, str
     return tree, odometry_frame
 
 
+def odometry_topic_tree(log: LogReader, topics: TopicNames, hint: str = "") -> tuple[FrameTree, str, str]:
+    """`read_frame_tree` of the log's Odometry topic (`topics.odometry`, else its only one), and
+    where that comes from in words; `hint` ends the error when the log has no such topic."""
+    topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
+    return (*read_frame_tree(log, topic.name), f"odometry on {topic.name}")
+
+
 class OdometryMotion:
     """Where the log's odometry places the scan's frame, relative to the first scan it places: the
     frame that tracking in the scan's own frame judges motion in. A scan it does not place (outside
@@ -118,15 +125,14 @@ def log_odometry(log: LogReader, topics: TopicNames, scan_frame: str) -> tuple[F
     `topics.odometry` must reach the scan's frame); without one, tf alone, where a transform above
     the scan's frame changes; None when neither places the scan's frame."""
     if has_odometry_topic(log, topics):
-        topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic")
-        tree, frame = read_frame_tree(log, topic.name)
+        tree, frame, source = odometry_topic_tree(log, topics)
         try:
             tree.lookup(frame, scan_frame, 0)
         except LogError as exc:
             if topics.odometry is not None:
                 raise LogError(f"{log.path}: {exc}") from None
             return None
-        return tree, frame, f"odometry on {topic.name}"
+        return tree, frame, source
     tree = FrameTree()
     _add_tf(tree, log)
     frame = tree.moving_root(scan_frame, prefer=ODOM_FRAME)
@@ -184,8 +190,7 @@ class LogTracking:
                 # A map needs the log's own odometry; tracking alone can do without it.
                 hint = "; no tf moves its scan frame either" + (
                     "" if occupancy is not None else "; scan odometry (--odometry scan) places its scans by scan matching instead")
-                odometry_topic = pick_topic(log.topics, ODOMETRY_TYPES, "Odometry", topics.odometry, log.path, "--odom-topic", hint)
-                read = (*read_frame_tree(log, odometry_topic.name), f"odometry on {odometry_topic.name}")
+                read = odometry_topic_tree(log, topics, hint)
             tree, odometry_frame, _ = read
             if frame == "odom":
                 self.tree, self.output_frame = tree, odometry_frame
