@@ -22,7 +22,10 @@ from typing import Any, BinaryIO
 
 import numpy as np
 from mcap.reader import make_reader
+from mcap.records import Channel as McapChannel
 from mcap.records import Message as McapMessage
+from mcap.records import Metadata as McapMetadata
+from mcap.records import Schema as McapSchema
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from robot_logs.errors import LogError
@@ -160,6 +163,49 @@ def partial_path(path: Path) -> Path:
     return path.with_name(f".{path.name}.partial")
 
 
+def recover(partial: Path, path: Path) -> int:
+    """Write the complete records of an unfinished log (a writer's partial file, cut off where its process was killed)
+    as a finished log at `path`: its metadata, schemas, channels and every message of its complete chunks. Returns the
+    number of messages kept.
+
+    Raises:
+        LogError: `partial` is not the start of an MCAP file.
+    """
+    with partial.open("rb") as stream:
+        if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+            raise LogError(f"{partial} is not an MCAP file")
+    records = []
+    with partial.open("rb") as stream:
+        try:
+            records.extend(stream_records(stream))
+        except Exception:  # noqa: BLE001 - the cut-off record, or any damage after it: keep what came before
+            pass
+    target = partial_path(path).with_suffix(".recovering")
+    kept = 0
+    with target.open("wb") as out:
+        writer = Writer(out, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="navtrials robot_logs (recovered)")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for record in records:
+            if isinstance(record, McapSchema):
+                schemas[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+            elif isinstance(record, McapChannel) and record.schema_id in schemas | {0: 0}:
+                channels[record.id] = writer.register_channel(record.topic, record.message_encoding, schemas.get(record.schema_id, 0),
+                                                              dict(record.metadata))
+            elif isinstance(record, McapMetadata):
+                writer.add_metadata(record.name, dict(record.metadata))
+            elif isinstance(record, McapMessage) and record.channel_id in channels:
+                writer.add_message(channels[record.channel_id], log_time=record.log_time, data=record.data,
+                                   publish_time=record.publish_time, sequence=record.sequence)
+                kept += 1
+        writer.finish()
+        out.flush()
+        os.fsync(out.fileno())
+    os.replace(target, path)
+    return kept
+
+
 class FoxgloveWriter:
     """Writes an MCAP file of JSON messages; the file gets its name only when closed.
 
@@ -170,15 +216,17 @@ class FoxgloveWriter:
         path: where the finished log goes (an existing file there is replaced on close).
         metadata: named string maps stored as MCAP metadata (seed, factor settings...).
         schemas: JSON schemas of the writer's own (non-Foxglove) types, by schema name.
+        chunk_size: bytes of messages gathered into one compressed chunk before it is written out; a smaller one loses
+            less to a process killed while writing (what `recover` can read back from the partial file).
     """
 
     def __init__(self, path: str | Path, metadata: Mapping[str, Mapping[str, str]] | None = None,
-                 schemas: Mapping[str, Schema] | None = None) -> None:
+                 schemas: Mapping[str, Schema] | None = None, chunk_size: int = 1024 * 1024) -> None:
         self.path = Path(path)
         self._definitions = dict(schemas or {})
         self.partial = partial_path(self.path)
         self._stream: BinaryIO = self.partial.open("wb")
-        self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
+        self._writer = Writer(self._stream, compression=CompressionType.ZSTD, chunk_size=chunk_size)
         self._writer.start(profile="", library="navtrials robot_logs")
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, tuple[int, str]] = {}

@@ -23,6 +23,7 @@ from trials.console.app import create_app
 from trials.console.times import local_time
 from trials.responses import record_response
 from trials.robot.live_state import read_state, write_state
+from trials.runner import study_lock
 from trials.study import LIVE_ESTOP, RUN_EVENTS, StudyFolder
 
 ROBOT = "ros1://127.0.0.1:9"
@@ -224,10 +225,15 @@ def test_state_of_a_live_run_started_elsewhere_comes_from_live_json(study, start
     first, second = codes_of(study)
     folder = StudyFolder(study)
     write_state(folder, first, "waiting for sensors", "a scan on /scan")
-    assert client.get(f"/runs/{first}/live").json == {**read_state(folder), "since": local_time(read_state(folder)["since_utc"]), "running": False}
-    assert client.get(f"/runs/{second}/live").json == {"run_code": second, "running": False}
-    page = client.get(f"/runs/{second}").text
-    assert 'id="estop"' in page and f'<a href="/runs/{first}">{first}</a> is live on the robot' in page
+    with study_lock(folder):  # the `trials run` that drives it, started elsewhere, holds the study
+        assert client.get(f"/runs/{first}/live").json == {**read_state(folder), "since": local_time(read_state(folder)["since_utc"]), "running": False}
+        assert client.get(f"/runs/{second}/live").json == {"run_code": second, "running": False}
+        page = client.get(f"/runs/{second}").text
+        assert 'id="estop"' in page and f'<a href="/runs/{first}">{first}</a> is live on the robot' in page
+    # That `trials run` gone (killed with its worker), the run is never shown as live, and E-STOP is no longer offered.
+    gone = client.get(f"/runs/{first}/live").json
+    assert (gone["state"], gone["detail"]) == ("aborted", "the `trials run` that drove it is no longer running")
+    assert 'id="estop"' not in client.get("/").text
     write_state(folder, first, "aborted", "stale scans: none on /scan for 0.61 s (watchdog 0.5 s)")
     assert 'id="estop"' not in client.get("/").text
 

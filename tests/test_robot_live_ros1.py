@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.live_rig import TRIALS, assert_stopped_and_kept, check_blinded_run, design, first_code, live_rig, repository_env
+from tests.support.live_rig import TRIALS, assert_stopped_and_kept, check_blinded_run, design, first_code, live_rig, repository_env, set_robot_keys
 from tests.support.ros1_echo import environment
 from tests.support.ros1_master import master_process
 
@@ -35,8 +35,9 @@ def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, 
     check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), env_for(tmp_path))
 
 
-@pytest.mark.parametrize("fault, reason", [("scans-late@3", "stale scans"), ("odometry-stale@3", "stale odometry")])
-def test_late_scans_or_stale_odometry_stop_the_robot(tmp_path, master, fault, reason):
+@pytest.mark.parametrize("fault, reason", [("scans-late@3", "stale scans"), ("odometry-stale@3", "stale odometry"),
+                                           ("scans-blank@3", "under 5% valid beams")])
+def test_late_or_blank_scans_or_stale_odometry_stop_the_robot(tmp_path, master, fault, reason):
     uri, _ = master
     study = design(tmp_path / "study", uri)
     code = first_code(study)
@@ -88,8 +89,7 @@ def test_an_exception_in_the_loop_stops_the_robot(tmp_path, master):
 def test_a_run_without_sensors_never_starts(tmp_path, master):
     uri, _ = master
     study = design(tmp_path / "study", uri)
-    spec = study.root / "study.toml"
-    spec.write_text(spec.read_text(encoding="utf-8").replace("[robot]\n", "[robot]\nsensor_wait = 3.0\n"), encoding="utf-8")
+    set_robot_keys(study.root, sensor_wait="3.0")
     code = first_code(study)
     with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
         rig.processes[1].kill()  # no robot: no scan, odometry or transform ever comes

@@ -70,7 +70,7 @@ def test_design_writes_the_robot_table_and_a_bad_one_exits_2(tmp_path, capsys):
     settings = read_robot_settings(study / "study.toml")
     assert settings is not None and settings.uri == "ros2://3"
     spec = study / "study.toml"
-    spec.write_text(spec.read_text(encoding="utf-8").replace("[robot]\n", "[robot]\nmax_speed = -1\n"), encoding="utf-8")
+    spec.write_text(spec.read_text(encoding="utf-8").replace("max_speed = 1.0\n", "max_speed = -1\n"), encoding="utf-8")
     capsys.readouterr()
     assert main(["run", "--robot", "ros2://3", "--study", str(study)]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"error: {spec} [robot]: max_speed must be a number in [0.01, 5], got -1"]

@@ -18,6 +18,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import suppress
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
@@ -40,9 +41,18 @@ class Failure:
 class PoolError(RuntimeError):
     """A worker could not be set up or died; `failure` says why when the worker could tell."""
 
-    def __init__(self, message: str, failure: Failure | None = None) -> None:
+    def __init__(self, message: str, failure: Failure | None = None, exitcode: int | None = None) -> None:
         super().__init__(message)
-        self.failure = failure
+        self.failure, self.exitcode = failure, exitcode
+
+    @property
+    def death(self) -> str:
+        """How the worker died: the signal that killed it, or its exit code."""
+        code = self.exitcode
+        if code is not None and code < 0:
+            with suppress(ValueError):
+                return signal.Signals(-code).name
+        return f"exit code {code}"
 
 
 def _die_with_parent(parent: int, death: int) -> None:
@@ -126,7 +136,7 @@ class WorkerPool:
             except queue.Empty:
                 dead = [p for p in self._processes if not p.is_alive()]
                 if dead:
-                    raise PoolError(f"a worker process died (exit code {dead[0].exitcode})") from None
+                    raise PoolError(f"a worker process died (exit code {dead[0].exitcode})", exitcode=dead[0].exitcode) from None
 
     def __enter__(self) -> WorkerPool:
         return self

@@ -72,12 +72,14 @@ class RunLog:
         blind: keep what the controller computed out of the log (it collects in `withheld`).
         limits: the robot's footprint, for the scene.
         start_ns: the log time of the run's start, ns since 1970 (0: log times are the run's own seconds).
+        chunk_size: the MCAP chunk size (bytes): a live run's log takes small ones, so that little is lost if its
+            process is killed.
     """
 
     def __init__(self, path: Path, metadata: Mapping[str, str], goal: tuple[float, float], cone: tuple[float, float] | None,
-                 blind: bool, limits: RobotLimits = RobotLimits(), start_ns: int = 0) -> None:
+                 blind: bool, limits: RobotLimits = RobotLimits(), start_ns: int = 0, chunk_size: int = 1024 * 1024) -> None:
         self.writer = FoxgloveWriter(path, metadata={fmt.RUN_METADATA: metadata, fmt.CLOCK_METADATA: fmt.clock(start_ns)},
-                                     schemas=fmt.SCHEMAS)
+                                     schemas=fmt.SCHEMAS, chunk_size=chunk_size)
         self._start_ns = start_ns
         self.blind = blind
         #: A blinded run's controller output: topic name -> its messages; metadata name -> record.

@@ -83,6 +83,7 @@ REAL_TIME_NS = 946_684_800 * 1_000_000_000
 SEED_BITS = 53
 
 if TYPE_CHECKING:
+    from trials.robot.guard import Guard
     from trials.robot.live_log import LiveLog
     from trials.scenario import Scenario
     from trials.sim.closed_loop import SimConfig
@@ -367,8 +368,22 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         recorded = {row.run_code: row.seed for row in outcomes.rows}
         chosen = [study.task(code, recorded.get(code) if code in rerun else None) for code in todo]
         tasks = chosen if options.robot is not None else with_scenes(chosen, folder.root, options.replay)
-        # One robot, one run at a time; a live worker is told to stop by SIGTERM and given time to stop the robot.
+        # One robot, one run at a time; a live worker is told to stop by SIGTERM and given time to stop the robot, and the
+        # parent's guard stops the robot itself if that worker dies.
         live = options.robot is not None
+        guard = _guard(folder, options.robot, study.blind) if options.robot is not None else None
+        answered: set[str] = set()
+
+        def worker_died(why: str) -> None:
+            if guard is None:
+                return
+            code = next((task.code for task in tasks if task.code not in answered), None)
+            message = guard.worker_died(code, why)
+            if code is not None and message is not None:
+                summary.failed.append((code, message))
+                _record_failure(folder, code, message, study.blind)
+                on_failed(code, message)
+
         try:
             setup = (str(folder.root), study.name, study.blind, study.levels, options)
             with WorkerPool(1 if live else min(workers, len(todo)), setup_worker, setup, USER_ERRORS,
@@ -382,7 +397,8 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, folder.aside_stamp())
                 on_start(len(todo))
-                for code, answer in _answers(pool, ((task.code, task) for task in tasks)):
+                for code, answer in _answers(pool, ((task.code, task) for task in tasks), worker_died):
+                    answered.add(code)
                     if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:
                         raise DiskFullError(answer.message)  # every later run would fail alike: stop now
                     if isinstance(answer, Failure):
@@ -398,9 +414,18 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                     summary.finished.append(answer)
                     on_done(answer)
         finally:
+            if guard is not None:
+                guard.halt()
+                guard.close()
             clean_partials(folder)
             summary.done = len(outcomes.finished & set(study.codes))
     return summary
+
+
+def _guard(folder: StudyFolder, robot: RobotSettings, blind: bool) -> Guard:
+    from trials.robot.guard import Guard
+
+    return Guard(folder, robot, blind)
 
 
 def _same_settings(outcomes: Outcomes, rerun: set[str], settings: RunSettings, spec: Path) -> None:
@@ -436,10 +461,12 @@ def with_scenes(tasks: list[RunTask], root: Path, options: ReplayOptions) -> lis
     return ready
 
 
-def _answers(pool: WorkerPool, tasks: Iterator[tuple[str, RunTask]]) -> Iterator[tuple[str, Any]]:
+def _answers(pool: WorkerPool, tasks: Iterator[tuple[str, RunTask]], worker_died: Callable[[str], None]) -> Iterator[tuple[str, Any]]:
+    """The pool's answers; a worker's death is told to `worker_died` (with how it died) and ends the command."""
     try:
         yield from pool.run(tasks)
     except PoolError as exc:
+        worker_died(exc.death)
         raise StudyError(f"{exc}; the finished runs are kept, run `trials run` again to continue") from None
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -37,6 +38,7 @@ class Rig:
     env: dict[str, str]
     commands: Path
     heard: Path
+    contacts: Path
     processes: list[subprocess.Popen] = field(default_factory=list)
 
     def start(self, args: Sequence[str], log: str) -> subprocess.Popen:
@@ -76,6 +78,22 @@ class Rig:
     def moving_commands(self) -> int:
         return sum(1 for line in self.heard.read_text(encoding="utf-8").splitlines() if float(line.split(",")[1]) != 0.0)
 
+    def wall_contacts(self) -> list[str]:
+        """Each time the software robot's bumper touched a wall (`wall_ns,x,y`)."""
+        return self.contacts.read_text(encoding="utf-8").splitlines() if self.contacts.exists() else []
+
+    def worker(self, run: subprocess.Popen) -> int:
+        """The pid of the worker process `trials run` spawned to drive the robot."""
+        for status in Path("/proc").glob("[0-9]*/status"):
+            try:
+                fields = dict(line.split(":\t", 1) for line in status.read_text().splitlines() if ":\t" in line)
+                command = (status.parent / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if fields.get("PPid", "").strip() == str(run.pid) and b"spawn_main" in command and b"resource_tracker" not in command:
+                return int(status.parent.name)
+        raise AssertionError(f"no worker process of trials run (pid {run.pid})")
+
 
 def wait_for(path: Path, what: str, processes: Sequence[subprocess.Popen], deadline_s: float = 120.0) -> None:
     deadline = time.monotonic() + deadline_s
@@ -87,13 +105,15 @@ def wait_for(path: Path, what: str, processes: Sequence[subprocess.Popen], deadl
 
 
 @contextmanager
-def live_rig(uri: str, study: Path, env: dict[str, str], robot: Sequence[str] = ()) -> Iterator[Rig]:
-    """The software robot on `uri` laying out `study`'s scenes (with `robot`'s extra options), and the witness."""
-    rig = Rig(uri, study, {**env, "PYTHONUNBUFFERED": "1"}, study.parent / "commands.csv", study.parent / "heard.csv")
+def live_rig(uri: str, study: Path, env: dict[str, str], robot: Sequence[str] = (), heard_type: str = "Twist") -> Iterator[Rig]:
+    """The software robot on `uri` laying out `study`'s scenes (with `robot`'s extra options), and the witness of the
+    velocity commands of type `heard_type`."""
+    rig = Rig(uri, study, {**env, "PYTHONUNBUFFERED": "1"}, study.parent / "commands.csv", study.parent / "heard.csv",
+              study.parent / "contacts.csv")
     try:
-        rig.start([sys.executable, "-m", "tests.support.witness", uri, "/cmd_vel", str(rig.heard)], "witness.log")
+        rig.start([sys.executable, "-m", "tests.support.witness", uri, "/cmd_vel", str(rig.heard), heard_type], "witness.log")
         rig.start([*TRIALS, "robot-sim", "--ros", uri, "--study", str(study), "--scan-rate", "20",
-                   "--commands", str(rig.commands), *robot], "robot.log")
+                   "--commands", str(rig.commands), "--contacts", str(rig.contacts), *robot], "robot.log")
         wait_for(rig.heard.with_name(rig.heard.name + ".ready"), "the witness", rig.processes)
         yield rig
     finally:
@@ -114,6 +134,17 @@ def design(folder: Path, uri: object, *flags: str) -> StudyFolder:
     subprocess.run([*TRIALS, "design", *flags, "--robot", str(uri), "--seed", "5", "--study", str(folder)], check=True,
                    capture_output=True, env=repository_env())
     return StudyFolder(folder)
+
+
+def set_robot_keys(study: Path, **keys: str) -> None:
+    """Set keys of study.toml's [robot] table (values as TOML text), replacing the lines `trials design --robot` wrote."""
+    spec = study / "study.toml"
+    head, table, tail = re.split(r"(\[robot\]\n(?:.*\n)*?)(?=\n\[|\Z)", spec.read_text(encoding="utf-8"), maxsplit=1)
+    for key, value in keys.items():
+        line = f"{key} = {value}\n"
+        table, found = re.subn(rf"^{key} = (?:\[\n(?:    .*\n)*\]|.*)\n", line, table, flags=re.M)  # tomli_w spreads arrays over lines
+        table = table if found else table + line
+    spec.write_text(head + table + tail, encoding="utf-8")
 
 
 def first_code(study: StudyFolder) -> str:

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from trials import option_types as types
+from trials.robot.transport import TWIST_TYPES
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,9 +32,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--duration", type=types.number(0, math.inf, above=True, below=True), metavar="S", help="stop after S seconds")
     parser.add_argument("--commands", type=Path, metavar="FILE",
                         help="append every velocity command received to FILE as `wall_ns,linear,angular` lines")
+    parser.add_argument("--contacts", type=Path, metavar="FILE",
+                        help="append `wall_ns,x,y` to FILE each time the robot's footprint comes to touch a wall (its bumper)")
+    parser.add_argument("--room", metavar="X0,Y0,X1,Y1",
+                        help="the walled room in the odometry frame, in metres, the robot's start at the origin facing +x "
+                        "(default -6,-5,16,5: 22 x 10 m; written --room=-6,-5,16,5); `none` for open ground")
+    parser.add_argument("--cmd-vel-type", choices=TWIST_TYPES, metavar="TYPE",
+                        help="the velocity command type the base takes (Twist or TwistStamped; default: the study's cmd_vel_type)")
     parser.add_argument("--fault", action="append", default=[], metavar="KIND@S",
                         help="stage a failure S seconds after each run starts, to rehearse the stop rules: scans-stop, scans-late "
-                        "(stamps 1 s old), odometry-stop, odometry-stale (stamp frozen); may be repeated")
+                        "(stamps 1 s old), scans-blank (every range NaN), odometry-stop, odometry-stale (stamp frozen), stall "
+                        "(the wheels blocked); may be repeated")
     parser.set_defaults(handler=run)
 
 
@@ -43,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from trials.robot.settings import RobotSettings, read_robot_settings
-    from trials.robot.software_robot import Fault, SoftwareRobot, SoftwareRobotConfig, open_commands
+    from trials.robot.software_robot import ROOM, Fault, SoftwareRobot, SoftwareRobotConfig, open_commands, parse_room
     from trials.robot.transport import RobotUri, open_transport
     from trials.study import SPEC, StudyFolder
 
@@ -52,8 +61,11 @@ def run(args: argparse.Namespace) -> int:
     if study is not None:
         study.read_plan()
     settings = replace((read_robot_settings(study.path(SPEC)) if study else None) or RobotSettings(), uri=str(uri))
+    if args.cmd_vel_type is not None:
+        settings = replace(settings, cmd_vel_type=args.cmd_vel_type)
     config = SoftwareRobotConfig(scan_rate=args.scan_rate, command_timeout=args.command_timeout, seed=args.seed,
-                                 faults=tuple(Fault.parse(text) for text in args.fault))
+                                 faults=tuple(Fault.parse(text) for text in args.fault),
+                                 room=ROOM if args.room is None else parse_room(args.room))
     stop = threading.Event()
 
     def quit_(signum: int, frame: object) -> None:
@@ -61,14 +73,16 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, quit_)
     signal.signal(signal.SIGINT, quit_)
-    commands = open_commands(args.commands)
-    robot = SoftwareRobot(open_transport(uri, "navtrials_robot"), settings, config, study, commands)
+    commands, contacts = open_commands(args.commands), open_commands(args.contacts)
+    robot = SoftwareRobot(open_transport(uri, "navtrials_robot"), settings, config, study, commands, contacts)
     print(f"Software robot on {uri}: scans on {settings.scan_topic} at {args.scan_rate:g} Hz, odometry on "
           f"{settings.odometry_topic or '(tf only)'}, commands on {settings.cmd_vel_topic}; Ctrl-C stops it", flush=True)
     try:
         robot.run(stop, args.duration)
     finally:
         robot.close()
-        if commands is not None:
-            commands.close()
+        for kept in (commands, contacts):
+            if kept is not None:
+                kept.close()
     return 0
+

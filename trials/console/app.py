@@ -30,14 +30,12 @@ from trials.attached_logs import MAX_UPLOAD_BYTES
 from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
 from trials.console.address import LOOPBACK, NETWORK_OPTION, Reach, url_host
-from trials.console.live import GOING
 from trials.console.pictures import RunPictures
 from trials.console.progress import progress
 from trials.console.sheet import SheetRow, study_key
 from trials.console.times import local_time
 from trials.errors import USER_ERRORS
 from trials.numbers import finite_number
-from trials.robot.live_state import read_state
 from trials.run_events import ABORT, ABORTED, EVENTS
 from trials.study import LIVE_ESTOP
 
@@ -90,9 +88,7 @@ def create_app(console: Console, access: ConsoleAccess, reach: Reach = LOOPBACK)
         if not session.get("experimenter"):
             return {}
         running = console.live.running
-        written = read_state(console.folder) if running is None else None
-        elsewhere = written.get("run_code") if written is not None and written.get("state") in GOING else None
-        return {"live_now": running, "estop_run": running or elsewhere}
+        return {"live_now": running, "estop_run": running or console.live.elsewhere()}
 
     @app.context_processor
     def blinding() -> dict[str, Any]:

@@ -124,6 +124,13 @@ class LiveRuns:
             live.process.send_signal(signal.SIGTERM)  # a no-op once the process has exited
             return live.code
 
+    def elsewhere(self) -> str | None:
+        """The run runs/live.json says is under way while a `trials run` holds the study (one started elsewhere), if any."""
+        written = read_state(self.folder)
+        if written is None or written.get("state") not in GOING or not lock_state(self.folder).held:
+            return None
+        return written.get("run_code")
+
     def state(self, code: str) -> dict[str, Any]:
         """Run `code`'s live state: runs/live.json's content when it is about this run (run_code, state, detail,
         since_utc), `starting` before the worker has written it, and `running`: whether this console's live run
@@ -135,12 +142,16 @@ class LiveRuns:
         if live is not None and live.code == code:
             if about and written != live.state_before:
                 shown = dict(written or {})
+                if live.ended is not None and shown.get("state") in (WAITING, DRIVING):  # its process is gone: never live
+                    shown.update(state=ABORTED, detail=live.ended[1] or "`trials run --robot` ended while the run was under way")
             elif live.ended is not None:  # it ended before its worker said anything: the console's own reason
                 shown = {"state": ABORTED, "detail": live.ended[1]} if not live.ended[0] else {}
             else:
                 shown = {"state": STARTING, "detail": "loading the controllers and reaching the robot"}
         elif about:
             shown = dict(written or {})
+            if shown.get("state") in (WAITING, DRIVING) and not lock_state(self.folder).held:
+                shown.update(state=ABORTED, detail="the `trials run` that drove it is no longer running")
         return {**shown, "run_code": code, "running": live is not None and live.code == code and live.running}
 
     def close(self) -> str | None:

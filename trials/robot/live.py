@@ -43,8 +43,9 @@ from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
 from trials.log_trial import People
 from trials.metrics import measure
+from trials.robot.protective_field import OPEN, FieldReading, ProtectiveField, returns_in, valid_returns
 from trials.robot.settings import START_FRAME, RobotSettings
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, Transport, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
 from trials.sim.closed_loop import START, TIMEOUT, SimConfig, run_ending
 from trials.sim.follower import WaypointFollower
 from trials.sim.robot import RobotLimits, RobotState
@@ -53,6 +54,12 @@ from trials.sim.robot import RobotLimits, RobotState
 ABORTED = "aborted"
 #: The states a live run passes through, as the console shows them.
 WAITING, DRIVING = "waiting for sensors", "driving"
+#: The event a run's log records when the protective field holds the robot against its controller.
+PROTECTIVE_STOP = "protective stop"
+#: The field when the laser cannot be placed on the base: nothing may move.
+BLIND = FieldReading(0.0, 0.0, True, 0.0, 0.0)
+#: The reason a run stopped by the console's E-STOP gives.
+ESTOP_CONSOLE = "e-stop from the console"
 #: Where a run announces its code (std_msgs/String, latched): a software robot sets up that row's scene.
 RUN_TOPIC = "/trials/run"
 #: Zero velocity commands sent when a run stops, 20 ms apart, so that one lost message does not leave the robot moving.
@@ -63,6 +70,12 @@ GOAL_AHEAD = (10.0, 0.0)
 NOBODY = People((), np.zeros((0, 2)), np.zeros((0, 2)))
 #: Scans kept waiting for the loop; more means the loop has fallen behind and the oldest are dropped.
 SCAN_QUEUE = 64
+#: Seconds after a run's announcement before its sensors count: a robot brought to its start may still be sending the
+#: pose it had before.
+SETTLE_S = 0.5
+#: A stall: over `stall_time` the commands would have moved the robot at least this far (m) or turned it this much
+#: (rad), and odometry shows less than `STALL_SHARE` of it.
+STALL_MIN_M, STALL_MIN_RAD, STALL_SHARE = 0.2, 0.4, 0.25
 
 
 class StopRequest:
@@ -99,6 +112,9 @@ class Sensors:
         self.transforms: queue.Queue[list[Transform]] = queue.Queue()
         self.static: dict[str, Transform] = {}
         self.dropped = 0
+        #: Scans with too few valid beams, and odometry or transforms with non-finite values, ignored since the run began.
+        self.blank_scans = 0
+        self.bad_odometry = 0
         self._lock = threading.Lock()
 
     def attach(self, transport: Transport) -> None:
@@ -116,10 +132,14 @@ class Sensors:
         for waiting in (self.scans, self.transforms):
             while not waiting.empty():
                 waiting.get_nowait()
+        self.blank_scans = self.bad_odometry = 0
         self.stop = stop
 
     def on_scan(self, scan: Scan) -> None:
         arrived = time.monotonic()
+        if not len(scan.ranges) or valid_returns(scan).mean() < self.settings.min_valid_share:
+            self.blank_scans += 1  # counts as no scan: the watchdog stops the robot when only such scans come
+            return
         with self._lock:
             self.scan_seen = arrived
             self.newest_scan_ns = max(scan.stamp_ns, self.newest_scan_ns or scan.stamp_ns)
@@ -129,6 +149,9 @@ class Sensors:
             self.dropped += 1
 
     def on_odometry(self, odometry: Odometry) -> None:
+        if not all(map(math.isfinite, (odometry.pose.x, odometry.pose.y, odometry.pose.yaw, odometry.linear, odometry.angular))):
+            self.bad_odometry += 1  # counts as no odometry
+            return
         with self._lock:
             self.tree.add(odometry.frame_id, odometry.child_frame_id, odometry.stamp_ns, odometry.pose)
             if self.odometry is None or odometry.stamp_ns >= self.odometry.stamp_ns:
@@ -137,6 +160,10 @@ class Sensors:
 
     def on_transforms(self, transforms: list[Transform]) -> None:
         s = self.settings
+        finite = [t for t in transforms if all(map(math.isfinite, (t.pose.x, t.pose.y, t.pose.yaw)))]
+        if len(finite) < len(transforms):
+            self.bad_odometry += 1
+        transforms = finite
         self.transforms.put(transforms)
         with self._lock:
             self.static.update((frame_name(t.child), t) for t in transforms if t.static)
@@ -186,9 +213,11 @@ class Sensors:
             odometry_age = now - self.odometry_seen if self.odometry_seen is not None else math.inf
             behind = (self.newest_scan_ns - self.odometry.stamp_ns) * 1e-9 if self.odometry and self.newest_scan_ns else 0.0
         if scan_age > s.watchdog:
-            return f"stale scans: none on {s.scan_topic} for {scan_age:.2f} s (watchdog {s.watchdog:g} s)"
+            blank = f"; {self.blank_scans} had under {s.min_valid_share:.0%} valid beams" if self.blank_scans else ""
+            return f"stale scans: no valid scan on {s.scan_topic} for {scan_age:.2f} s (watchdog {s.watchdog:g} s{blank})"
         if odometry_age > s.watchdog:
-            return f"stale odometry: none for {odometry_age:.2f} s (watchdog {s.watchdog:g} s)"
+            bad = f"; {self.bad_odometry} with non-finite values" if self.bad_odometry else ""
+            return f"stale odometry: none valid for {odometry_age:.2f} s (watchdog {s.watchdog:g} s{bad})"
         if abs(behind) > s.watchdog:
             return (f"stale odometry: its newest stamp is {behind:.2f} s behind the newest scan's "
                     f"(watchdog {s.watchdog:g} s)" if behind > 0 else
@@ -259,7 +288,7 @@ class RobotLink:
         self.transport, self.settings = transport, settings
         self.sensors = Sensors(settings)
         self.sensors.attach(transport)
-        self.twist = transport.publisher(settings.cmd_vel_topic, TWIST)
+        self.twist = velocity_publisher(transport, settings)
         self.announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
 
     def close(self) -> None:
@@ -289,7 +318,7 @@ class LiveRun:
 
     def send(self, linear: float, angular: float) -> None:
         self.command = (linear, angular)
-        self.link.twist(Velocity(linear, angular))
+        self.link.twist(linear, angular)
 
     def halt(self) -> None:
         """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop."""
@@ -299,9 +328,9 @@ class LiveRun:
             self.send(0.0, 0.0)
 
     def _why_stop(self, now: float, check_sensors: bool) -> str | None:
-        reason = self.stop.reason or self.transport.lost()
-        if reason is None and self.estop_file is not None and self.estop_file.exists():
-            reason = "e-stop from the console"
+        # The console's E-STOP creates its file before it signals `trials run`: the file names the cause.
+        reason = ESTOP_CONSOLE if self.estop_file is not None and self.estop_file.exists() else None
+        reason = reason or self.stop.reason or self.transport.lost()
         if reason is None and check_sensors:
             reason = self.sensors.staleness(now)
         return reason
@@ -314,14 +343,16 @@ class LiveRun:
         self.on_state(WAITING, ", ".join(self.sensors.missing(None)))
         self.link.announce(run_code)
         self.send(0.0, 0.0)
-        deadline = time.monotonic() + self.settings.sensor_wait
+        announced = time.monotonic()
+        deadline = announced + self.settings.sensor_wait
         while True:
             now = time.monotonic()
             if self.laser_frame is None and not self.sensors.scans.empty():
                 self.laser_frame = self.sensors.scans.queue[0][0].frame_id
             missing = self.sensors.missing(self.laser_frame)
             fresh = self.sensors.staleness(now) is None
-            if not missing and fresh:
+            settled = min(self.sensors.scan_seen or 0.0, self.sensors.odometry_seen or 0.0) >= announced + SETTLE_S
+            if not missing and fresh and settled:
                 return None
             reason = self._why_stop(now, check_sensors=False)
             if reason is None and now > deadline:
@@ -364,6 +395,9 @@ class LiveRun:
         sink.transforms(0.0, list(sensors.static.values()))
         tracker = PersonTracker.learned()
         follower = WaypointFollower(limits)
+        protective = ProtectiveField(limits, s.protective_margin, s.reaction_time, s.max_acceleration)
+        reading, held_since = OPEN, None
+        stall = StallWatch(s)
         rows: deque[TrackRow] = deque()
         robot_poses: deque[tuple[float, np.ndarray]] = deque()
         trace = Trace()
@@ -395,6 +429,8 @@ class LiveRun:
                     sensor = sensors.lookup(s.odometry_frame, scan.frame_id, scan.stamp_ns)
                     if sensor is None or scan.stamp_ns < start_ns:
                         continue
+                    laser = sensors.lookup(s.base_frame, scan.frame_id, scan.stamp_ns)
+                    reading = protective.read(returns_in(scan, laser)) if laser is not None else BLIND
                     result = tracker.process(scan, sensor_pose=sensor, frame=s.odometry_frame, scan_index=scans)
                     scans += 1
                     scan_t = (scan.stamp_ns - start_ns) * 1e-9
@@ -438,9 +474,23 @@ class LiveRun:
                     else:
                         late += 1
                 command = follower.command(t, robot) if planned else (0.0, 0.0)
-                command = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
+                wanted = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
+                command = reading.limit(*wanted)
                 ending = run_ending(t, robot, people, goal, ending_rule)
                 if ending is not None:
+                    break
+                if reading.blocks(wanted[0]) and wanted != (0.0, 0.0):
+                    if held_since is None:
+                        held_since = t
+                        sink.event(t, PROTECTIVE_STOP, reading.describe())
+                    if t - held_since >= s.protective_hold:
+                        ending = (ABORTED, f"protective stop held {s.protective_hold:g} s: {reading.describe()}")
+                        break
+                else:
+                    held_since = None
+                stalled = stall.add(t, robot, command)
+                if stalled is not None:
+                    ending = (ABORTED, stalled)
                     break
                 self.send(*command)
                 sent_at = time.monotonic()
@@ -486,6 +536,62 @@ class LiveRun:
         ids, pedestrians = history_at(TrackTable(list(rows)), start_ns * 1e-9 + t) if rows else ((), np.zeros((0, T_OBS, 2)))
         return Observation(time=t, robot_pose=robot.pose, robot_velocity=np.array([robot.v, robot.w]), goal=goal.copy(),
                            robot_history=history, pedestrian_ids=ids, pedestrian_history=pedestrians)
+
+
+class StallWatch:
+    """Ends a run whose base does not move as commanded: over the last `stall_time` seconds of the robot's clock, the
+    commands sent would have moved it at least `STALL_MIN_M` (or turned it `STALL_MIN_RAD`) and odometry shows under
+    `STALL_SHARE` of that. A base that has not moved at all since the run began does not hear its commands."""
+
+    def __init__(self, settings: RobotSettings) -> None:
+        self.settings = settings
+        self.samples: deque[tuple[float, np.ndarray, float, float]] = deque()
+        self.first: np.ndarray | None = None
+        self.moved = False
+
+    def add(self, t: float, robot: RobotState, command: tuple[float, float]) -> str | None:
+        """Note the robot's pose at `t` and the command it is sent now; the reason to stop, if it stalls."""
+        pose = robot.pose
+        self.first = pose if self.first is None else self.first
+        self.moved = self.moved or float(np.hypot(*(pose[:2] - self.first[:2]))) > 0.05 or abs(_wrap(pose[2] - self.first[2])) > 0.05
+        self.samples.append((t, pose, abs(command[0]), abs(command[1])))
+        window = self.settings.stall_time
+        while len(self.samples) > 2 and self.samples[1][0] <= t - window:
+            self.samples.popleft()
+        if t - self.samples[0][0] < window - 1e-9:
+            return None
+        times = np.array([sample[0] for sample in self.samples])
+        poses = np.array([sample[1] for sample in self.samples])
+        speeds = np.array([sample[2:] for sample in self.samples])
+        spans = np.diff(times)
+        asked_m, asked_rad = (speeds[:-1] * spans[:, None]).sum(axis=0)
+        moved_m = float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum())
+        turned = float(np.abs(_wrap(np.diff(poses[:, 2]))).sum())
+        if not ((asked_m >= STALL_MIN_M and moved_m < STALL_SHARE * asked_m) or (asked_rad >= STALL_MIN_RAD and turned < STALL_SHARE * asked_rad)):
+            return None
+        s = self.settings
+        what = (f"the commands of the last {window:g} s would have moved it {asked_m:.2f} m and turned it {asked_rad:.2f} rad; "
+                f"odometry shows {moved_m:.2f} m and {turned:.2f} rad")
+        if not self.moved:
+            return f"the base does not respond to {s.cmd_vel_type} on {s.cmd_vel_topic}: {what}"
+        return f"stall: {what}"
+
+
+def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
+    return (np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def velocity_publisher(transport: Transport, settings: RobotSettings) -> Callable[[float, float], None]:
+    """A function sending one velocity command as the base takes it (`cmd_vel_type`): a Twist, or a TwistStamped stamped
+    with this computer's clock in `cmd_vel_frame`."""
+    kind = TWIST_KINDS[settings.cmd_vel_type]
+    publish = transport.publisher(settings.cmd_vel_topic, kind)
+    stamped = kind != TWIST_KINDS["Twist"]
+
+    def send(linear: float, angular: float) -> None:
+        publish(Velocity(linear, angular, time.time_ns(), settings.cmd_vel_frame) if stamped else Velocity(linear, angular))
+
+    return send
 
 
 def _arrivals(scans: queue.Queue[tuple[Scan, float]], wait: float) -> list[tuple[Scan, float]]:

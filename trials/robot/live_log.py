@@ -27,6 +27,10 @@ from trials.run_log import RunLog
 from trials.sim.robot import RobotLimits, RobotState
 from trials.study import minute_ns
 
+#: A live log's MCAP chunk (bytes): about a second of scans, so a worker killed mid-run loses at most that much of its
+#: log (`robot_logs.foxglove_log.recover` keeps the rest).
+LIVE_CHUNK_BYTES = 64 * 1024
+
 
 class LiveLog:
     """Writes a live run's log as the loop reports it (a `trials.robot.live.LiveSink`); nothing is written
@@ -39,7 +43,7 @@ class LiveLog:
     def started(self, start_ns: int, goal: np.ndarray) -> None:
         origin = minute_ns(start_ns) if self.blind else start_ns
         self.log = RunLog(self.path, {**self.metadata, "robot_start_stamp_ns": str(origin)}, (float(goal[0]), float(goal[1])),
-                          None, self.blind, self.limits, start_ns=origin)
+                          None, self.blind, self.limits, start_ns=origin, chunk_size=LIVE_CHUNK_BYTES)
 
     def scan(self, time: float, scan: Scan, sensor: Pose2D) -> None:
         assert self.log is not None

@@ -1,17 +1,22 @@
 """`runs/live.json`: the state of the live run in progress (or the last one), written by the worker that drives it and
-read by `trials status` and the console. Public: the run code, the state and its detail, never the controller."""
+read by `trials status` and the console. Public: the run code, the state and its detail, never the controller; its time,
+and the modification times of the file and of runs/, are to the minute, since to the second they would time a run's end
+and so tell the arms of a blinded study apart."""
 
 from __future__ import annotations
 
 import json
 
 from trials.atomic import write_text
-from trials.study import LIVE_STATE, StudyFolder, utc_now
+from trials.study import LIVE_STATE, StudyFolder, to_the_minute, utc_now
 
 
 def write_state(folder: StudyFolder, code: str, state: str, detail: str) -> None:
-    """runs/live.json: the live run's code, state and detail, and when it entered that state (UTC, to the second)."""
-    write_text(folder.path(LIVE_STATE), json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": utc_now()}) + "\n")
+    """runs/live.json: the live run's code, state and detail, and the minute it entered that state (UTC)."""
+    path = folder.path(LIVE_STATE)
+    since = utc_now()[:16] + ":00+00:00"
+    write_text(path, json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": since}) + "\n")
+    to_the_minute(path, path.parent)
 
 
 def read_state(folder: StudyFolder) -> dict[str, str] | None:

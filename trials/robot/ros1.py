@@ -29,7 +29,7 @@ import numpy as np
 from robot_logs.convert import to_odometry, to_scan, to_transforms
 from robot_logs.errors import LogError
 from robot_logs.records import Odometry, Scan, Transform
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, LinkError, RobotUri, Velocity
 
 DIST_PACKAGES = "/usr/lib/python3/dist-packages"
 INSTALL = ("sudo apt-get install python3-rospy python3-rosmaster python3-sensor-msgs python3-nav-msgs python3-geometry-msgs "
@@ -293,13 +293,14 @@ def _writable(folder: Path) -> bool:
 
 def _message_class(kind: str) -> type:
     """The ROS 1 message class that carries `kind`."""
-    from geometry_msgs.msg import Twist
+    from geometry_msgs.msg import Twist, TwistStamped
     from nav_msgs.msg import Odometry as OdometryMsg
     from sensor_msgs.msg import LaserScan
     from std_msgs.msg import Bool, String
     from tf2_msgs.msg import TFMessage
 
-    classes = {SCAN: LaserScan, ODOMETRY: OdometryMsg, TF: TFMessage, TF_STATIC: TFMessage, TWIST: Twist, FLAG: Bool, TEXT: String}
+    classes = {SCAN: LaserScan, ODOMETRY: OdometryMsg, TF: TFMessage, TF_STATIC: TFMessage, TWIST: Twist,
+               TWIST_STAMPED: TwistStamped, FLAG: Bool, TEXT: String}
     if kind not in classes:
         raise ValueError(f"unknown message kind {kind!r}, expected one of {', '.join(classes)}")
     return classes[kind]
@@ -320,7 +321,7 @@ def _quaternion(yaw: float) -> Any:
 
 def _to_message(rospy: ModuleType, kind: str, value: Any) -> Any:
     """A robot_logs record (or Velocity, bool, str) as the ROS 1 message of `kind`."""
-    from geometry_msgs.msg import Point, Pose, TransformStamped, Twist, Vector3
+    from geometry_msgs.msg import Point, Pose, TransformStamped, Twist, TwistStamped, Vector3
     from geometry_msgs.msg import Transform as TransformMsg
     from nav_msgs.msg import Odometry as OdometryMsg
     from sensor_msgs.msg import LaserScan
@@ -345,6 +346,8 @@ def _to_message(rospy: ModuleType, kind: str, value: Any) -> Any:
                                            TransformMsg(Vector3(t.pose.x, t.pose.y, 0.0), _quaternion(t.pose.yaw))) for t in transforms])
     if kind == TWIST:
         return Twist(Vector3(value.linear, 0.0, 0.0), Vector3(0.0, 0.0, value.angular))
+    if kind == TWIST_STAMPED:
+        return TwistStamped(_header(rospy, value.stamp_ns, value.frame_id), Twist(Vector3(value.linear, 0.0, 0.0), Vector3(0.0, 0.0, value.angular)))
     if kind == FLAG:
         return Bool(bool(value))
     if kind == TEXT:
@@ -362,6 +365,9 @@ def _from_message(kind: str, msg: Any, where: str) -> Any:
         return to_transforms(msg, time.time_ns(), static=kind == TF_STATIC)
     if kind == TWIST:
         return Velocity(float(msg.linear.x), float(msg.angular.z))
+    if kind == TWIST_STAMPED:
+        stamp = msg.header.stamp
+        return Velocity(float(msg.twist.linear.x), float(msg.twist.angular.z), stamp.secs * 1_000_000_000 + stamp.nsecs, msg.header.frame_id)
     if kind == FLAG:
         return bool(msg.data)
     return str(msg.data)

@@ -58,7 +58,7 @@ from robot_logs.errors import LogError
 from robot_logs.records import Odometry, Scan, Transform
 from trials.errors import StudyError
 from trials.robot import ros2_types as msg
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, LinkError, RobotUri, Velocity
 
 #: Set to "1" to keep every ROS 2 node of this process on the loopback interface (tests do).
 LOOPBACK_ENV = "NAVTRIALS_DDS_LOOPBACK"
@@ -125,6 +125,15 @@ def _twist_msg(velocity: Velocity) -> msg.Twist:
     return msg.Twist(msg.Vector3(velocity.linear, 0.0, 0.0), msg.Vector3(0.0, 0.0, velocity.angular))
 
 
+def _twist_stamped_msg(velocity: Velocity) -> msg.TwistStamped:
+    return msg.TwistStamped(msg.Header(_stamp(velocity.stamp_ns), velocity.frame_id), _twist_msg(velocity))
+
+
+def _velocity(m: msg.TwistStamped) -> Velocity:
+    stamp = m.header.stamp
+    return Velocity(float(m.twist.linear.x), float(m.twist.angular.z), stamp.sec * 1_000_000_000 + stamp.nanosec, m.header.frame_id)
+
+
 @dataclass(frozen=True)
 class _Kind:
     """How one kind goes over ROS 2: its message type, value -> message, and (message, record ns, where) -> value."""
@@ -140,6 +149,7 @@ _KINDS = {
     TF: _Kind(msg.TFMessage, _tf_msg, lambda m, ns, where: to_transforms(m, ns, static=False)),
     TF_STATIC: _Kind(msg.TFMessage, _tf_msg, lambda m, ns, where: to_transforms(m, ns, static=True)),
     TWIST: _Kind(msg.Twist, _twist_msg, lambda m, ns, where: Velocity(float(m.linear.x), float(m.angular.z))),
+    TWIST_STAMPED: _Kind(msg.TwistStamped, _twist_stamped_msg, lambda m, ns, where: _velocity(m)),
     FLAG: _Kind(msg.Bool, lambda value: msg.Bool(bool(value)), lambda m, ns, where: bool(m.data)),
     TEXT: _Kind(msg.String, lambda value: msg.String(str(value)), lambda m, ns, where: str(m.data)),
 }

@@ -95,6 +95,14 @@ class Twist(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
 
 
 @dataclass
+class TwistStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"):
+    """geometry_msgs/TwistStamped."""
+
+    header: Header
+    twist: Twist
+
+
+@dataclass
 class TwistWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::TwistWithCovariance_"):
     """geometry_msgs/TwistWithCovariance."""
 

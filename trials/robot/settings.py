@@ -6,7 +6,9 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     uri = "ros1://127.0.0.1:11311"  # or "ros2://0" (a ROS 2 domain id); `--robot` overrides it
     scan_topic = "/scan"            # sensor_msgs/LaserScan
     odometry_topic = "/odom"        # nav_msgs/Odometry; "" reads the base's pose from tf instead
-    cmd_vel_topic = "/cmd_vel"      # geometry_msgs/Twist, the base's velocity command
+    cmd_vel_topic = "/cmd_vel"      # the base's velocity command
+    cmd_vel_type = "Twist"          # geometry_msgs/Twist, or "TwistStamped" (e.g. Nav2 on Jazzy with stamped velocities)
+    cmd_vel_frame = "base_link"     # a TwistStamped command's header frame
     estop_topic = "/e_stop"         # std_msgs/Bool: true stops the run at once
     odometry_frame = "odom"
     base_frame = "base_link"
@@ -16,7 +18,13 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     max_turn_rate = 2.0             # rad/s
     max_acceleration = 1.5          # m/s^2
     max_angular_acceleration = 3.0  # rad/s^2
-    watchdog = 0.5                  # s: scans or odometry older than this stop the robot
+    footprint = [0.99, 0.67]        # m: length and width of the base's rectangle, centred on base_frame
+    protective_margin = 0.1         # m around the footprint: a laser return inside it stops the robot
+    reaction_time = 0.2             # s the robot travels before braking begins, in the protective field's braking distance
+    protective_hold = 3.0           # s: a protective stop held this long ends the run
+    stall_time = 2.0                # s of commanded motion without motion in odometry that end the run (a stall, a deaf base)
+    watchdog = 0.5                  # s: valid scans or odometry older than this stop the robot
+    min_valid_share = 0.05          # share of a scan's beams that must return a range; a scan with fewer counts as missing
     sensor_wait = 20.0              # s to wait for scans, odometry and the laser's transform before giving up
     timeout = 60.0                  # s of driving before the run ends as a timeout
     command_rate = 20.0             # Hz of velocity commands
@@ -37,7 +45,7 @@ from typing import Any
 
 from robot_logs.physical import STEP_S
 from trials.errors import StudyError
-from trials.robot.transport import RobotUri
+from trials.robot.transport import TWIST_TYPES, RobotUri
 from trials.scenario import DIRECTION, GOAL
 from trials.sim.robot import RobotLimits
 from trials.study import study_table
@@ -56,6 +64,8 @@ class RobotSettings:
     scan_topic: str = "/scan"
     odometry_topic: str = "/odom"
     cmd_vel_topic: str = "/cmd_vel"
+    cmd_vel_type: str = TWIST_TYPES[0]
+    cmd_vel_frame: str = "base_link"
     estop_topic: str = "/e_stop"
     odometry_frame: str = "odom"
     base_frame: str = "base_link"
@@ -66,7 +76,13 @@ class RobotSettings:
     max_turn_rate: float = RobotLimits.max_turn_rate
     max_acceleration: float = RobotLimits.max_acceleration
     max_angular_acceleration: float = RobotLimits.max_angular_acceleration
+    footprint: tuple[float, ...] = (2.0 * RobotLimits.half_length, 2.0 * RobotLimits.half_width)
+    protective_margin: float = 0.1
+    reaction_time: float = 0.2
+    protective_hold: float = 3.0
+    stall_time: float = 2.0
     watchdog: float = 0.5
+    min_valid_share: float = 0.05
     sensor_wait: float = 20.0
     timeout: float = 60.0
     command_rate: float = 20.0
@@ -77,9 +93,10 @@ class RobotSettings:
 
     @property
     def limits(self) -> RobotLimits:
-        """The follower's limits: the table's speeds and accelerations, backwards at half speed, the footprint of the simulator."""
+        """The follower's limits: the table's speeds and accelerations, backwards at half speed, and its footprint."""
         return RobotLimits(max_speed=self.max_speed, max_reverse_speed=0.5 * self.max_speed, max_turn_rate=self.max_turn_rate,
-                           max_acceleration=self.max_acceleration, max_angular_acceleration=self.max_angular_acceleration)
+                           max_acceleration=self.max_acceleration, max_angular_acceleration=self.max_angular_acceleration,
+                           half_length=0.5 * self.footprint[0], half_width=0.5 * self.footprint[1])
 
     def goal_for(self, row: dict[str, str]) -> tuple[float, ...]:
         """The goal of a plan row: its Direction level's, else the table's `goal`."""
@@ -96,11 +113,15 @@ class RobotSettings:
 #: Numeric keys and their closed ranges.
 RANGES: dict[str, tuple[float, float]] = {
     "max_speed": (0.01, 5.0), "max_turn_rate": (0.01, 10.0), "max_acceleration": (0.01, 20.0),
-    "max_angular_acceleration": (0.01, 50.0), "watchdog": (0.05, 5.0), "sensor_wait": (0.5, 600.0),
-    "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
+    "max_angular_acceleration": (0.01, 50.0), "protective_margin": (0.0, 2.0), "reaction_time": (0.0, 2.0),
+    "protective_hold": (0.5, 600.0), "stall_time": (0.5, 60.0), "watchdog": (0.05, 5.0), "min_valid_share": (0.0, 1.0),
+    "sensor_wait": (0.5, 600.0), "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
 }
-TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "estop_topic", "odometry_frame", "base_frame", "goal_frame")
-KEYS = (*TEXTS, *RANGES, "goal", "goals")
+TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "cmd_vel_type", "cmd_vel_frame", "estop_topic", "odometry_frame",
+         "base_frame", "goal_frame")
+KEYS = (*TEXTS, "footprint", *RANGES, "goal", "goals")
+#: The footprint's closed range of length and width (m).
+FOOTPRINT_M = (0.05, 10.0)
 #: Furthest goal coordinate a table may give (m): beyond it a value is a typing slip.
 MAX_GOAL_M = 1e4
 
@@ -116,14 +137,22 @@ def read_robot_settings(spec: Path) -> RobotSettings | None:
 
 
 def robot_table(spec: Path | None, uri: str | None = None) -> dict[str, Any]:
-    """The `[robot]` table of a study.toml as written ({} without one), after checking it, with `uri` set when given
-    (`trials design --robot`), so that `trials design` can carry it into the study.toml it writes."""
+    """The `[robot]` table of a study.toml as written ({} without one), after checking it, so that `trials design` can
+    carry it into the study.toml it writes; with `uri` (`trials design --robot`) that uri and every key the table leaves
+    out at its default, so the lab edits what its robot has."""
     settings = read_robot_settings(spec) if spec is not None else None
     table = tomllib.loads(spec.read_text(encoding="utf-8")).get(TABLE, {}) if settings is not None and spec is not None else {}
     if uri is not None:
         RobotUri.parse(uri)
-        table = {**table, "uri": uri}
+        table = {**default_table(), **table, "uri": uri}
     return table
+
+
+def default_table() -> dict[str, Any]:
+    """Every key of the `[robot]` table at its default, in the order the docs list them (no `goals`: none by default)."""
+    defaults = RobotSettings()
+    return {f.name: list(value) if isinstance(value := getattr(defaults, f.name), tuple) else value
+            for f in fields(defaults) if f.name != "goals"}
 
 
 def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
@@ -135,6 +164,15 @@ def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
     for key in TEXTS:
         if key in table:
             values[key] = _text(table[key], key, where, empty=key == "odometry_topic")
+    if values.get("cmd_vel_type", TWIST_TYPES[0]) not in TWIST_TYPES:
+        raise StudyError(f"{where}: cmd_vel_type must be one of {', '.join(TWIST_TYPES)}, got {values['cmd_vel_type']!r}")
+    if "footprint" in table:
+        size = table["footprint"]
+        low, high = FOOTPRINT_M
+        if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int | float) and not isinstance(v, bool)
+                                                                 and math.isfinite(v) and low <= v <= high for v in size)):
+            raise StudyError(f"{where}: footprint must be [length, width] in metres, each in [{low:g}, {high:g}], got {size!r}")
+        values["footprint"] = tuple(float(v) for v in size)
     if "uri" in values:
         try:
             RobotUri.parse(values["uri"])

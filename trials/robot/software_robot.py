@@ -6,10 +6,12 @@ frame, and the laser's static mount), all stamped with this computer's clock; it
 within the robot's limits, and like a real base it stops by itself when no command has come for
 `command_timeout` seconds (what stops a robot whose driver was killed).
 
-When a live run announces its code (`trials.robot.live.RUN_TOPIC`), the robot lays out that plan row's scene
-(`trials.scenario`, seeded as `trials run` would simulate it) around the pose it stands at, so the walkers
-appear ahead of it; without a study it lays out the default scene. The robot is never moved between runs:
-a run's goal is relative to where it starts.
+The robot stands in a walled room (a rectangle in the odometry frame, 22 x 10 m by default, the robot's start 6 m
+from one end) and has a bumper: a move that would make its footprint touch a wall is not made, the base stops, and
+the contact is written to the `contacts` file, so a test can tell that a wall was touched. When a live run
+announces its code (`trials.robot.live.RUN_TOPIC`), the robot is brought back to its start, as the operator would
+bring a real one, and lays out that plan row's scene (`trials.scenario`, seeded as `trials run` would simulate it)
+around it, so the walkers appear ahead; without a study it lays out the default scene.
 """
 
 from __future__ import annotations
@@ -29,18 +31,24 @@ from robot_logs.records import Odometry, Transform
 from trials.errors import StudyError
 from trials.robot.live import RUN_TOPIC
 from trials.robot.settings import RobotSettings
-from trials.robot.transport import ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, Transport, Velocity
+from trials.robot.transport import ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
 from trials.scenario import Scenario, build_scenario, settings_from_row
 from trials.sim.pedestrians import Crowd
-from trials.sim.robot import RobotState, step_robot
+from trials.sim.robot import RobotState, footprint_gaps, step_robot
 from trials.sim.social_force import SocialForceParams
 from trials.study import PLAN, StudyFolder
 
 #: Failures a rehearsal can stage, each from some seconds after a run is announced: scans stop coming; scans keep
-#: coming but `FAULT_LAG_S` late by their stamps; odometry stops; odometry keeps coming with its stamp frozen.
-SCANS_STOP, SCANS_LATE, ODOMETRY_STOP, ODOMETRY_STALE = "scans-stop", "scans-late", "odometry-stop", "odometry-stale"
-FAULTS = (SCANS_STOP, SCANS_LATE, ODOMETRY_STOP, ODOMETRY_STALE)
+#: coming but `FAULT_LAG_S` late by their stamps; scans keep coming with every range NaN; odometry stops; odometry
+#: keeps coming with its stamp frozen; the wheels are blocked (commands are heard, the base does not move).
+SCANS_STOP, SCANS_LATE, SCANS_BLANK = "scans-stop", "scans-late", "scans-blank"
+ODOMETRY_STOP, ODOMETRY_STALE, STALL = "odometry-stop", "odometry-stale", "stall"
+FAULTS = (SCANS_STOP, SCANS_LATE, SCANS_BLANK, ODOMETRY_STOP, ODOMETRY_STALE, STALL)
 FAULT_LAG_S = 1.0
+#: The default room: x from, y from, x to, y to (m, odometry frame), around a start at the origin facing +x.
+ROOM = (-6.0, -5.0, 16.0, 5.0)
+#: Spacing (m) of the points along the walls that the bumper checks against the footprint.
+BUMPER_STEP_M = 0.02
 
 
 @dataclass(frozen=True)
@@ -83,6 +91,41 @@ class SoftwareRobotConfig:
     mount: Pose2D = Pose2D(0.35, 0.0, 0.0)
     seed: int = 0
     faults: tuple[Fault, ...] = ()
+    room: tuple[float, float, float, float] | None = ROOM
+    start: Pose2D = Pose2D()
+
+
+def parse_room(text: str) -> tuple[float, float, float, float] | None:
+    """`--room`'s `X0,Y0,X1,Y1` (a rectangle around the start, at least 1.5 m from it on every side), or `none`.
+
+    Raises:
+        StudyError: anything else.
+    """
+    if text == "none":
+        return None
+    try:
+        x0, y0, x1, y1 = (float(v) for v in text.split(","))
+    except ValueError:
+        x0 = y0 = x1 = y1 = math.nan
+    if not (all(map(math.isfinite, (x0, y0, x1, y1))) and max(x0, y0) <= -1.5 and min(x1, y1) >= 1.5):
+        raise StudyError(f"--room {text!r}: expected X0,Y0,X1,Y1 in metres around the start (X0 and Y0 at most -1.5, X1 and Y1 "
+                         "at least 1.5), or none")
+    return x0, y0, x1, y1
+
+
+def room_walls(room: tuple[float, float, float, float] | None) -> np.ndarray:
+    """(W, 2, 2) the wall segments of a rectangular room (none without one)."""
+    if room is None:
+        return np.zeros((0, 2, 2))
+    x0, y0, x1, y1 = room
+    corners = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+    return np.stack((corners, np.roll(corners, -1, axis=0)), axis=1)
+
+
+def wall_points(walls: np.ndarray, step: float = BUMPER_STEP_M) -> np.ndarray:
+    """(P, 2) points every `step` metres along the walls (their ends included)."""
+    points = [np.linspace(a, b, max(int(np.ceil(np.hypot(*(b - a)) / step)), 1) + 1) for a, b in walls]
+    return np.concatenate(points) if points else np.zeros((0, 2))
 
 
 @dataclass
@@ -106,15 +149,21 @@ class SoftwareRobot:
     Args:
         study: a study folder whose plan rows name the scenes (None: the default scene for every run).
         commands: a text file that gets one `wall_ns,linear,angular` line per velocity command received.
+        contacts: a text file that gets one `wall_ns,x,y` line each time the footprint comes to touch a wall.
     """
 
     def __init__(self, transport: Transport, settings: RobotSettings, config: SoftwareRobotConfig = SoftwareRobotConfig(),
-                 study: StudyFolder | None = None, commands: TextIO | None = None) -> None:
+                 study: StudyFolder | None = None, commands: TextIO | None = None, contacts: TextIO | None = None) -> None:
         self.transport, self.settings, self.config, self.study = transport, settings, config, study
         self.limits = settings.limits
-        self.robot = RobotState(0.0, 0.0, 0.0)
+        self.robot = RobotState(config.start.x, config.start.y, config.start.yaw)
+        walls = room_walls(config.room)
+        self._wall_points = wall_points(walls)
+        self._touching = False
+        self._contacts = contacts
         # The lidar and legs fitted to the labelled real bags, so the robot's own leg detector sees the walkers.
-        self.lidar = LidarSimulator(replace(LidarSpec.fitted(), frame_id=config.laser_frame), BodyModel.fitted(), seed=config.seed)
+        self.lidar = LidarSimulator(replace(LidarSpec.fitted(), frame_id=config.laser_frame), BodyModel.fitted(), seed=config.seed,
+                                    walls=walls)
         self.scene = self._scene("", time.monotonic())
         self._command = Velocity(0.0, 0.0)
         self._command_at = -math.inf
@@ -127,7 +176,7 @@ class SoftwareRobot:
         self._publish_odometry = transport.publisher(settings.odometry_topic, ODOMETRY) if settings.odometry_topic else None
         self._publish_tf = transport.publisher("/tf", TF)
         self._publish_static = transport.publisher("/tf_static", TF_STATIC, latched=True)
-        transport.subscribe(settings.cmd_vel_topic, TWIST, self._on_command)
+        transport.subscribe(settings.cmd_vel_topic, TWIST_KINDS[settings.cmd_vel_type], self._on_command)
         transport.subscribe(RUN_TOPIC, TEXT, self._on_run, latched=True)
 
     def _on_command(self, velocity: Velocity) -> None:
@@ -164,13 +213,25 @@ class SoftwareRobot:
             command = self._command if fresh else Velocity(0.0, 0.0)
             announced, self._announced = self._announced, []
         for code in announced:
+            start = self.config.start
+            self.robot = RobotState(start.x, start.y, start.yaw)
             self.scene = self._scene(code, now)
             self._announced_once, self._frozen_ns = True, 0
         scene = self.scene
         local = scene.anchor.inverse().compose(Pose2D(self.robot.x, self.robot.y, self.robot.theta))
         in_scene = RobotState(local.x, local.y, local.yaw, self.robot.v, self.robot.w)
         scene.crowd.step(now - scene.started, dt, in_scene, self.limits)
-        self.robot = step_robot(self.robot, command.linear, command.angular, dt, self.limits)
+        if self._faulty(STALL, now):
+            self.robot = replace(self.robot, v=0.0, w=0.0)
+            return
+        moved = step_robot(self.robot, command.linear, command.angular, dt, self.limits)
+        touching = bool(len(self._wall_points)) and float(footprint_gaps(moved.pose, self._wall_points, self.limits).min()) <= 0.0
+        if touching and not self._touching and self._contacts is not None:
+            self._contacts.write(f"{time.time_ns()},{moved.x!r},{moved.y!r}\n")
+            self._contacts.flush()
+        self._touching = touching
+        # The bumper: a move into a wall is not made, and the base stops.
+        self.robot = replace(self.robot, v=0.0, w=0.0) if touching else moved
 
     def _faulty(self, kind: str, now: float) -> bool:
         """Whether a staged fault of `kind` is on at monotonic time `now` (from its time after the last announcement on)."""
@@ -196,6 +257,8 @@ class SoftwareRobot:
         sensor = Pose2D(self.robot.x, self.robot.y, self.robot.theta).compose(self.config.mount)
         positions, velocities = self.scene.world()
         scan = self.lidar.scan(now - self.scene.started, sensor, positions, velocities)
+        if self._faulty(SCANS_BLANK, now):
+            scan = replace(scan, ranges=np.full(len(scan.ranges), np.nan))
         self._publish_scan(replace(scan, stamp_ns=stamp_ns))
 
     def run(self, stop: threading.Event, duration: float | None = None) -> None:
@@ -226,5 +289,5 @@ class SoftwareRobot:
 
 
 def open_commands(path: Path | None) -> TextIO | None:
-    """The commands file, opened for appending line by line (None: no file)."""
+    """The commands (or contacts) file, opened for appending line by line (None: no file)."""
     return None if path is None else path.open("a", encoding="utf-8", buffering=1)

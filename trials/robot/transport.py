@@ -12,6 +12,7 @@ Kinds and the values they carry (the ROS type in brackets):
 - `ODOMETRY` (nav_msgs/Odometry): `robot_logs.records.Odometry` (planar pose, linear x, angular z)
 - `TF`, `TF_STATIC` (tf2_msgs/TFMessage): a list of `robot_logs.records.Transform`
 - `TWIST` (geometry_msgs/Twist): `Velocity` (linear x, angular z)
+- `TWIST_STAMPED` (geometry_msgs/TwistStamped): `Velocity` with its header's stamp and frame
 - `FLAG` (std_msgs/Bool): bool
 - `TEXT` (std_msgs/String): str
 
@@ -27,8 +28,12 @@ from typing import Any, Protocol
 
 from trials.errors import StudyError
 
-SCAN, ODOMETRY, TF, TF_STATIC, TWIST, FLAG, TEXT = "scan", "odometry", "tf", "tf_static", "twist", "flag", "text"
-KINDS = (SCAN, ODOMETRY, TF, TF_STATIC, TWIST, FLAG, TEXT)
+SCAN, ODOMETRY, TF, TF_STATIC, TWIST, TWIST_STAMPED, FLAG, TEXT = (
+    "scan", "odometry", "tf", "tf_static", "twist", "twist_stamped", "flag", "text")
+KINDS = (SCAN, ODOMETRY, TF, TF_STATIC, TWIST, TWIST_STAMPED, FLAG, TEXT)
+#: The velocity command types a base may take (the `[robot]` table's `cmd_vel_type`), and the kind that carries each.
+TWIST_TYPES = ("Twist", "TwistStamped")
+TWIST_KINDS = dict(zip(TWIST_TYPES, (TWIST, TWIST_STAMPED), strict=True))
 
 ROS1, ROS2 = "ros1", "ros2"
 #: The highest ROS 2 domain id a DDS port mapping allows.
@@ -41,10 +46,13 @@ class LinkError(StudyError):
 
 @dataclass(frozen=True)
 class Velocity:
-    """A velocity command or reading of a planar base: linear (m/s, forward) and angular (rad/s, about z)."""
+    """A velocity command or reading of a planar base: linear (m/s, forward) and angular (rad/s, about z); as a
+    TwistStamped, also its header's stamp (ns) and frame."""
 
     linear: float
     angular: float
+    stamp_ns: int = 0
+    frame_id: str = ""
 
 
 @dataclass(frozen=True)

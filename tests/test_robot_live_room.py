@@ -1,0 +1,108 @@
+"""Live runs in a walled room over a real ROS 1 master: the software robot (`trials robot-sim`) stands in a room and
+has a bumper, and a witness node hears every velocity command. A goal beyond a wall, a stalled base, a base that takes
+another message type, scans that turn blank and a killed worker each end with a zero velocity as the last command
+heard and the run aborted (pending, never counted as data), and the bumper never touches the wall; a base that takes
+TwistStamped is driven to its goal."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import pytest
+
+from robot_logs.foxglove_log import FoxgloveReader
+from robot_logs.run_log import ROBOT_STATE, SCAN
+from tests.support.live_rig import assert_stopped_and_kept, design, first_code, live_rig, repository_env, set_robot_keys
+from tests.support.ros1_echo import environment
+from tests.support.ros1_master import master_process
+from trials.outcomes import read_outcomes
+from trials.study import OUTCOMES
+
+pytestmark = pytest.mark.slow
+
+@pytest.fixture
+def master(tmp_path: Path):
+    with master_process(tmp_path / "ros") as running:
+        yield running
+
+
+def env_for(tmp_path: Path) -> dict[str, str]:
+    return {**repository_env(), **environment(tmp_path / "ros")}
+
+
+#: The room's far wall (y, m) and the robot's half footprint (m): a Husky's 0.99 x 0.67 m.
+WALL_Y, HALF_LENGTH, HALF_WIDTH = 4.0, 0.495, 0.335
+
+
+def test_a_goal_beyond_a_wall_stops_the_robot_before_it_touches_the_wall(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    # The goal 8 m to the left of the start, 4 m beyond the room's side wall: only the wall stands between.
+    set_robot_keys(study.root, goal="[2.0, 8.0]", timeout="40.0")
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path), (f"--room=-6,-5,16,{WALL_Y:g}",)) as rig:
+        run = rig.trials_run("--only", code)
+        assert run.wait(timeout=300) == 1, rig.output()
+        assert_stopped_and_kept(rig, study, code, "protective stop held 3 s")
+        assert rig.wall_contacts() == []
+    [kept] = (study.root / "runs" / "aborted").glob(f"{code}-*.mcap")
+    states = [m.data for m in FoxgloveReader(kept).messages([ROBOT_STATE.name])]
+    # The footprint's corner nearest the wall, at every recorded pose: it came near, and stayed off it.
+    reach = max(s["y"] + abs(HALF_LENGTH * math.sin(s["theta"])) + abs(HALF_WIDTH * math.cos(s["theta"])) for s in states)
+    assert WALL_Y - 1.0 < reach < WALL_Y - 0.02, reach
+
+
+@pytest.mark.parametrize("robot, reason", [
+    (("--fault", "stall@3"), "stall: the commands of the last 2 s would have moved it"),
+    (("--cmd-vel-type", "TwistStamped"), "the base does not respond to Twist on /cmd_vel"),
+])
+def test_a_base_that_does_not_move_as_commanded_ends_the_run(tmp_path, master, robot, reason):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path), robot) as rig:
+        run = rig.trials_run("--only", code)
+        assert run.wait(timeout=300) == 1, rig.output()
+        assert_stopped_and_kept(rig, study, code, reason)
+
+
+def test_a_base_that_takes_twiststamped_is_driven_to_its_goal(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    set_robot_keys(study.root, cmd_vel_type='"TwistStamped"', cmd_vel_frame='"base_footprint"')
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path), heard_type="TwistStamped") as rig:
+        run = rig.trials_run("--only", code)
+        assert run.wait(timeout=300) == 0, rig.output()
+        time.sleep(0.5)
+        assert rig.last_heard() == (0.0, 0.0) and rig.moving_commands() > 20
+        assert rig.wall_contacts() == []
+    (row,) = read_outcomes(study.path(OUTCOMES))
+    assert row.status in ("goal", "collision") and row.path_length_m > 1.0, row
+
+
+def test_a_killed_worker_leaves_the_robot_stopped_and_the_run_aborted_with_its_log(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri, "--ab")
+    code = first_code(study)
+    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+        run = rig.trials_run("--only", code)
+        rig.wait_state("driving")
+        time.sleep(3.0)
+        worker = rig.worker(run)
+        rig.start(["kill", "-9", str(worker)], "kill.log").wait()
+        assert run.wait(timeout=300) == 2, rig.output()  # the command stops: a worker process died
+        state = rig.wait_state("aborted")
+        assert state["detail"] == "the worker driving the run died (SIGKILL)", state
+        time.sleep(0.5)
+        assert rig.moving_commands() > 0 and rig.last_heard() == (0.0, 0.0)
+        failure = study.run_failure(code).read_text(encoding="utf-8")
+    [kept] = (study.root / "runs" / "aborted").glob(f"{code}-*.mcap")
+    assert failure.startswith(f"run {code} aborted: the worker driving the run died") and str(kept) in failure
+    reader = FoxgloveReader(kept)  # what the worker had written, recovered into a finished log
+    assert len(list(reader.messages([SCAN.name]))) > 20 and len(list(reader.messages([ROBOT_STATE.name]))) > 20
+    assert kept.stat().st_mtime_ns % 60_000_000_000 == 0  # a blinded study's public times are to the minute
+    assert not study.run_log(code).exists() and not list((study.root / "runs").glob(".*partial"))
+    assert read_outcomes(study.path(OUTCOMES), True) == []

@@ -1,0 +1,73 @@
+"""The parent's hold on the robot during `trials run --robot`: its own node, with a velocity publisher connected from the
+start, that stops the robot when the worker driving it is gone however it died (SIGKILL and the out-of-memory killer
+included, which no handler in the worker can catch), and keeps what that run had recorded.
+
+The guard never learns which controller drove: it sends zero velocity, writes the public state, and recovers the
+public log from the worker's partial file into runs/aborted/.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from robot_logs.errors import LogError
+from robot_logs.foxglove_log import partial_path, recover
+from trials.robot.live import ABORTED, DRIVING, STOP_REPEATS, WAITING, velocity_publisher
+from trials.robot.live_state import read_state, write_state
+from trials.robot.live_trial import aborted_stamp
+from trials.robot.settings import RobotSettings
+from trials.robot.transport import open_transport
+from trials.study import StudyFolder, to_the_minute
+
+
+class Guard:
+    """The parent's node on the robot's middleware.
+
+    Raises (on creation):
+        StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
+    """
+
+    def __init__(self, folder: StudyFolder, settings: RobotSettings, blind: bool) -> None:
+        self.folder, self.blind = folder, blind
+        self.transport = open_transport(settings.robot_uri, "navtrials_guard")
+        self.send = velocity_publisher(self.transport, settings)
+
+    def halt(self) -> None:
+        """Zero velocity, sent as a run's own stop sends it."""
+        for k in range(STOP_REPEATS):
+            if k:
+                time.sleep(0.02)
+            self.send(0.0, 0.0)
+
+    def worker_died(self, code: str | None, why: str) -> str | None:
+        """Stop the robot after the driving worker died (`why`); when run `code` was under way (its state waiting or
+        driving), mark it aborted and keep its log. Returns the run's failure line (naming where its log went), or None."""
+        self.halt()
+        state = read_state(self.folder)
+        if code is None or state is None or state.get("run_code") != code or state.get("state") not in (WAITING, DRIVING):
+            return None
+        detail = f"the worker driving the run died ({why})"
+        write_state(self.folder, code, ABORTED, detail)
+        kept = self._keep_log(code)
+        where = f"; its log is {kept}" if kept is not None else "; it had recorded nothing"
+        return f"run {code} aborted: {detail}{where}"
+
+    def _keep_log(self, code: str) -> Path | None:
+        """The log the dead worker was writing, what of it was complete, moved to runs/aborted/."""
+        partial = partial_path(self.folder.run_log(code))
+        if not partial.exists():
+            return None
+        target = self.folder.aborted_log(code, aborted_stamp())
+        target.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            recover(partial, target)
+        except (LogError, OSError):
+            return None
+        partial.unlink(missing_ok=True)
+        if self.blind:
+            to_the_minute(target, target.parent)
+        return target
+
+    def close(self) -> None:
+        self.transport.close()
