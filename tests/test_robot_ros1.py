@@ -25,7 +25,7 @@ import pytest
 from robot_logs.frames import Pose2D
 from tests.support.ros1_echo import PATIENCE_S, SAMPLES, environment
 from trials.robot import ros1
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, LinkError, RobotUri
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -138,7 +138,8 @@ def test_every_kind_arrives_as_published(ros1_master: RobotUri, nodes: list[Node
 
     assert_transforms(got[TF], TF)
     assert_transforms(got[TF_STATIC], TF_STATIC)
-    assert got[TWIST] == {"linear": 0.5, "angular": -0.25}
+    assert got[TWIST] == {"linear": 0.5, "angular": -0.25, "stamp_ns": 0, "frame_id": ""}
+    assert got[TWIST_STAMPED] == {"linear": -0.125, "angular": 1.75, "stamp_ns": 1_700_000_127_000_000_042, "frame_id": "base_footprint"}
     assert got[FLAG] is True
     assert got[TEXT] == SAMPLES[TEXT][1]
 

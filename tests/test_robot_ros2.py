@@ -36,20 +36,22 @@ from tests.support.ros2_talker import STATIC, TOPICS, VALUES
 from trials.errors import StudyError
 from trials.robot import ros2_types as msg
 from trials.robot.ros2 import Ros2Transport, dds_topic
-from trials.robot.transport import FLAG, MAX_DOMAIN, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri, Velocity
+from trials.robot.transport import FLAG, MAX_DOMAIN, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, LinkError, RobotUri, Velocity
 
 ROOT = Path(__file__).resolve().parents[1]
 DEADLINE_S = 60.0
 TYPESTORE = get_typestore(Stores.ROS2_HUMBLE)
 #: Each kind's ROS 2 type, as rosbags names it and as rosidl names it for DDS.
 ROS_TYPES = {SCAN: "sensor_msgs/msg/LaserScan", ODOMETRY: "nav_msgs/msg/Odometry", TF: "tf2_msgs/msg/TFMessage",
-             TF_STATIC: "tf2_msgs/msg/TFMessage", TWIST: "geometry_msgs/msg/Twist", FLAG: "std_msgs/msg/Bool", TEXT: "std_msgs/msg/String"}
+             TF_STATIC: "tf2_msgs/msg/TFMessage", TWIST: "geometry_msgs/msg/Twist",
+             TWIST_STAMPED: "geometry_msgs/msg/TwistStamped", FLAG: "std_msgs/msg/Bool", TEXT: "std_msgs/msg/String"}
 DDS_NAMES = {"rt/scan": "sensor_msgs::msg::dds_::LaserScan_", "rt/odom": "nav_msgs::msg::dds_::Odometry_",
              "rt/tf": "tf2_msgs::msg::dds_::TFMessage_", "rt/tf_static": "tf2_msgs::msg::dds_::TFMessage_",
-             "rt/cmd_vel": "geometry_msgs::msg::dds_::Twist_", "rt/trial_active": "std_msgs::msg::dds_::Bool_",
+             "rt/cmd_vel": "geometry_msgs::msg::dds_::Twist_", "rt/cmd_vel_stamped": "geometry_msgs::msg::dds_::TwistStamped_",
+             "rt/trial_active": "std_msgs::msg::dds_::Bool_",
              "rt/trial_note": "std_msgs::msg::dds_::String_"}
 IDL_TYPES = {SCAN: msg.LaserScan, ODOMETRY: msg.Odometry, TF: msg.TFMessage, TF_STATIC: msg.TFMessage,
-             TWIST: msg.Twist, FLAG: msg.Bool, TEXT: msg.String}
+             TWIST: msg.Twist, TWIST_STAMPED: msg.TwistStamped, FLAG: msg.Bool, TEXT: msg.String}
 
 
 def random_uri() -> RobotUri:
@@ -196,6 +198,9 @@ def test_the_wire_carries_standard_ros2_messages_under_rosidl_names_and_qos(talk
     assert [t.child_frame_id for t in decoded[TF_STATIC].transforms] == ["laser", "camera"]
     twist = decoded[TWIST]
     assert (twist.linear.x, twist.linear.y, twist.angular.x, twist.angular.z) == (0.55, 0.0, 0.0, -0.35)
+    stamped = decoded[TWIST_STAMPED]
+    assert (stamped.header.stamp.sec, stamped.header.stamp.nanosec, stamped.header.frame_id) == (1_700_000_124, 500_000_077, "base_footprint")
+    assert (stamped.twist.linear.x, stamped.twist.angular.z) == (-0.25, 1.5)
     assert decoded[FLAG].data is True and decoded[TEXT].data == "trial 7: héllo"
 
 

@@ -3,6 +3,8 @@ naming the file and key, and `trials design --robot` carrying the table with the
 
 from __future__ import annotations
 
+import tomllib
+
 import pytest
 
 from trials.cli import main
@@ -55,6 +57,11 @@ def test_defaults_fit_a_husky_and_the_table_overrides_them(tmp_path):
     ("goals = 3", "goals must be a table"),
     ("[robot.goals]\nCrossing = [1e9, 0]", "goals.Crossing must be [x, y]"),
     ("watchdog = 0.05\ncommand_rate = 20", "watchdog 0.05 s is shorter than two commands at 20 Hz"),
+    ('cmd_vel_type = "TwistStampd"', "cmd_vel_type must be one of Twist, TwistStamped, got 'TwistStampd'"),
+    ("footprint = [0.5]", "footprint must be [length, width] in metres, each in [0.05, 10], got [0.5]"),
+    ("footprint = [0.5, -0.4]", "footprint must be [length, width]"),
+    ("min_valid_share = 1.5", "min_valid_share must be a number in [0, 1]"),
+    ("protective_hold = 0", "protective_hold must be a number in [0.5, 600]"),
 ])
 def test_a_bad_table_is_one_line_naming_file_and_key(tmp_path, table, message):
     spec = write(tmp_path, table)
@@ -76,3 +83,15 @@ def test_design_writes_the_robot_table_and_a_bad_one_exits_2(tmp_path, capsys):
     assert capsys.readouterr().err.strip().splitlines() == [f"error: {spec} [robot]: max_speed must be a number in [0.01, 5], got -1"]
     assert main(["run", "--robot", "ros9://3", "--study", str(study)]) == 2
     assert "expected ros1://HOST:PORT" in capsys.readouterr().err
+
+
+def test_the_footprint_and_safety_keys_reach_the_limits_and_design_writes_every_default(tmp_path):
+    settings = read_robot_settings(write(tmp_path, 'footprint = [0.45, 0.4]\ncmd_vel_type = "TwistStamped"\nstall_time = 4'))
+    assert settings is not None and (settings.limits.half_length, settings.limits.half_width) == (0.225, 0.2)
+    assert (settings.cmd_vel_type, settings.stall_time, settings.protective_margin) == ("TwistStamped", 4.0, 0.1)
+    study = tmp_path / "s"
+    assert main(["design", "--robot", "ros1://10.0.0.2:11311", "--seed", "1", "--study", str(study), "--quiet"]) == 0
+    table = tomllib.loads((study / "study.toml").read_text(encoding="utf-8"))["robot"]
+    defaults = {name: list(v) if isinstance(v := getattr(RobotSettings(), name), tuple) else v
+                for name in RobotSettings.__dataclass_fields__ if name != "goals"}
+    assert table == {**defaults, "uri": "ros1://10.0.0.2:11311"} and len(table) == 25

@@ -26,7 +26,7 @@ import numpy as np
 from robot_logs.frames import Pose2D
 from robot_logs.records import Odometry, Scan, Transform
 from trials.robot.ros1 import Ros1Transport, import_rospy
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, LinkError, RobotUri, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, LinkError, RobotUri, Velocity
 
 #: Seconds any wait of a driver may take before it gives up (generous: the test machine may be loaded).
 PATIENCE_S = 60.0
@@ -40,6 +40,7 @@ SAMPLES: dict[str, tuple[str, Any, bool]] = {
                  Transform(1_700_000_126_000_000_000, "map", "odom", Pose2D(-0.25, 0.125, 0.001), False)], False),
     TF_STATIC: ("/tf_static", [Transform(1_700_000_000_000_000_007, "base_link", "laser", Pose2D(0.2, 0.0, 3.14159), True)], True),
     TWIST: ("/cmd_vel", Velocity(0.5, -0.25), False),
+    TWIST_STAMPED: ("/cmd_vel_stamped", Velocity(-0.125, 1.75, 1_700_000_127_000_000_042, "base_footprint"), False),
     FLAG: ("/trial_active", True, False),
     TEXT: ("/trial_status", "run 3 of 12: ünïcode ✓", True),
 }

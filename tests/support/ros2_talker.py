@@ -15,12 +15,13 @@ import numpy as np
 from robot_logs.frames import Pose2D
 from robot_logs.records import Odometry, Scan, Transform
 from trials.robot.ros2 import Ros2Transport
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, RobotUri, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST, TWIST_STAMPED, RobotUri, Velocity
 
 LIFETIME_S = 300.0
 PERIOD_S = 0.05
 
-TOPICS = {SCAN: "/scan", ODOMETRY: "/odom", TF: "/tf", TF_STATIC: "/tf_static", TWIST: "/cmd_vel", FLAG: "/trial_active", TEXT: "/trial_note"}
+TOPICS = {SCAN: "/scan", ODOMETRY: "/odom", TF: "/tf", TF_STATIC: "/tf_static", TWIST: "/cmd_vel",
+          TWIST_STAMPED: "/cmd_vel_stamped", FLAG: "/trial_active", TEXT: "/trial_note"}
 
 #: Static transforms, published in two calls: a late subscriber must still get both.
 STATIC = (
@@ -36,6 +37,7 @@ VALUES = {
     TF: [Transform(1_700_000_124_000_000_999, "odom", "base_link", Pose2D(12.25, -3.5, -3.1), False),
          Transform(1_700_000_124_000_001_000, "map", "odom", Pose2D(-1.0, 0.5, 0.25), False)],
     TWIST: Velocity(0.55, -0.35),
+    TWIST_STAMPED: Velocity(-0.25, 1.5, 1_700_000_124_500_000_077, "base_footprint"),
     FLAG: True,
     TEXT: "trial 7: héllo",
 }

@@ -9,6 +9,8 @@ the base, after `reaction_time` at that speed and then braking at `deceleration`
     v_max(d) = -a t + sqrt((a t)^2 + 2 a (d - margin)),   d = the return's distance ahead of the footprint's edge
 
 so the robot slows as it nears a wall, a stall or a person and stops before touching, whatever the controller plans.
+Below `CREEP_M_S` the allowed speed is taken as zero: the robot stops cleanly about a centimetre beyond the margin
+rather than creeping toward it, and a controller held there is told so (`blocks`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from robot_logs.frames import Pose2D
 from robot_logs.records import Scan
 from trials.sim.robot import RobotLimits
 
+#: Allowed speeds under this (m/s) are zero.
+CREEP_M_S = 0.05
 
 def valid_returns(scan: Scan) -> np.ndarray:
     """(B,) whether each beam returned a range: finite and within [range_min, range_max] (REP 117: +inf is no return, NaN a
@@ -102,4 +106,5 @@ class ProtectiveField:
         if math.isinf(free):
             return math.inf
         reach = self.deceleration * self.reaction_time
-        return -reach + math.sqrt(reach * reach + 2.0 * self.deceleration * free)
+        speed = -reach + math.sqrt(reach * reach + 2.0 * self.deceleration * free)
+        return speed if speed >= CREEP_M_S else 0.0
