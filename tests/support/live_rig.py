@@ -17,10 +17,14 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from robot_logs import run_log as fmt
 from robot_logs.foxglove_log import FoxgloveReader
+from robot_logs.physical import PEDESTRIAN_RADIUS_M
 from trials.outcomes import read_outcomes
 from trials.sealed_runs import read_sealed_run
+from trials.sim.robot import RobotLimits, footprint_gaps
 from trials.study import LIVE_STATE, OUTCOMES, StudyFolder
 
 #: The `trials` command as this interpreter runs it.
@@ -39,6 +43,7 @@ class Rig:
     commands: Path
     heard: Path
     contacts: Path
+    truth: Path
     processes: list[subprocess.Popen] = field(default_factory=list)
 
     def start(self, args: Sequence[str], log: str) -> subprocess.Popen:
@@ -78,6 +83,17 @@ class Rig:
     def moving_commands(self) -> int:
         return sum(1 for line in self.heard.read_text(encoding="utf-8").splitlines() if float(line.split(",")[1]) != 0.0)
 
+    def true_gaps(self, start_ns: int, end_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """From the software robot's ground truth (`--truth`), between two stamps: the (K,) stamps and the (K,) gaps from
+        the robot's footprint to the nearest walker's 0.25 m disc, as a run measures them."""
+        stamps, gaps = [], []
+        for line in self.truth.read_text(encoding="utf-8").splitlines():
+            values = [float(v) for v in line.split(",")]
+            if start_ns <= int(values[0]) <= end_ns and len(values) > 4:
+                stamps.append(int(values[0]))
+                gaps.append(footprint_gaps(np.array(values[1:4]), np.array(values[4:]).reshape(-1, 2), RobotLimits(), PEDESTRIAN_RADIUS_M).min())
+        return np.array(stamps), np.array(gaps)
+
     def wall_contacts(self) -> list[str]:
         """Each time the software robot's bumper touched a wall (`wall_ns,x,y`)."""
         return self.contacts.read_text(encoding="utf-8").splitlines() if self.contacts.exists() else []
@@ -109,11 +125,12 @@ def live_rig(uri: str, study: Path, env: dict[str, str], robot: Sequence[str] = 
     """The software robot on `uri` laying out `study`'s scenes (with `robot`'s extra options), and the witness of the
     velocity commands of type `heard_type`."""
     rig = Rig(uri, study, {**env, "PYTHONUNBUFFERED": "1"}, study.parent / "commands.csv", study.parent / "heard.csv",
-              study.parent / "contacts.csv")
+              study.parent / "contacts.csv", study.parent / "truth.csv")
     try:
         rig.start([sys.executable, "-m", "tests.support.witness", uri, "/cmd_vel", str(rig.heard), heard_type], "witness.log")
         rig.start([*TRIALS, "robot-sim", "--ros", uri, "--study", str(study), "--scan-rate", "20",
-                   "--commands", str(rig.commands), "--contacts", str(rig.contacts), *robot], "robot.log")
+                   "--commands", str(rig.commands), "--contacts", str(rig.contacts), "--truth", str(rig.truth), *robot],
+                  "robot.log")
         wait_for(rig.heard.with_name(rig.heard.name + ".ready"), "the witness", rig.processes)
         yield rig
     finally:

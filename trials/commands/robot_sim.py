@@ -26,6 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="where to appear: ros1://HOST:PORT (a running ROS 1 master) or ros2://DOMAIN")
     parser.add_argument("--study", type=types.folder, metavar="DIR", help="lay out each announced run's scene from this study's plan")
     parser.add_argument("--scan-rate", type=types.number(1, 100), default=40.0, metavar="HZ", help="lidar scans per second (default 40)")
+    parser.add_argument("--scan-latency", type=types.number(0, 0.4), default=0.0, metavar="S",
+                        help="publish each scan S seconds after its stamp, as a real laser's driver does (default 0)")
     parser.add_argument("--command-timeout", type=types.number(0.05, 5), default=0.5, metavar="S",
                         help="the base stops when no velocity command has come for this long (default 0.5 s)")
     parser.add_argument("--seed", type=types.whole(0), default=0, metavar="N", help="seeds the lidar's noise and the default scene (default 0)")
@@ -34,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="append every velocity command received to FILE as `wall_ns,linear,angular` lines")
     parser.add_argument("--contacts", type=Path, metavar="FILE",
                         help="append `wall_ns,x,y` to FILE each time the robot's footprint comes to touch a wall (its bumper)")
+    parser.add_argument("--truth", type=Path, metavar="FILE",
+                        help="append the ground truth at each scan's stamp to FILE: `stamp_ns,x,y,theta` of the robot, then "
+                        "`x,y` of each walker (odometry frame), to check what a run measured")
     parser.add_argument("--room", metavar="X0,Y0,X1,Y1",
                         help="the walled room in the odometry frame, in metres, the robot's start at the origin facing +x "
                         "(default -6,-5,16,5: 22 x 10 m; written --room=-6,-5,16,5); `none` for open ground")
@@ -63,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     settings = replace((read_robot_settings(study.path(SPEC)) if study else None) or RobotSettings(), uri=str(uri))
     if args.cmd_vel_type is not None:
         settings = replace(settings, cmd_vel_type=args.cmd_vel_type)
-    config = SoftwareRobotConfig(scan_rate=args.scan_rate, command_timeout=args.command_timeout, seed=args.seed,
+    config = SoftwareRobotConfig(scan_rate=args.scan_rate, scan_latency=args.scan_latency, command_timeout=args.command_timeout, seed=args.seed,
                                  faults=tuple(Fault.parse(text) for text in args.fault),
                                  room=ROOM if args.room is None else parse_room(args.room))
     stop = threading.Event()
@@ -73,15 +78,15 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, quit_)
     signal.signal(signal.SIGINT, quit_)
-    commands, contacts = open_commands(args.commands), open_commands(args.contacts)
-    robot = SoftwareRobot(open_transport(uri, "navtrials_robot"), settings, config, study, commands, contacts)
+    commands, contacts, truth = open_commands(args.commands), open_commands(args.contacts), open_commands(args.truth)
+    robot = SoftwareRobot(open_transport(uri, "navtrials_robot"), settings, config, study, commands, contacts, truth)
     print(f"Software robot on {uri}: scans on {settings.scan_topic} at {args.scan_rate:g} Hz, odometry on "
           f"{settings.odometry_topic or '(tf only)'}, commands on {settings.cmd_vel_topic}; Ctrl-C stops it", flush=True)
     try:
         robot.run(stop, args.duration)
     finally:
         robot.close()
-        for kept in (commands, contacts):
+        for kept in (commands, contacts, truth):
             if kept is not None:
                 kept.close()
     return 0

@@ -397,6 +397,7 @@ class LiveRun:
         follower = WaypointFollower(limits)
         protective = ProtectiveField(limits, s.protective_margin, s.reaction_time, s.max_acceleration)
         reading, held_since = OPEN, None
+        seen: tuple[float, Pose2D] | None = None
         stall = StallWatch(s)
         rows: deque[TrackRow] = deque()
         robot_poses: deque[tuple[float, np.ndarray]] = deque()
@@ -434,6 +435,10 @@ class LiveRun:
                     result = tracker.process(scan, sensor_pose=sensor, frame=s.odometry_frame, scan_index=scans)
                     scans += 1
                     scan_t = (scan.stamp_ns - start_ns) * 1e-9
+                    # The robot where it stood when the scan saw the people: the gaps and the collision call compare
+                    # the two at one instant, not the people then with the robot as the newest odometry has it since.
+                    base = sensor.compose(laser.inverse()) if laser is not None else sensors.lookup(s.odometry_frame, s.base_frame, scan.stamp_ns)
+                    seen = (scan_t, base) if base is not None else seen
                     sink.scan(scan_t, scan, sensor)
                     rows.extend(TrackRow(scan.stamp_ns, result.scan_index, tr.track_id, tr.x, tr.y, tr.vx, tr.vy, s.odometry_frame)
                                 for tr in result.tracks)
@@ -476,7 +481,8 @@ class LiveRun:
                 command = follower.command(t, robot) if planned else (0.0, 0.0)
                 wanted = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
                 command = reading.limit(*wanted)
-                ending = run_ending(t, robot, people, goal, ending_rule)
+                at_scan = robot if seen is None else RobotState(seen[1].x, seen[1].y, seen[1].yaw, robot.v, robot.w)
+                ending = run_ending(t, at_scan, people, goal, ending_rule)
                 if ending is not None:
                     break
                 if reading.blocks(wanted[0]) and wanted != (0.0, 0.0):
@@ -496,10 +502,11 @@ class LiveRun:
                 sent_at = time.monotonic()
                 latencies.extend(sent_at - arrived for arrived in waiting_scans)
                 waiting_scans.clear()
-                if not trace.time or t > trace.time[-1] + 1e-6:  # one sample per instant of the robot's clock
-                    sink.state(t, robot, command, people)
-                    trace.time.append(t)
-                    trace.pose.append(robot.pose)
+                sampled = t if seen is None else seen[0]
+                if not trace.time or sampled > trace.time[-1] + 1e-6:  # one sample per instant of the robot's clock
+                    sink.state(sampled, at_scan, command, people)
+                    trace.time.append(sampled)
+                    trace.pose.append(at_scan.pose)
                     trace.velocity.append((robot.v, robot.w))
                     trace.people.append(dict(zip(people.ids, people.position)))
         except Exception:

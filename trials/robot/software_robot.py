@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TextIO
@@ -27,7 +28,7 @@ import numpy as np
 
 from robot_logs.frames import Pose2D
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
-from robot_logs.records import Odometry, Transform
+from robot_logs.records import Odometry, Scan, Transform
 from trials.errors import StudyError
 from trials.robot.live import RUN_TOPIC
 from trials.robot.settings import RobotSettings
@@ -84,6 +85,8 @@ class SoftwareRobotConfig:
     """Rates (Hz), the base's own command timeout (s), the laser's frame and mount on the base, and the lidar's seed."""
 
     scan_rate: float = 40.0
+    #: Seconds between a scan's stamp (when the laser took it) and its publication, as a real laser's driver has.
+    scan_latency: float = 0.0
     odometry_rate: float = 50.0
     physics_rate: float = 100.0
     command_timeout: float = 0.5
@@ -150,17 +153,20 @@ class SoftwareRobot:
         study: a study folder whose plan rows name the scenes (None: the default scene for every run).
         commands: a text file that gets one `wall_ns,linear,angular` line per velocity command received.
         contacts: a text file that gets one `wall_ns,x,y` line each time the footprint comes to touch a wall.
+        truth: a text file that gets, with every scan, the ground truth at its stamp: `stamp_ns,x,y,theta` of the robot
+            and then `x,y` of each walker, in the odometry frame.
     """
 
     def __init__(self, transport: Transport, settings: RobotSettings, config: SoftwareRobotConfig = SoftwareRobotConfig(),
-                 study: StudyFolder | None = None, commands: TextIO | None = None, contacts: TextIO | None = None) -> None:
+                 study: StudyFolder | None = None, commands: TextIO | None = None, contacts: TextIO | None = None,
+                 truth: TextIO | None = None) -> None:
         self.transport, self.settings, self.config, self.study = transport, settings, config, study
         self.limits = settings.limits
         self.robot = RobotState(config.start.x, config.start.y, config.start.yaw)
         walls = room_walls(config.room)
         self._wall_points = wall_points(walls)
         self._touching = False
-        self._contacts = contacts
+        self._contacts, self._truth = contacts, truth
         # The lidar and legs fitted to the labelled real bags, so the robot's own leg detector sees the walkers.
         self.lidar = LidarSimulator(replace(LidarSpec.fitted(), frame_id=config.laser_frame), BodyModel.fitted(), seed=config.seed,
                                     walls=walls)
@@ -173,6 +179,7 @@ class SoftwareRobot:
         self._announced_once = False
         self._frozen_ns = 0
         self._publish_scan = transport.publisher(settings.scan_topic, SCAN)
+        self._late_scans: deque[tuple[float, Scan]] = deque()
         self._publish_odometry = transport.publisher(settings.odometry_topic, ODOMETRY) if settings.odometry_topic else None
         self._publish_tf = transport.publisher("/tf", TF)
         self._publish_static = transport.publisher("/tf_static", TF_STATIC, latched=True)
@@ -259,7 +266,11 @@ class SoftwareRobot:
         scan = self.lidar.scan(now - self.scene.started, sensor, positions, velocities)
         if self._faulty(SCANS_BLANK, now):
             scan = replace(scan, ranges=np.full(len(scan.ranges), np.nan))
-        self._publish_scan(replace(scan, stamp_ns=stamp_ns))
+        if self._truth is not None:
+            robot = self.robot
+            values = (robot.x, robot.y, robot.theta, *positions.ravel())
+            self._truth.write(f"{stamp_ns}," + ",".join(f"{v:.6f}" for v in values) + "\n")
+        self._late_scans.append((now + self.config.scan_latency, replace(scan, stamp_ns=stamp_ns)))
 
     def run(self, stop: threading.Event, duration: float | None = None) -> None:
         """Simulate and publish in real time until `stop` is set (or `duration` seconds have passed)."""
@@ -281,7 +292,9 @@ class SoftwareRobot:
             if now >= next_scan:
                 self.publish_scan(stamp, now)
                 next_scan = max(next_scan + 1.0 / c.scan_rate, now)
-            wake = min(next_scan, next_odometry, now + physics)
+            while self._late_scans and self._late_scans[0][0] <= now:
+                self._publish_scan(self._late_scans.popleft()[1])
+            wake = min(next_scan, next_odometry, now + physics, self._late_scans[0][0] if self._late_scans else math.inf)
             stop.wait(max(wake - time.monotonic(), 0.0))
 
     def close(self) -> None:
