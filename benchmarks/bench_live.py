@@ -4,11 +4,13 @@ each transport and with each controller, and a whole blinded A/B study of 18 liv
     python benchmarks/bench_live.py [--transports ros1 ros2] [--repeats 2] [--studies ros1 ros2]
 
 Latency: the software robot (`trials robot-sim`, its own process) publishes 40 Hz scans of the A/B plan's first row
-(6 walkers); this process drives it with `trials.robot.live.LiveRun` and each controller, and times every scan from
-its arrival to the velocity command sent after it was tracked (the tracking and follower path; goal: p99 under
-50 ms), and every plan (goal: within its 0.4 s step). Whole study: `trials design --ab --robot`, then `trials run
---robot` over all 18 rows against the software robot (20 Hz scans), its wall time and how each run ended, then
-`trials report --unblind` and how many runs' sealed records name the controller the key gives their arm.
+(6 walkers) in its walled room; this process drives it with `trials.robot.live.LiveRun` and each controller, and times
+every scan from its arrival to the velocity command sent after it was tracked, the protective field checked (the
+tracking, field and follower path; goal: p99 under 50 ms), and every plan (goal: within its 0.4 s step). `--load N`
+keeps N other processes busy meanwhile (N = 2 loads both cores of a 2-core machine). Whole study: `trials design --ab
+--robot`, then `trials run --robot` over all 18 rows against the software robot (20 Hz scans, its 22 x 10 m room and
+its bumper), its wall time, how each run ended and how often the bumper touched a wall, then `trials report --unblind`
+and how many runs' sealed records name the controller the key gives their arm.
 A ROS 1 master (Debian's `rosmaster`) is started on a free port; ROS 2 stays on the loopback.
 """
 
@@ -67,7 +69,9 @@ def middleware(kind: str, home: Path) -> Iterator[str]:
 
 @contextmanager
 def software_robot(uri: str, study: Path, scan_rate: float) -> Iterator[subprocess.Popen]:
-    robot = subprocess.Popen([*TRIALS, "robot-sim", "--ros", uri, "--study", str(study), "--scan-rate", f"{scan_rate:g}"],
+    """`trials robot-sim` for the study, writing its bumper's wall contacts to contacts.csv beside the study."""
+    robot = subprocess.Popen([*TRIALS, "robot-sim", "--ros", uri, "--study", str(study), "--scan-rate", f"{scan_rate:g}",
+                              "--contacts", str(study.parent / f"{study.name}-contacts.csv")],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         yield robot
@@ -81,14 +85,26 @@ def design(folder: Path, uri: str) -> StudyFolder:
     return StudyFolder(folder)
 
 
-def latency(kind: str, repeats: int, home: Path) -> None:
+@contextmanager
+def load(processes: int) -> Iterator[None]:
+    """`processes` other processes spinning on the CPU meanwhile."""
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(processes)]
+    try:
+        yield
+    finally:
+        for process in busy:
+            process.kill()
+            process.wait()
+
+
+def latency(kind: str, repeats: int, home: Path, loaded: int) -> None:
     """Drive the first row of the A/B plan `repeats` times with each controller; print latency and planning figures."""
     with middleware(kind, home) as uri:
         study = design(home / f"latency-{kind}", uri)
         row = next(r for r in study.read_plan() if r["Pedestrians"] == "6")
         settings = RobotSettings(uri=uri, sensor_wait=60.0)
         link = RobotLink(open_transport(RobotUri.parse(uri), "navtrials_bench"), settings)
-        with software_robot(uri, study.root, 40.0):
+        with software_robot(uri, study.root, 40.0), load(loaded):
             for name in registry.NAMES:
                 controller = registry.build(name)
                 warm_up([controller])
@@ -104,7 +120,7 @@ def latency(kind: str, repeats: int, home: Path) -> None:
                     ends.append(f"{end.status} {end.duration_s:.1f} s, {end.late_plans} late")
                 lat = np.array(latencies) * 1e3
                 plan = np.array(plans)
-                print(f"| {kind} | {name} | {len(lat)} | {np.percentile(lat, 50):.1f} | {np.percentile(lat, 99):.1f} | "
+                print(f"| {kind} | {loaded} | {name} | {len(lat)} | {np.percentile(lat, 50):.1f} | {np.percentile(lat, 99):.1f} | "
                       f"{'met' if np.percentile(lat, 99) < LATENCY_P99_GOAL * 1e3 else 'NOT met'} | {np.percentile(plan, 50) * 1e3:.0f} | "
                       f"{plan.max() * 1e3:.0f} | {'met' if plan.max() < PLAN_GOAL else 'NOT met'} | {'; '.join(ends)} |", flush=True)
         link.close()
@@ -116,14 +132,18 @@ def whole_study(kind: str, home: Path) -> None:
         study = design(home / f"study-{kind}", uri)
         with software_robot(uri, study.root, 20.0):
             began = time.monotonic()
-            run = subprocess.run([*TRIALS, "run", "--robot", uri, "--study", str(study.root)], capture_output=True, text=True)
+            # The operator's Enter before each row after the first: the software robot is brought to its start by itself.
+            run = subprocess.run([*TRIALS, "run", "--robot", uri, "--study", str(study.root)], capture_output=True, text=True,
+                                 input="\n" * 17)
             wall = time.monotonic() - began
         finished = StudyFolder(study.root).path(OUTCOMES).read_text(encoding="utf-8").splitlines()[1:]
         statuses = [line.split(",")[1] for line in finished]
         failed = sorted(study.root.glob("runs/*.failed.txt"))
         counts = ", ".join(f"{statuses.count(s)} {s}" for s in sorted(set(statuses)))
+        contacts = study.root.parent / f"{study.root.name}-contacts.csv"
+        touched = len(contacts.read_text(encoding="utf-8").splitlines()) if contacts.exists() else 0
         print(f"18-run blinded A/B study over {kind}: {wall:.0f} s wall ({wall / 18:.1f} s a run); finished {len(finished)} ({counts}); "
-              f"aborted or failed {len(failed)}; trials run exit code {run.returncode}")
+              f"aborted or failed {len(failed)}; wall contacts {touched}; trials run exit code {run.returncode}")
         for path in failed:
             print(f"  {path.name}: {path.read_text(encoding='utf-8').strip()}")
         digest = study.read_design()["blinding"]["commitment"]["digest"]
@@ -141,15 +161,17 @@ def main() -> None:
     parser.add_argument("--transports", nargs="*", choices=("ros1", "ros2"), default=["ros1", "ros2"],
                         help="transports to measure the latency over (default both; none: leave it out)")
     parser.add_argument("--repeats", type=int, default=2, help="runs per controller and transport (default 2)")
+    parser.add_argument("--load", type=int, default=0, metavar="N", help="busy processes during the latency runs (default 0)")
     parser.add_argument("--studies", nargs="*", choices=("ros1", "ros2"), default=["ros1"],
                         help="transports to drive the whole 18-run study over (default ros1; none: leave it out)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         home = Path(folder)
-        print("| transport | controller | scans | latency p50 ms | p99 ms | goal p99 < 50 ms | plan p50 ms | plan max ms | goal < 400 ms | runs |")
-        print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+        print("| transport | busy processes | controller | scans | latency p50 ms | p99 ms | goal p99 < 50 ms | plan p50 ms | plan max ms "
+              "| goal < 400 ms | runs |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
         for kind in args.transports:
-            latency(kind, args.repeats, home)
+            latency(kind, args.repeats, home, args.load)
         for kind in args.studies:
             whole_study(kind, home)
 

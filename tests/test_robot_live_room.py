@@ -127,3 +127,20 @@ def test_the_closest_gap_and_the_collision_call_agree_with_the_ground_truth(tmp_
         _, gaps = rig.true_gaps(start, start + int(row.duration_s * 1e9))
     assert row.min_distance_m is not None and abs(row.min_distance_m - gaps.min()) <= GAP_TOLERANCE_M, (row.min_distance_m, gaps.min())
     assert (row.status == "collision") == (gaps.min() <= 0.0), (row.status, gaps.min())
+
+
+def test_without_only_the_next_row_waits_for_the_operator(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    first, second = [row["run_code"] for row in study.read_plan()[:2]]
+    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+        run = rig.trials_run("--only", first, second, operator=True)
+        deadline = time.monotonic() + 240
+        while f"Next: order 2, {second}" not in rig.output():
+            assert time.monotonic() < deadline and run.poll() is None, rig.output()
+            time.sleep(0.2)
+        heard = rig.moving_commands()
+        time.sleep(3.0)  # the robot stands while the operator stages the row
+        assert rig.moving_commands() == heard and rig.last_heard() == (0.0, 0.0)
+        assert run.communicate(b"q\n", timeout=60) is not None and run.returncode == 0, rig.output()
+    assert [row.run_code for row in read_outcomes(study.path(OUTCOMES))] == [first]

@@ -324,12 +324,13 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
 
 def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], options: RunOptions,
               on_start: Callable[[int], None], on_done: Callable[[RunDone], None],
-              on_failed: Callable[[str, str], None]) -> Summary:
+              on_failed: Callable[[str, str], None], between: Callable[[str], bool] = lambda code: True) -> Summary:
     """Run the pending rows (or the `only` / `rerun` ones) with `workers` processes.
 
     `on_start(n)` is called once the workers are ready and n runs are about to start;
-    `on_done` / `on_failed` after each run. Ctrl-C (KeyboardInterrupt) stops the workers at once;
-    finished runs are kept.
+    `on_done` / `on_failed` after each run. Rows driven live go one at a time, and before each but the first
+    `between(code)` is asked whether to go on (the operator stages the row; False ends the command, the rest pending).
+    Ctrl-C (KeyboardInterrupt) stops the workers at once; finished runs are kept.
 
     Raises:
         StudyError: unknown codes, a --rerun of an unfinished run, outcomes.csv of another study
@@ -397,22 +398,26 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, folder.aside_stamp())
                 on_start(len(todo))
-                for code, answer in _answers(pool, ((task.code, task) for task in tasks), worker_died):
-                    answered.add(code)
-                    if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:
-                        raise DiskFullError(answer.message)  # every later run would fail alike: stop now
-                    if isinstance(answer, Failure):
-                        message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
-                        summary.failed.append((code, message))
-                        _record_failure(folder, code, message, study.blind)
-                        on_failed(code, message)
-                        continue
-                    outcomes.append(answer.outcome)
-                    folder.run_failure(code).unlink(missing_ok=True)
-                    if study.blind:
-                        to_the_minute(folder.path(OUTCOMES), folder.root)
-                    summary.finished.append(answer)
-                    on_done(answer)
+                # Live rows go one at a time, the operator asked before each after the first (to stage it).
+                for k, batch in enumerate([[task] for task in tasks] if live else [tasks]):
+                    if k and not between(batch[0].code):
+                        break
+                    for code, answer in _answers(pool, ((task.code, task) for task in batch), worker_died):
+                        answered.add(code)
+                        if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:
+                            raise DiskFullError(answer.message)  # every later run would fail alike: stop now
+                        if isinstance(answer, Failure):
+                            message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
+                            summary.failed.append((code, message))
+                            _record_failure(folder, code, message, study.blind)
+                            on_failed(code, message)
+                            continue
+                        outcomes.append(answer.outcome)
+                        folder.run_failure(code).unlink(missing_ok=True)
+                        if study.blind:
+                            to_the_minute(folder.path(OUTCOMES), folder.root)
+                        summary.finished.append(answer)
+                        on_done(answer)
         finally:
             if guard is not None:
                 guard.halt()

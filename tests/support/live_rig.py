@@ -52,9 +52,14 @@ class Rig:
         self.processes.append(process)
         return process
 
-    def trials_run(self, *extra: str) -> subprocess.Popen:
-        """`trials run --robot URI --study DIR ...` as a process (its output in run.log beside the study)."""
-        return self.start([*TRIALS, "run", "--robot", self.uri, "--study", str(self.study), *extra], "run.log")
+    def trials_run(self, *extra: str, operator: bool = False) -> subprocess.Popen:
+        """`trials run --robot URI --study DIR ...` as a process (its output in run.log beside the study); with
+        `operator`, its standard input a pipe the test answers on, else closed."""
+        with open(self.study.parent / "run.log", "wb") as out:
+            process = subprocess.Popen([*TRIALS, "run", "--robot", self.uri, "--study", str(self.study), *extra], env=self.env,
+                                       stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.PIPE if operator else subprocess.DEVNULL)
+        self.processes.append(process)
+        return process
 
     def output(self, name: str = "run.log") -> str:
         return (self.study.parent / name).read_text(encoding="utf-8", errors="replace")

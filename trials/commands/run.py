@@ -74,7 +74,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--robot", metavar="URI",
                         help="drive the runs live on a robot through ROS: ros1://HOST:PORT (a ROS 1 master) or ros2://DOMAIN; "
                         "topics, frames, goal and limits come from study.toml's [robot] table (docs/live_runs.md). "
-                        "One run at a time; Ctrl-C or kill stops the robot and keeps the run's log in runs/aborted/")
+                        "One run at a time, waiting for the operator (Enter) before each after the first; Ctrl-C or kill stops "
+                        "the robot and keeps the run's log in runs/aborted/")
     logs = parser.add_argument_group("logged trials", "play robot logs (ROS1/ROS2 bags, MCAP) open loop instead of simulating")
     logs.add_argument("--from-log", type=Path, metavar="FILE",
                       help="play this log for every row run (pending rows, or --only / --rerun ones), "
@@ -173,8 +174,20 @@ def run(args: argparse.Namespace) -> int:
     def failed(code: str, message: str) -> None:
         say(code, f"{run_label(study.task(code).row)}: failed: {message}", error=True)
 
+    def staged(code: str) -> bool:
+        """Between live rows, wait for the operator to stage the next one (an answer of q, or no standard input, stops)."""
+        print(f"Next: {run_label(study.task(code).row)}. Stage it (the robot at its start, the walkers at theirs), then "
+              "press Enter to start it, or q and Enter to stop here: ", end="", file=sys.stderr, flush=True)
+        try:
+            answer = input()
+        except EOFError:
+            print(f"\nNo operator answered (standard input is closed): stopping before run {code}; `trials run --robot` "
+                  "again goes on with it", file=sys.stderr)
+            return False
+        return answer.strip().lower() not in ("q", "quit")
+
     try:
-        summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed)
+        summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed, staged)
     finally:
         judge()
         progress.close()

@@ -11,11 +11,16 @@ robot whose clock differs from this computer's is driven alike. Staleness is jud
 computer's clock since a scan or odometry message last arrived (the `watchdog`), and by the robot's
 clock between the newest scan and the newest odometry (a stale odometry on time-stamped scans).
 
+Only valid sensors count: a scan with too few beams returning a range, or odometry or tf with non-finite values, is
+dropped as if it never came. Every command passes the protective field of the scan before it
+(`trials.robot.protective_field`), so no controller drives into what the laser sees; gaps and the collision call
+compare the people a scan saw with the robot where it stood at that scan's stamp.
+
 The robot stops (a zero velocity is the last command sent) on the goal, a collision, the timeout, an
 e-stop (the console's stop file or `true` on the e-stop topic), SIGINT or SIGTERM (`StopRequest`),
-the middleware lost, stale sensors, and any exception; a run never starts before scans, odometry and
-the laser's transform to the base have all been seen. A killed process (SIGKILL) sends nothing: the
-robot's own command timeout must stop it (docs/live_runs.md).
+the middleware lost, stale sensors, a protective stop held too long, a stall or a base that does not respond, and
+any exception; a run never starts before scans, odometry and the laser's transform to the base have all been seen.
+A killed worker sends nothing itself: its parent's `trials.robot.guard.Guard` stops the robot (docs/live_runs.md).
 """
 
 from __future__ import annotations
