@@ -8,29 +8,16 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import pytest
 
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.run_log import ROBOT_STATE, SCAN
-from tests.support.live_rig import assert_stopped_and_kept, design, first_code, live_rig, repository_env, set_robot_keys
-from tests.support.ros1_echo import environment
-from tests.support.ros1_master import master_process
+from tests.support.live_rig import assert_stopped_and_kept, design, first_code, live_rig, ros1_env, set_robot_keys
 from trials.outcomes import read_outcomes
 from trials.study import OUTCOMES
 
 pytestmark = pytest.mark.slow
-
-@pytest.fixture
-def master(tmp_path: Path):
-    with master_process(tmp_path / "ros") as running:
-        yield running
-
-
-def env_for(tmp_path: Path) -> dict[str, str]:
-    return {**repository_env(), **environment(tmp_path / "ros")}
-
 
 #: How far a run's closest gap may be from the ground truth (m): the person tracker's own error at 1-2 m, about 0.03 m
 #: toward the laser, and the minimum of noisy estimates reading low.
@@ -45,7 +32,7 @@ def test_a_goal_beyond_a_wall_stops_the_robot_before_it_touches_the_wall(tmp_pat
     # The goal 8 m to the left of the start, 4 m beyond the room's side wall: only the wall stands between.
     set_robot_keys(study.root, goal="[2.0, 8.0]", timeout="40.0")
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path), (f"--room=-6,-5,16,{WALL_Y:g}",)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path), (f"--room=-6,-5,16,{WALL_Y:g}",)) as rig:
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 1, rig.output()
         assert_stopped_and_kept(rig, study, code, "protective stop held 3 s")
@@ -65,7 +52,7 @@ def test_a_base_that_does_not_move_as_commanded_ends_the_run(tmp_path, master, r
     uri, _ = master
     study = design(tmp_path / "study", uri)
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path), robot) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path), robot) as rig:
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 1, rig.output()
         assert_stopped_and_kept(rig, study, code, reason)
@@ -76,7 +63,7 @@ def test_a_base_that_takes_twiststamped_is_driven_to_its_goal(tmp_path, master):
     study = design(tmp_path / "study", uri)
     set_robot_keys(study.root, cmd_vel_type='"TwistStamped"', cmd_vel_frame='"base_footprint"')
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path), heard_type="TwistStamped") as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path), heard_type="TwistStamped") as rig:
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 0, rig.output()
         time.sleep(0.5)
@@ -90,7 +77,7 @@ def test_a_killed_worker_leaves_the_robot_stopped_and_the_run_aborted_with_its_l
     uri, _ = master
     study = design(tmp_path / "study", uri, "--ab")
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
         run = rig.trials_run("--only", code)
         rig.wait_state("driving")
         time.sleep(3.0)
@@ -119,7 +106,7 @@ def test_the_closest_gap_and_the_collision_call_agree_with_the_ground_truth(tmp_
     uri, _ = master
     study = design(tmp_path / "study", uri)
     code = first_code(study)  # Parallel, 2 walkers coming toward the robot on lanes 0.5 m either side of its path
-    with live_rig(str(uri), study.root, env_for(tmp_path), ("--scan-latency", "0.25")) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path), ("--scan-latency", "0.25")) as rig:
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 0, rig.output()
         (row,) = read_outcomes(study.path(OUTCOMES))
@@ -133,7 +120,7 @@ def test_without_only_the_next_row_waits_for_the_operator(tmp_path, master):
     uri, _ = master
     study = design(tmp_path / "study", uri)
     first, second = [row["run_code"] for row in study.read_plan()[:2]]
-    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
         run = rig.trials_run("--only", first, second, operator=True)
         deadline = time.monotonic() + 240
         while f"Next: order 2, {second}" not in rig.output():

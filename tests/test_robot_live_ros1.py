@@ -9,30 +9,17 @@ from __future__ import annotations
 import signal
 import subprocess
 import time
-from pathlib import Path
 
 import pytest
 
-from tests.support.live_rig import TRIALS, assert_stopped_and_kept, check_blinded_run, design, first_code, live_rig, repository_env, set_robot_keys
-from tests.support.ros1_echo import environment
-from tests.support.ros1_master import master_process
+from tests.support.live_rig import TRIALS, assert_stopped_and_kept, check_blinded_run, design, first_code, live_rig, ros1_env, set_robot_keys
 
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture
-def master(tmp_path: Path):
-    with master_process(tmp_path / "ros") as running:
-        yield running
-
-
-def env_for(tmp_path: Path) -> dict[str, str]:
-    return {**repository_env(), **environment(tmp_path / "ros")}
-
-
 def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, master):
     uri, _ = master
-    check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), env_for(tmp_path))
+    check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), ros1_env(tmp_path))
 
 
 @pytest.mark.parametrize("fault, reason", [("scans-late@3", "stale scans"), ("odometry-stale@3", "stale odometry"),
@@ -41,7 +28,7 @@ def test_late_or_blank_scans_or_stale_odometry_stop_the_robot(tmp_path, master, 
     uri, _ = master
     study = design(tmp_path / "study", uri)
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path), ("--fault", fault)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path), ("--fault", fault)) as rig:
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 1, rig.output()
         assert_stopped_and_kept(rig, study, code, reason)
@@ -64,7 +51,7 @@ def test_a_run_stopped_midway_stops_the_robot_and_keeps_its_log(tmp_path, master
     interrupt, reason = INTERRUPTIONS[interruption]
     study = design(tmp_path / "study", uri)
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
         run = rig.trials_run("--only", code)
         rig.wait_state("driving")
         time.sleep(2.0)
@@ -77,7 +64,7 @@ def test_an_exception_in_the_loop_stops_the_robot(tmp_path, master):
     uri, _ = master
     study = design(tmp_path / "study", uri)
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
         failing = subprocess.run([TRIALS[0], "-m", "tests.support.failing_drive", str(uri), code], env=rig.env, capture_output=True,
                                  text=True, timeout=300)
         assert "raised: [Errno 28] No space left on device" in failing.stdout, failing.stderr[-2000:]
@@ -91,7 +78,7 @@ def test_a_run_without_sensors_never_starts(tmp_path, master):
     study = design(tmp_path / "study", uri)
     set_robot_keys(study.root, sensor_wait="3.0")
     code = first_code(study)
-    with live_rig(str(uri), study.root, env_for(tmp_path)) as rig:
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
         rig.processes[1].kill()  # no robot: no scan, odometry or transform ever comes
         run = rig.trials_run("--only", code)
         assert run.wait(timeout=300) == 1, rig.output()

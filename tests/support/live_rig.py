@@ -151,6 +151,13 @@ def repository_env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (root, os.environ.get("PYTHONPATH"))))}
 
 
+def ros1_env(tmp_path: Path) -> dict[str, str]:
+    """The environment of a ROS 1 rig's processes: the repository importable, ROS_HOME where the `master` fixture has it."""
+    from tests.support.ros1_echo import environment
+
+    return {**repository_env(), **environment(tmp_path / "ros")}
+
+
 def design(folder: Path, uri: object, *flags: str) -> StudyFolder:
     """`trials design [flags] --robot URI --seed 5` in `folder`."""
     subprocess.run([*TRIALS, "design", *flags, "--robot", str(uri), "--seed", "5", "--study", str(folder)], check=True,

@@ -74,3 +74,10 @@ def ros1_master(tmp_path: Path) -> Iterator[RobotUri]:
     """The URI of a fresh ROS 1 master on a free 127.0.0.1 port, its ROS_HOME in tmp_path."""
     with master_process(tmp_path / "ros_master") as (uri, _):
         yield uri
+
+
+@pytest.fixture
+def master(tmp_path: Path) -> Iterator[tuple[RobotUri, subprocess.Popen]]:
+    """A fresh ROS 1 master for a live-run rig, and its process (to kill it), ROS_HOME in tmp_path/ros."""
+    with master_process(tmp_path / "ros") as running:
+        yield running
