@@ -302,5 +302,5 @@ class SoftwareRobot:
 
 
 def open_commands(path: Path | None) -> TextIO | None:
-    """The commands (or contacts) file, opened for appending line by line (None: no file)."""
+    """A record file (commands, contacts, truth), opened for appending line by line (None: no file)."""
     return None if path is None else path.open("a", encoding="utf-8", buffering=1)
