@@ -36,7 +36,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -73,6 +72,7 @@ from trials.study import (
     minute_ns,
     private_folder,
     to_the_minute,
+    utc_now,
 )
 
 #: Seconds a live run's worker has to stop the robot and keep its log after SIGTERM, before it is killed.
@@ -169,8 +169,7 @@ def run_seed(study_seed: int, code: str) -> int:
 
 def utc_stamp(blind: bool) -> str:
     """Now as ISO 8601 UTC; to the minute in a blinded study, whose run times differ by controller."""
-    now = datetime.now(UTC).replace(microsecond=0)
-    return (now.replace(second=0) if blind else now).isoformat()
+    return utc_now(to_the_minute=blind)
 
 
 # --- the parent: what to run ---------------------------------------------------------------------

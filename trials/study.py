@@ -147,9 +147,10 @@ def study_table(spec: Path, name: str) -> dict[str, Any] | None:
     return table
 
 
-def utc_now() -> str:
-    """The current time as ISO 8601 UTC, to the second."""
-    return datetime.now(UTC).replace(microsecond=0).isoformat()
+def utc_now(to_the_minute: bool = False) -> str:
+    """The current time as ISO 8601 UTC, to the second (or to the start of its minute, as a blinded study's times are)."""
+    now = datetime.now(UTC).replace(microsecond=0)
+    return (now.replace(second=0) if to_the_minute else now).isoformat()
 
 
 def plan_content(header: Sequence[str], rows: Iterable[Sequence[str]]) -> bytes:

@@ -8,12 +8,11 @@ public log from the worker's partial file into runs/aborted/.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_log import partial_path, recover
-from trials.robot.live import ABORTED, DRIVING, STOP_REPEATS, WAITING, velocity_publisher
+from trials.robot.live import ABORTED, DRIVING, WAITING, stop_robot, velocity_publisher
 from trials.robot.live_state import read_state, write_state
 from trials.robot.live_trial import aborted_stamp
 from trials.robot.settings import RobotSettings
@@ -35,10 +34,7 @@ class Guard:
 
     def halt(self) -> None:
         """Zero velocity, sent as a run's own stop sends it."""
-        for k in range(STOP_REPEATS):
-            if k:
-                time.sleep(0.02)
-            self.send(0.0, 0.0)
+        stop_robot(self.send)
 
     def worker_died(self, code: str | None, why: str) -> str | None:
         """Stop the robot after the driving worker died (`why`); when run `code` was under way (its state waiting or

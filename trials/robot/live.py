@@ -327,10 +327,7 @@ class LiveRun:
 
     def halt(self) -> None:
         """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop."""
-        for k in range(STOP_REPEATS):
-            if k:
-                time.sleep(0.02)
-            self.send(0.0, 0.0)
+        stop_robot(self.send)
 
     def _why_stop(self, now: float, check_sensors: bool) -> str | None:
         # The console's E-STOP creates its file before it signals `trials run`: the file names the cause.
@@ -591,6 +588,14 @@ class StallWatch:
 
 def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def stop_robot(send: Callable[[float, float], None]) -> None:
+    """Send zero velocity `STOP_REPEATS` times, 20 ms apart, so that one lost message does not leave the robot moving."""
+    for k in range(STOP_REPEATS):
+        if k:
+            time.sleep(0.02)
+        send(0.0, 0.0)
 
 
 def velocity_publisher(transport: Transport, settings: RobotSettings) -> Callable[[float, float], None]:

@@ -14,8 +14,7 @@ from trials.study import LIVE_STATE, StudyFolder, to_the_minute, utc_now
 def write_state(folder: StudyFolder, code: str, state: str, detail: str) -> None:
     """runs/live.json: the live run's code, state and detail, and the minute it entered that state (UTC)."""
     path = folder.path(LIVE_STATE)
-    since = utc_now()[:16] + ":00+00:00"
-    write_text(path, json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": since}) + "\n")
+    write_text(path, json.dumps({"run_code": code, "state": state, "detail": detail, "since_utc": utc_now(to_the_minute=True)}) + "\n")
     to_the_minute(path, path.parent)
 
 
