@@ -141,6 +141,29 @@ class Blinding:
 
 
 @dataclass(frozen=True)
+class LiveCheck:
+    """A live run's latest check (`trials.live_checks`): how it ended, the people its row asked for and the most tracked at
+    once, why it is flagged (empty: it went as planned), and the operator's decision on a flagged run (stands or rerun,
+    with a reason; empty: undecided)."""
+
+    run_code: str
+    recorded_utc: str
+    ending: str
+    asked: int | None
+    seen: int | None
+    seen_at_s: float | None
+    #: Whether the row's condition was met (None: the run recorded no count, e.g. its worker died).
+    condition_met: bool | None
+    flag: str
+    decision: str = ""
+    reason: str = ""
+
+    @property
+    def undecided(self) -> bool:
+        return bool(self.flag) and not self.decision
+
+
+@dataclass(frozen=True)
 class StudyData:
     """Everything the report needs from a study folder."""
 
@@ -158,6 +181,8 @@ class StudyData:
     notes: list[str] = field(default_factory=list)
     #: The analysis plan and its standing against design.json's commitment (None: the report's defaults for the spec).
     analysis_plan: PlanStatus | None = None
+    #: Every live run's manipulation checks, each with the operator's decision on it, in the order they were made.
+    checks: list[LiveCheck] = field(default_factory=list)
 
     @property
     def finished(self) -> list[StudyRun]:

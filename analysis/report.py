@@ -156,6 +156,7 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
         *_overview(analysis, generated_utc),
         *_design_section(analysis),
         *_scores_section(analysis),
+        *_deviations_section(analysis),
         *_primary_section(analysis),
         *_ab_section(analysis),
         *_figures_section(analysis),
@@ -296,6 +297,40 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     blocks: list[Block] = [Heading("Study"), Bullets(items)]
     if a.notes:
         blocks += [Paragraph("**Notes on the data:**"), Bullets(a.notes)]
+    return blocks
+
+
+def _deviations_section(a: _Analysis) -> list[Block]:
+    """The live runs' manipulation checks and protocol deviations (`trials.live_checks`), counted per arm, and each flagged
+    run with the operator's decision: a run decided `rerun` is no longer data, one that `stands` is, flag and all."""
+    checks = a.data.checks
+    if not checks:
+        return []
+    arm_of = {run.code: run.arm for run in a.data.runs}
+    word = a.data.blinding.arm_word
+    counted = []
+    for arm in a.arms:
+        mine = [c for c in checks if arm_of.get(c.run_code) == arm]
+        counted.append([arm, len(mine), sum(c.condition_met is True for c in mine), sum(bool(c.flag) for c in mine),
+                        sum(c.decision == "stands" for c in mine), sum(c.decision == "rerun" for c in mine), sum(c.undecided for c in mine)])
+    flagged = [c for c in checks if c.flag]
+    undecided = [c.run_code for c in flagged if c.undecided]
+    items = [f"Run {c.run_code} ({word.lower()} {arm_of.get(c.run_code, '?')}): {c.flag}; "
+             + (f"**{c.decision}**: {c.reason}" if c.decision else "**undecided**") for c in flagged]
+    blocks: list[Block] = [
+        Heading("Live runs: manipulation checks and deviations"),
+        Paragraph("Each live run's check: how many people were tracked near the robot at once against its row's Pedestrians, "
+                  "and a flag when the row's condition was not met or the run ended early (a timeout or an abort). The operator "
+                  "decides each flagged run: it stands as data, or is rerun (`trials deviation`)."),
+        DataTable([word, "Live runs", "Condition met", "Flagged", "Stands", "Rerun", "Undecided"], [list(map(str, row)) for row in counted],
+                  f"Live runs by {word.lower()}, every attempt (a run rerun counts once for each time it was driven).", {1, 2, 3, 4, 5, 6},
+                  [word.lower(), "live_runs", "condition_met", "flagged", "stands", "rerun", "undecided"], counted),
+    ]
+    if undecided:
+        blocks.append(Paragraph(f"**{len(undecided)} flagged run(s) have no decision yet** ({', '.join(undecided)}): their results "
+                                "are in the analysis as they stand."))
+    if items:
+        blocks.append(Bullets(items))
     return blocks
 
 

@@ -32,6 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from trials.controllers import registry
+from trials.live_checks import read_check_log
 from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest, warm_up
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import RobotUri, open_transport
@@ -112,7 +113,7 @@ def latency(kind: str, repeats: int, home: Path, loaded: int) -> None:
                 for k in range(repeats):
                     controller.reset(k)
                     live = LiveRun(link, StopRequest())
-                    reason = live.wait(row["run_code"])
+                    reason = live.wait(row["run_code"], None)  # unstaged: the software robot returns to its start
                     assert reason is None, reason
                     end = live.drive(controller, settings.goal_for(row), LiveSink())
                     latencies += end.latencies
@@ -131,6 +132,8 @@ def whole_study(kind: str, home: Path) -> None:
     with middleware(kind, home) as uri:
         study = design(home / f"study-{kind}", uri)
         with software_robot(uri, study.root, 20.0):
+            # The start mark, measured once where the software robot stands; every row is staged relative to it.
+            subprocess.run([*TRIALS, "run", "--robot", uri, "--mark", "--study", str(study.root)], check=True, capture_output=True)
             began = time.monotonic()
             # The operator's Enter before each row after the first: the software robot is brought to its start by itself.
             run = subprocess.run([*TRIALS, "run", "--robot", uri, "--study", str(study.root)], capture_output=True, text=True,
@@ -146,6 +149,9 @@ def whole_study(kind: str, home: Path) -> None:
               f"aborted or failed {len(failed)}; wall contacts {touched}; trials run exit code {run.returncode}")
         for path in failed:
             print(f"  {path.name}: {path.read_text(encoding='utf-8').strip()}")
+        checks = read_check_log(study)
+        print(f"  live checks: {len(checks)}; row's condition met {sum(c.condition_met is True for c in checks)}; flagged "
+              f"{sum(bool(c.flag) for c in checks)}" + "".join(f"\n    {c.run_code}: {c.flag}" for c in checks if c.flag))
         digest = study.read_design()["blinding"]["commitment"]["digest"]
         report = subprocess.run([*TRIALS, "report", "--study", str(study.root), "--unblind", "--commitment", digest, "--quiet"],
                                 capture_output=True, text=True)

@@ -135,6 +135,16 @@ class StaticWorld:
         self.free[known[passed]] += 1
         self.hidden[known[hidden]] += 1
 
+    def static_points(self, centre: np.ndarray, radius: float) -> np.ndarray:
+        """(M, 2) the centres of the static cells within `radius` of `centre`: the walls and furniture seen so far."""
+        known = self._known
+        if not len(known):
+            return np.zeros((0, 2))
+        points = self.centres(known)
+        near = np.hypot(*(points - np.asarray(centre, dtype=float)[:2]).T) <= radius
+        points = points[near]
+        return points[self.is_static(points)] if len(points) else points
+
     def is_static(self, positions: np.ndarray) -> np.ndarray:
         """(N,) True where a position's cell is part of the static world, or `known_static` says it is static."""
         cells = self.cells(positions)

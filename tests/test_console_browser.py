@@ -140,7 +140,7 @@ def robot(tmp_path_factory) -> Iterator[Robot]:
         assert main(["design", "--ab", "--robot", str(uri), "--study", str(study), "--quiet"]) == 0
         # A loaded machine delivers scans late now and then: a longer watchdog and sensor wait than a robot's keep
         # these runs from stopping for that (tests/test_robot_live_ros1.py tests the stop rules themselves).
-        set_robot_keys(study, watchdog="2.0", sensor_wait="60.0")
+        set_robot_keys(study, watchdog="2.0", sensor_wait="60.0", goal_frame="\"odom\"")
         env = {**repository_env(), **environment(root / "ros")}
         with live_rig(str(uri), study, env) as rig, served(study, env=env) as url:
             yield Robot(study, str(uri), url, rig)

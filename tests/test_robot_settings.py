@@ -42,6 +42,10 @@ def test_defaults_fit_a_husky_and_the_table_overrides_them(tmp_path):
     assert settings.goal_for({"Direction": "Crossing"}) == (6.5, 0.0, 1.57)
     assert settings.goal_for({"Direction": "Parallel"}) == (8.0, 1.0)
     assert settings.recorded()["robot_goal"] == "8 1" and settings.recorded()["robot_max_speed"] == "0.6"
+    # By default rows start and end relative to the study's start mark, the robot within 0.3 m and 0.35 rad.
+    assert (RobotSettings().goal_frame, RobotSettings().start, RobotSettings().start_tolerance) == ("mark", (0.0, 0.0, 0.0), (0.3, 0.35))
+    staged = read_robot_settings(write(tmp_path, 'goal_frame = "map"\nstart = [1.5, -2]\nstart_tolerance = [0.2, 0.1]'))
+    assert staged is not None and (staged.goal_frame, staged.start, staged.start_tolerance) == ("map", (1.5, -2.0, 0.0), (0.2, 0.1))
 
 
 @pytest.mark.parametrize("table, message", [
@@ -62,6 +66,9 @@ def test_defaults_fit_a_husky_and_the_table_overrides_them(tmp_path):
     ("footprint = [0.5, -0.4]", "footprint must be [length, width]"),
     ("min_valid_share = 1.5", "min_valid_share must be a number in [0, 1]"),
     ("protective_hold = 0", "protective_hold must be a number in [0.5, 600]"),
+    ("start = [0, 0, 0, 0]", "start must be [x, y] or [x, y, yaw]"),
+    ("start_tolerance = [0.3]", "start_tolerance must be [metres, radians], in [0.01, 5] and [0.01, 3.142], got [0.3]"),
+    ("start_tolerance = [0.3, 4]", "start_tolerance must be [metres, radians]"),
 ])
 def test_a_bad_table_is_one_line_naming_file_and_key(tmp_path, table, message):
     spec = write(tmp_path, table)
@@ -94,4 +101,4 @@ def test_the_footprint_and_safety_keys_reach_the_limits_and_design_writes_every_
     table = tomllib.loads((study / "study.toml").read_text(encoding="utf-8"))["robot"]
     defaults = {name: list(v) if isinstance(v := getattr(RobotSettings(), name), tuple) else v
                 for name in RobotSettings.__dataclass_fields__ if name != "goals"}
-    assert table == {**defaults, "uri": "ros1://10.0.0.2:11311"} and len(table) == 25
+    assert table == {**defaults, "uri": "ros1://10.0.0.2:11311"} and len(table) == 29

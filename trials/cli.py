@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from trials.errors import USER_ERRORS
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "robot_sim", "status", "log", "lattice", "train", "evaluate", "playback", "score", "respond",
+COMMANDS: tuple[str, ...] = ("design", "run", "deviation", "robot_sim", "status", "log", "lattice", "train", "evaluate", "playback", "score", "respond",
                              "report", "serve", "power")
 
 EXIT_USAGE = 2

@@ -54,7 +54,7 @@ from trials.pool import Failure, PoolError, WorkerPool
 from trials.robot.settings import RobotSettings
 from trials.run_log import RunLog, jsonable
 from trials.run_settings import LIVE, LOGGED, PERCEPTIONS, RunSettings, differences
-from trials.scenario import CONTROLLER, settings_from_row
+from trials.scenario import CONTROLLER, DEFAULTS, PEDESTRIANS, settings_from_row
 from trials.sealed_runs import SEALED_RUN_FORMAT, write_sealed
 from trials.sim.perception import PositionNoise
 from trials.study import (
@@ -327,8 +327,8 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
     """Run the pending rows (or the `only` / `rerun` ones) with `workers` processes.
 
     `on_start(n)` is called once the workers are ready and n runs are about to start;
-    `on_done` / `on_failed` after each run. Rows driven live go one at a time, and before each but the first
-    `between(code)` is asked whether to go on (the operator stages the row; False ends the command, the rest pending).
+    `on_done` / `on_failed` after each run. Rows driven live go one at a time, and before each `between(code)` is asked
+    whether to go on (the operator stages the row; False ends the command, the rest pending).
     Ctrl-C (KeyboardInterrupt) stops the workers at once; finished runs are kept.
 
     Raises:
@@ -397,9 +397,9 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 if rerun:
                     summary.superseded = supersede_runs(folder, outcomes, rerun, folder.aside_stamp())
                 on_start(len(todo))
-                # Live rows go one at a time, the operator asked before each after the first (to stage it).
-                for k, batch in enumerate([[task] for task in tasks] if live else [tasks]):
-                    if k and not between(batch[0].code):
+                # Live rows go one at a time, the operator asked before each (to stage it).
+                for batch in [[task] for task in tasks] if live else [tasks]:
+                    if live and not between(batch[0].code):
                         break
                     for code, answer in _answers(pool, ((task.code, task) for task in batch), worker_died):
                         answered.add(code)
@@ -619,6 +619,7 @@ class TrialWorker:
         """Drive a row live on the robot (`trials.robot.live_trial`), writing its log; returns how it ended and its
         metrics. A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
         in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker exits once the run's files are kept."""
+        from trials.live_checks import record_check
         from trials.robot.live import ABORTED
         from trials.robot.live_log import LiveLog
         from trials.robot.live_trial import aborted_stamp
@@ -636,15 +637,19 @@ class TrialWorker:
             except BaseException:
                 if log.log is not None:  # whatever stopped the run, what it recorded is kept
                     self._keep_aborted(task, level, arm, log, aborted_stamp())
+                    record_check(self.folder, task.code, ABORTED, "an exception stopped the run", None, self.blind)
                 raise
+            people = end.people.check(int(float(task.row.get(PEDESTRIANS, DEFAULTS[PEDESTRIANS]))), robot.min_people_share)
             if end.status == ABORTED or driver.terminated:
                 # A run stopped as it ended cannot hand its row to a parent that is stopping: it is kept aside, pending.
                 why = end.detail if end.status == ABORTED else f"stopped by SIGTERM as it ended ({end.status})"
                 message = f"run {task.code} aborted: {why}; its log is {self._keep_aborted(task, level, arm, log, aborted_stamp())}"
                 _record_failure(self.folder, task.code, message, self.blind)
+                record_check(self.folder, task.code, ABORTED, why, people, self.blind)
                 raise RunAborted(message)
             self._seal(task, level, arm, log.log)
             log.close()
+            record_check(self.folder, task.code, end.status, end.detail, people, self.blind)
         return end.status, end.metrics
 
     def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: LiveLog, stamp: str) -> Path | None:

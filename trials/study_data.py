@@ -16,6 +16,7 @@ from designs.spec import read_spec
 from trials.analysis_plan import plan_in_force, plan_status
 from trials.controllers import registry
 from trials.errors import StudyError
+from trials.live_checks import read_check_log
 from trials.outcomes import outcome_cells, read_outcomes
 from trials.responses import read_responses
 from trials.run_settings import LIVE, LOGGED, distinct, recorded_text
@@ -101,6 +102,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         diagnostics=design.get("diagnostics", {}),
         notes=notes,
         analysis_plan=plan_status(folder.path(SPEC), spec, design, opened_with),
+        checks=read_check_log(folder),
     )
 
 

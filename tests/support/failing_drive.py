@@ -30,7 +30,7 @@ if __name__ == "__main__":
     uri, code = sys.argv[1:3]
     settings = RobotSettings(uri=uri, sensor_wait=120.0)
     live = LiveRun(RobotLink(open_transport(RobotUri.parse(uri), "navtrials_failing"), settings), StopRequest())
-    assert live.wait(code) is None
+    assert live.wait(code, None) is None
     controller = registry.build(registry.LATTICE)
     controller.reset(0)
     try:

@@ -158,10 +158,12 @@ def ros1_env(tmp_path: Path) -> dict[str, str]:
     return {**repository_env(), **environment(tmp_path / "ros")}
 
 
-def design(folder: Path, uri: object, *flags: str) -> StudyFolder:
-    """`trials design [flags] --robot URI --seed 5` in `folder`."""
+def design(folder: Path, uri: object, *flags: str, frame: str = "odom") -> StudyFolder:
+    """`trials design [flags] --robot URI --seed 5` in `folder`, its rows staged in `frame` (the software robot's odometry
+    frame, whose origin is where it starts, unless a test measures a start mark)."""
     subprocess.run([*TRIALS, "design", *flags, "--robot", str(uri), "--seed", "5", "--study", str(folder)], check=True,
                    capture_output=True, env=repository_env())
+    set_robot_keys(folder, goal_frame=f'"{frame}"')
     return StudyFolder(folder)
 
 

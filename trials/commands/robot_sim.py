@@ -9,6 +9,9 @@ from pathlib import Path
 from trials import option_types as types
 from trials.robot.transport import TWIST_TYPES
 
+#: What `--unstaged` leaves unstaged (`trials.robot.software_robot.SoftwareRobotConfig.unstaged`).
+UNSTAGED = ("robot", "walkers")
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
@@ -48,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="stage a failure S seconds after each run starts, to rehearse the stop rules: scans-stop, scans-late "
                         "(stamps 1 s old), scans-blank (every range NaN), odometry-stop, odometry-stale (stamp frozen), stall "
                         "(the wheels blocked); may be repeated")
+    parser.add_argument("--unstaged", action="append", default=[], choices=UNSTAGED, metavar="WHAT",
+                        help="rehearse a row staged wrong: robot (the robot is not brought to its start and stays where it "
+                        "stands) or walkers (nobody walks); may be repeated")
     parser.set_defaults(handler=run)
 
 
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         settings = replace(settings, cmd_vel_type=args.cmd_vel_type)
     config = SoftwareRobotConfig(scan_rate=args.scan_rate, scan_latency=args.scan_latency, command_timeout=args.command_timeout, seed=args.seed,
                                  faults=tuple(Fault.parse(text) for text in args.fault),
-                                 room=ROOM if args.room is None else parse_room(args.room))
+                                 room=ROOM if args.room is None else parse_room(args.room), unstaged=frozenset(args.unstaged))
     stop = threading.Event()
 
     def quit_(signum: int, frame: object) -> None:

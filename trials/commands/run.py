@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from trials.robot.settings import RobotSettings
     from trials.runner import RunDone
+    from trials.study import StudyFolder
 
 from robot_logs.physical import STEP_S
 from trials import option_types as types
@@ -76,6 +77,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "topics, frames, goal and limits come from study.toml's [robot] table (docs/live_runs.md). "
                         "One run at a time, waiting for the operator (Enter) before each after the first; Ctrl-C or kill stops "
                         "the robot and keeps the run's log in runs/aborted/")
+    parser.add_argument("--mark", action="store_true",
+                        help="with --robot: measure the study's start mark (the robot's pose in its odometry frame as it stands "
+                        "on the lab's mark) into start_mark.json and drive nothing; rows then start and end relative to it "
+                        "([robot] goal_frame \"mark\", docs/live_runs.md)")
     logs = parser.add_argument_group("logged trials", "play robot logs (ROS1/ROS2 bags, MCAP) open loop instead of simulating")
     logs.add_argument("--from-log", type=Path, metavar="FILE",
                       help="play this log for every row run (pending rows, or --only / --rerun ones), "
@@ -114,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.robot is not None and args.from_log is not None:
         raise StudyError("--robot drives the runs live and --from-log plays a recorded log: choose one")
+    if args.mark:
+        return mark(StudyFolder(args.study), args.robot)
     study = StudyRun.open(StudyFolder(args.study), args.blind, from_log=args.from_log is not None or args.robot is not None)
     robot = live_settings(study.folder.path(SPEC), args.robot)
     replay = ReplayOptions(args.from_log, tuple(args.goal) if args.goal else None, args.start, args.duration,
@@ -174,17 +181,26 @@ def run(args: argparse.Namespace) -> int:
     def failed(code: str, message: str) -> None:
         say(code, f"{run_label(study.task(code).row)}: failed: {message}", error=True)
 
+    asked: list[str] = []
+
     def staged(code: str) -> bool:
-        """Between live rows, wait for the operator to stage the next one (an answer of q, or no standard input, stops)."""
-        print(f"Next: {run_label(study.task(code).row)}. Stage it (the robot at its start, the walkers at theirs), then "
-              "press Enter to start it, or q and Enter to stop here: ", end="", file=sys.stderr, flush=True)
+        """Before a live row: print where its robot and walkers go; before every row but the first (which the command itself
+        started), wait for the operator to stage it (an answer of q, or no standard input, stops)."""
+        from trials.robot.staging import staged_scene
+
+        assert robot is not None
         try:
-            answer = input()
-        except EOFError:
-            print(f"\nNo operator answered (standard input is closed): stopping before run {code}; `trials run --robot` "
-                  "again goes on with it", file=sys.stderr)
-            return False
-        return answer.strip().lower() not in ("q", "quit")
+            lines = staged_scene(study.folder, robot, code).lines()
+        except StudyError as exc:
+            lines = [str(exc)]
+        first = not asked
+        asked.append(code)
+        if args.quiet or args.json:
+            return first or _confirmed(code, "")
+        print(f"{'First' if first else 'Next'}: {run_label(study.task(code).row)}. Staging:\n  " + "\n  ".join(lines),
+              file=sys.stderr, flush=True)
+        return first or _confirmed(code, "Stage it (the robot at its start, the walkers at theirs), then press Enter to start it, "
+                                   "or q and Enter to stop here: ")
 
     try:
         summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed, staged)
@@ -219,6 +235,45 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def mark(folder: StudyFolder, uri: str | None) -> int:
+    """`trials run --robot URI --mark`: measure and keep the study's start mark."""
+    import math
+
+    from trials.errors import StudyError
+    from trials.robot.live_trial import measure_mark
+    from trials.robot.staging import MARK_FILE, read_mark, write_mark
+    from trials.study import SPEC
+
+    if uri is None:
+        raise StudyError("--mark measures the start mark on a robot: give --robot URI")
+    if not folder.path(SPEC).exists():
+        raise StudyError(f"no {SPEC} in {folder.root}: `trials design --robot URI` makes the study first")
+    settings = live_settings(folder.path(SPEC), uri)
+    assert settings is not None
+    previous = read_mark(folder)
+    measured = measure_mark(settings)
+    write_mark(folder, measured)
+    pose = measured.pose
+    print(f"Start mark: ({pose.x:.3f}, {pose.y:.3f}) facing {math.degrees(pose.yaw):.1f} deg in {measured.frame}, kept in "
+          f"{folder.path(MARK_FILE)}" + (f" (it was ({previous.pose.x:.3f}, {previous.pose.y:.3f}) facing "
+                                         f"{math.degrees(previous.pose.yaw):.1f} deg, measured {previous.measured_utc})" if previous else ""))
+    return 0
+
+
+def _confirmed(code: str, prompt: str) -> bool:
+    """The operator's answer before a live row: Enter goes on; q, or no standard input, stops."""
+    import sys
+
+    print(prompt, end="", file=sys.stderr, flush=True)
+    try:
+        answer = input()
+    except EOFError:
+        print(f"\nNo operator answered (standard input is closed): stopping before run {code}; `trials run --robot` "
+              "again goes on with it", file=sys.stderr)
+        return False
+    return answer.strip().lower() not in ("q", "quit")
 
 
 def live_settings(spec: Path, uri: str | None) -> RobotSettings | None:

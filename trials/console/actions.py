@@ -27,10 +27,12 @@ from trials.console.sheet import RunSheet, SheetRow, run_sheet
 from trials.errors import USER_ERRORS, StudyError
 from trials.log_trial import ReplayOptions
 from trials.responses import read_responses, record_response
+from trials.robot.settings import RobotSettings, read_robot_settings
+from trials.robot.staging import StagedScene, staged_scene
 from trials.run_events import ABORT, FINISH, FINISHED, LOG, MAX_DETAIL, NOTE, RUNNING, START, RunEvent, append_run_event, check_step
 from trials.runner import RunOptions, StudyRun, run_study, utc_stamp
 from trials.scores import read_scores, record_score
-from trials.study import LOGS, PLAN, RESPONSES, RUN_EVENTS, SCORES, StudyFolder, to_the_minute, utc_now
+from trials.study import LOGS, PLAN, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder, to_the_minute, utc_now
 
 #: The suffix an earlier upload of a run is held under while a corrected log replaces it.
 HELD = ".earlier"
@@ -83,6 +85,16 @@ class Console:
 
     def sheet(self) -> RunSheet:
         return run_sheet(self.folder)
+
+    def staging(self, code: str) -> StagedScene | None:
+        """Where run `code`'s robot and walkers go (`trials.robot.staging`); None when the study is not driven live.
+
+        Raises:
+            StudyError: the study stages its rows on a start mark not measured yet, or its [robot] table is bad.
+        """
+        if self.live.uri is None:
+            return None
+        return staged_scene(self.folder, read_robot_settings(self.folder.path(SPEC)) or RobotSettings(), code)
 
     def run(self, code: str) -> tuple[RunSheet, SheetRow]:
         """The sheet and run `code`'s row; UnknownRun when the plan has no such run."""

@@ -30,13 +30,14 @@ from trials.attached_logs import MAX_UPLOAD_BYTES
 from trials.console.access import ConsoleAccess
 from trials.console.actions import Console, LogRequest, UnknownRun
 from trials.console.address import LOOPBACK, NETWORK_OPTION, Reach, url_host
-from trials.console.pictures import RunPictures
+from trials.console.pictures import PAGE_DPI, RunPictures
 from trials.console.progress import progress
 from trials.console.sheet import SheetRow, study_key
 from trials.console.times import local_time
 from trials.errors import USER_ERRORS
 from trials.numbers import finite_number
 from trials.run_events import ABORT, ABORTED, EVENTS
+from trials.staging_figure import staging_figure
 from trials.study import LIVE_ESTOP
 
 #: Field names of the participant's code and compliance answer.
@@ -109,7 +110,30 @@ def create_app(console: Console, access: ConsoleAccess, reach: Reach = LOOPBACK)
             session["experimenter"] = True
             return redirect(url_for("sheet"))
         experimenter()
-        return render_template("sheet.html", sheet=console.sheet(), title="Run sheet")
+        return render_template("sheet.html", sheet=console.sheet(), title="Run sheet", staging=console.live.uri is not None)
+
+    @app.get("/staging")
+    def staging_sheet() -> str | tuple[str, int]:
+        """Every run's staging, in plan order, to print: where the robot starts and goes, and each walker's part."""
+        experimenter()
+        sheet = console.sheet()
+        try:
+            scenes = [console.staging(code) for code in sheet.codes]
+        except USER_ERRORS as exc:
+            return fail(f"the runs cannot be staged: {exc}", 409)
+        if not any(scenes):
+            abort(404, "this study is not driven live: it has no staging")
+        return render_template("staging.html", sheet=sheet, scenes=scenes, title="Staging sheet")
+
+    @app.get("/runs/<code>/staging.png")
+    def staging_picture(code: str) -> HttpResponse:
+        """Run `code`'s scene as the operator stages it (`trials.staging_figure`)."""
+        experimenter()
+        console.run(code)
+        scene = console.staging(code)
+        if scene is None:
+            abort(404, "this study is not driven live: it has no staging")
+        return HttpResponse(staging_figure(scene).png(PAGE_DPI), mimetype="image/png", headers={"Cache-Control": "no-store"})
 
     @app.get("/runs/<code>")
     def run_page(code: str) -> str:
@@ -125,10 +149,14 @@ def create_app(console: Console, access: ConsoleAccess, reach: Reach = LOOPBACK)
         if not error and playing is not None and playing.error:
             error = playing.error  # the latest log played for this run, in the background, failed
         serve = f"trials serve --study {shlex.quote(str(console.folder.root))} {NETWORK_OPTION}"
+        try:
+            staging, staging_error = console.staging(code), ""
+        except USER_ERRORS as exc:
+            staging, staging_error = None, str(exc)
         return render_template("run.html", sheet=sheet, row=row, link=link, qr=qr, error=error, title=f"Run {code}",
                                live_uri=console.live.uri, live=live, shown=_shown(row, live), playing=playing,
                                busy=console.playing_now(), picture=row.outcome and console.folder.run_log(code).exists(),
-                               reach=reach, serve=serve), status
+                               reach=reach, serve=serve, staging=staging, staging_error=staging_error), status
 
     def participant_link(code: str) -> str:
         """Run `code`'s questionnaire link: at this laptop's network address when phones reach it there, else at the

@@ -9,10 +9,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN, Outcome
+from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN, LiveCheck, Outcome
 from designs.questionnaire import LikertItem
 from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
+from trials.live_checks import read_checks
 from trials.outcomes import read_outcomes
 from trials.responses import read_responses
 from trials.run_events import ABORT, ABORTED, FINISH, LOG, NOTE, PENDING, RUNNING, START, RunEvent, read_run_events, statuses
@@ -73,6 +74,17 @@ class SheetRow:
     events: list[RunEvent] = field(default_factory=list)
     origin: str = ""
     result: Outcome | None = None
+    #: Its latest live run's manipulation check and deviation decision (`trials.live_checks`); None before one.
+    check: LiveCheck | None = None
+
+    @property
+    def check_text(self) -> str:
+        """The check as the sheet shows it: `ok`, or the flag and the operator's decision (or that none was made)."""
+        if self.check is None:
+            return ""
+        if not self.check.flag:
+            return "ok"
+        return f"flagged: {self.check.flag} [{self.check.decision or 'undecided'}{': ' + self.check.reason if self.check.decision else ''}]"
 
     @property
     def figures(self) -> list[tuple[str, str]]:
@@ -128,6 +140,11 @@ class RunSheet:
     key: StudyKey
 
     @property
+    def checked(self) -> bool:
+        """Whether any run was checked live (the sheet then has a Check column)."""
+        return any(row.check is not None for row in self.rows)
+
+    @property
     def sealed(self) -> bool:
         """Blinded and never unblinded: its pages compare no arms."""
         return self.key.sealed
@@ -148,13 +165,15 @@ class RunSheet:
 
 
 def run_sheet(folder: StudyFolder) -> RunSheet:
-    """The run sheet from plan.csv, design.json, study.toml, outcomes.csv, run_events.csv, scores.csv and responses.csv."""
+    """The run sheet from plan.csv, design.json, study.toml, outcomes.csv, run_events.csv, scores.csv, responses.csv and
+    live_checks.csv."""
     design = folder.read_design()
     plan = folder.read_plan()
     spec = read_spec(folder.path(SPEC))
     blinding = design.get("blinding") or {}
     outcomes = {o.run_code: o for o in read_outcomes(folder.path(OUTCOMES))}
     events = read_run_events(folder.path(RUN_EVENTS))
+    checks = read_checks(folder)
     scores = Counter(s.run_code for s in read_scores(folder.path(SCORES)))
     judgments = Counter(r.run_code for r in read_responses(folder.path(RESPONSES)) if r.source == HUMAN)
     codes = [row["run_code"] for row in plan]
@@ -165,7 +184,8 @@ def run_sheet(folder: StudyFolder) -> RunSheet:
         code = row["run_code"]
         outcome = outcomes.get(code)
         rows.append(SheetRow(int(row["order"]), code, {name: row[name] for name in factors}, status[code], outcome.status if outcome else "",
-                             scores[code], judgments[code], [e for e in events if e.run_code == code], run_origin(outcome) if outcome else "", outcome))
+                             scores[code], judgments[code], [e for e in events if e.run_code == code], run_origin(outcome) if outcome else "", outcome,
+                             checks.get(code)))
     arm_factor = blinding.get("factor") or (CONTROLLER if CONTROLLER in factors else None)
     arms = list(blinding.get("arms") or dict.fromkeys(row[arm_factor] for row in plan) if arm_factor else [registry.DEFAULT])
     return RunSheet(spec.name, bool(blinding), arm_factor, arms, factors, spec.questionnaire, rows, study_key(folder, design))

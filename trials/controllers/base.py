@@ -27,6 +27,8 @@ class Observation:
         pedestrian_ids: one stable id per tracked pedestrian.
         pedestrian_history: (N, T_OBS, 2) each pedestrian's last positions; NaN before a
             track was first seen.
+        obstacles: (M, 2) points of the static world near the robot (walls, furniture: what the
+            laser has seen stand still), none where nothing is known of it (the simulator's open ground).
     """
 
     time: float
@@ -36,6 +38,7 @@ class Observation:
     robot_history: np.ndarray
     pedestrian_ids: tuple[int, ...]
     pedestrian_history: np.ndarray
+    obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass(frozen=True)

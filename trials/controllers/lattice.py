@@ -1,6 +1,6 @@
 """The lattice planner as a trial controller: the A/B study's pure collision-avoidance baseline.
 
-A thin adapter: the observation's pose, goal and pedestrian tracks go to `trials.lattice.crowd`'s
+A thin adapter: the observation's pose, goal, pedestrian tracks and static world go to `trials.lattice.crowd`'s
 planner, built for the Husky (`robot_logs.physical`), and its way-points and record come back as a
 `Plan`. Trials run offline (simulated, or a log played back), so each search is bounded by a number
 of expansions rather than by the wall clock, and a run reproduces from its seed at any machine load.
@@ -54,5 +54,5 @@ class LatticeController:
         self.planner.reset()
 
     def plan(self, observation: Observation) -> Plan:
-        out = self.planner.plan(observation.robot_pose, observation.goal, observation.pedestrian_history)
+        out = self.planner.plan(observation.robot_pose, observation.goal, observation.pedestrian_history, observation.obstacles)
         return Plan(out.waypoints, self.planner.step_s, {"controller": self.name, **out.record})

@@ -7,7 +7,8 @@ sub-goal `reach_m` ahead in the direction of the real one (`navigan.goals.toward
 network was trained on goals one prediction horizon (4.8 s) away; near the end it lies beyond the
 goal, so the robot drives up to the goal (where the trial ends) instead of creeping toward it. The
 way-points, the intention path and the social forces come back in the world frame; the last two
-and the timing go to the plan's record.
+and the timing go to the plan's record. The static world (`Observation.obstacles`) enters as the nearest walls' points
+standing still, and no way-point takes the robot closer to a wall than `CLEARANCE_M` (`trials.controllers.obstacles`).
 """
 
 from __future__ import annotations
@@ -19,12 +20,17 @@ from pathlib import Path
 import numpy as np
 
 from navigan.goals import toward
-from robot_logs.physical import STEP_S, T_PRED
+from robot_logs.physical import ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M, STEP_S, T_OBS, T_PRED
 from trials.controllers.base import Observation, Plan
+from trials.controllers.obstacles import clear_prefix, nearest
 from trials.controllers.registry import NAVIGAN_R
 
 #: A sub-goal one prediction horizon ahead at the Husky's 1 m/s.
 REACH_M = 1.0 * T_PRED * STEP_S
+#: The static world's points given to the network as people standing still: at most this many, this far apart, this near.
+STANDING, STANDING_SPACING_M, STANDING_RANGE_M = 6, 0.5, 3.0
+#: No way-point closer to a wall than this (m): the Husky's circumscribed radius and 0.1 m.
+CLEARANCE_M = math.hypot(ROBOT_HALF_LENGTH_M, ROBOT_HALF_WIDTH_M) + 0.1
 
 
 def _rotation(theta: float) -> np.ndarray:
@@ -70,10 +76,16 @@ class NaviganRController:
             return (np.asarray(points, dtype=float) - origin) @ rotation
 
         subgoal = toward(origin, np.asarray(observation.goal, dtype=float)[:2], self.reach_m)
-        out = self.planner.plan(to_robot(observation.robot_history), to_robot(observation.pedestrian_history), to_robot(subgoal))
-        waypoints = out.waypoints.astype(float) @ rotation.T + origin
+        obstacles = np.asarray(observation.obstacles, dtype=float).reshape(-1, 2)
+        near = obstacles[np.hypot(*(obstacles - origin).T) <= STANDING_RANGE_M]
+        standing = np.repeat(nearest(near, origin, STANDING, STANDING_SPACING_M)[:, None, :], T_OBS, axis=1)
+        others = np.concatenate([np.asarray(observation.pedestrian_history, dtype=float).reshape(-1, T_OBS, 2), standing])
+        out = self.planner.plan(to_robot(observation.robot_history), to_robot(others), to_robot(subgoal))
+        waypoints, held = clear_prefix(out.waypoints.astype(float) @ rotation.T + origin, origin, obstacles, CLEARANCE_M)
         record = {
             "controller": self.name,
+            "standing_obstacles": len(standing),
+            "waypoints_held_off_walls": held,
             "subgoal": subgoal.tolist(),
             "intention": (out.intention.astype(float) @ rotation.T + origin).tolist(),
             "forces": (out.forces.astype(float) @ rotation.T).tolist(),

@@ -63,6 +63,9 @@ ESCAPE_STEP_M, ESCAPE_SPEED, ESCAPE_DIRECTIONS = 0.5, 0.5, 16
 STRAIGHT_RAD = math.pi / 4
 #: An escape must gain at least this much clearance (m).
 MIN_GAIN_M = 0.01
+#: A point of the static world is lethal this far around (m): its points come 0.2 m apart
+#: (`trials.controllers.obstacles.OBSTACLE_SPACING_M`), so a wall stays closed between them.
+OBSTACLE_RADIUS_M = 0.15
 
 
 def escape_point(pose: np.ndarray, centres: np.ndarray, turn_clearance: float) -> np.ndarray | None:
@@ -244,11 +247,11 @@ class CrowdPlanner:
                          {**record, "holding": True})
 
     def situation(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray,
-                  margin: float | None = None) -> Situation:
-        """The grid, start and target for the robot's `pose` (x, y, heading), its `goal` (x, y) and the
+                  margin: float | None = None, obstacles: np.ndarray | None = None) -> Situation:
+        """The grid, start and target for the robot's `pose` (x, y, heading), its `goal` (x, y), the
         pedestrians' tracks `pedestrian_history` ((N, T, 2), oldest first, NaN before a track was seen),
-        with the pedestrians grown by `margin` (default: the comfort margin), or the reason there is no
-        search to run."""
+        with the pedestrians grown by `margin` (default: the comfort margin), and the static world's points
+        `obstacles` ((M, 2), walls: lethal within `OBSTACLE_RADIUS_M`); or the reason there is no search to run."""
         pose = np.asarray(pose, dtype=np.float64)
         goal = np.asarray(goal, dtype=np.float64)[:2]
         margin = self.comfort_margin if margin is None else margin
@@ -261,7 +264,11 @@ class CrowdPlanner:
         planner, window = self._planner_for(pose[:2], goal)
         start = self._state(window, pose)
         centres = predicted_centres(pedestrian_history, self.predict_s, self.step_s)
-        planner.set_grid(pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed))
+        grid = pedestrian_costmap(window, centres, self.pedestrian_radius + margin, self.inscribed)
+        if obstacles is not None and len(obstacles):
+            np.maximum(grid, pedestrian_costmap(window, np.asarray(obstacles, dtype=np.float64).reshape(-1, 2), OBSTACLE_RADIUS_M,
+                                                self.inscribed), out=grid)
+        planner.set_grid(grid)
         collision = planner.collision(start)
         if collision is not None:
             return Situation(pose, record, "start_in_collision", collision)
@@ -273,14 +280,14 @@ class CrowdPlanner:
         record["target"] = window.to_world(planner.env.to_pose(target)[:2]).tolist()
         return Situation(pose, record, planner=planner, window=window, start=start, target=target)
 
-    def plan(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray) -> CrowdPlan:
+    def plan(self, pose: np.ndarray, goal: np.ndarray, pedestrian_history: np.ndarray, obstacles: np.ndarray | None = None) -> CrowdPlan:
         """Way-points for the next `horizon_steps` steps, climbing the recovery ladder (module docstring)
         until a rung moves the robot; the arguments as for `situation`."""
         t0 = time.perf_counter()
         record: dict[str, Any] = {}
         rungs = [(MARGIN, self.comfort_margin)] + [(NO_MARGIN, 0.0)] * (self.comfort_margin > 0)
         for rung, margin in rungs:
-            situation = self.situation(pose, goal, pedestrian_history, margin)
+            situation = self.situation(pose, goal, pedestrian_history, margin, obstacles)
             if situation.hold in (BAD_OBSERVATION, AT_GOAL):  # no rung: nothing to recover from
                 return self._hold(situation.pose, {**situation.record, "status": situation.hold,
                                                    "message": situation.message, "plan_seconds": time.perf_counter() - t0})

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_log import partial_path, recover
+from trials.live_checks import record_check
 from trials.robot.live import ABORTED, DRIVING, WAITING, stop_robot, velocity_publisher
 from trials.robot.live_state import read_state, write_state
 from trials.robot.live_trial import aborted_stamp
@@ -45,6 +46,8 @@ class Guard:
             return None
         detail = f"the worker driving the run died ({why})"
         write_state(self.folder, code, ABORTED, detail)
+        if state.get("state") == DRIVING:
+            record_check(self.folder, code, ABORTED, detail, None, self.blind)
         kept = self._keep_log(code)
         where = f"; its log is {kept}" if kept is not None else "; it had recorded nothing"
         return f"run {code} aborted: {detail}{where}"

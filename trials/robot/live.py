@@ -46,10 +46,13 @@ from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Scan, Transform
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
+from trials.controllers.obstacles import OBSTACLE_RANGE_M, thinned
 from trials.log_trial import People
 from trials.metrics import measure
+from trials.robot.people_check import PeopleCounter
 from trials.robot.protective_field import OPEN, FieldReading, ProtectiveField, returns_in, valid_returns
-from trials.robot.settings import START_FRAME, RobotSettings
+from trials.robot.settings import RobotSettings
+from trials.robot.staging import Stage, off_start
 from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
 from trials.sim.closed_loop import START, TIMEOUT, SimConfig, run_ending
 from trials.sim.follower import WaypointFollower
@@ -191,8 +194,8 @@ class Sensors:
             except ValueError:
                 return None
 
-    def missing(self, laser_frame: str | None) -> list[str]:
-        """What a run still waits for before it may start."""
+    def missing(self, laser_frame: str | None, stage_frame: str | None = None) -> list[str]:
+        """What a run still waits for before it may start (its stage in `stage_frame`, a frame tf places)."""
         s = self.settings
         wanted = []
         if self.scan_seen is None:
@@ -204,10 +207,9 @@ class Sensors:
                 wanted.append(f"the transform from {laser_frame} to {s.base_frame}")
         elif self.scan_seen is not None and laser_frame is None:
             wanted.append("the scan's frame")
-        goal_frame = frame_name(s.goal_frame)
-        if goal_frame not in (START_FRAME, frame_name(s.odometry_frame)) and self.newest_scan_ns is not None:
-            if self.lookup(s.odometry_frame, goal_frame, self.newest_scan_ns) is None:
-                wanted.append(f"the transform from {goal_frame} (the goal's frame) to {s.odometry_frame}")
+        if stage_frame is not None and frame_name(stage_frame) != frame_name(s.odometry_frame) and self.newest_scan_ns is not None:
+            if self.lookup(s.odometry_frame, stage_frame, self.newest_scan_ns) is None:
+                wanted.append(f"the transform from {frame_name(stage_frame)} (the start and goal's frame) to {s.odometry_frame}")
         return wanted
 
     def staleness(self, now: float) -> str | None:
@@ -265,6 +267,8 @@ class LiveEnd:
     plan_seconds: list[float] = field(default_factory=list)
     #: Planning steps skipped because the controller was still busy with the previous one.
     late_plans: int = 0
+    #: The most people tracked within `people_radius` of the robot at once (`trials.robot.people_check`), and from when.
+    people: PeopleCounter = field(default_factory=PeopleCounter)
 
 
 class LiveSink:
@@ -318,6 +322,7 @@ class LiveRun:
         self.sensors.start_run(stop)
         self.command = (0.0, 0.0)
         self.laser_frame: str | None = None
+        self.stage: Stage | None = None
 
     # --- safety --------------------------------------------------------------------------------------
 
@@ -339,31 +344,54 @@ class LiveRun:
 
     # --- waiting -------------------------------------------------------------------------------------
 
-    def wait(self, run_code: str) -> str | None:
-        """Announce the run and wait until scans, odometry and the laser's transform have all been seen.
-        Returns None when ready, else why the run cannot start (the robot was told to stand still)."""
-        self.on_state(WAITING, ", ".join(self.sensors.missing(None)))
+    def wait(self, run_code: str, stage: Stage | None) -> str | None:
+        """Announce the run and wait until scans, odometry and the laser's transform have all been seen and the robot stands
+        at the stage's start (`trials.robot.staging`; None: wherever it stands). Returns None when ready, else why the run
+        cannot start (the robot was told to stand still)."""
+        self.stage = stage
+        frame = stage.frame if stage is not None else None
+        self.on_state(WAITING, ", ".join(self.sensors.missing(None, frame)))
         self.link.announce(run_code)
         self.send(0.0, 0.0)
         announced = time.monotonic()
         deadline = announced + self.settings.sensor_wait
+        shown = ""
         while True:
             now = time.monotonic()
             if self.laser_frame is None and not self.sensors.scans.empty():
                 self.laser_frame = self.sensors.scans.queue[0][0].frame_id
-            missing = self.sensors.missing(self.laser_frame)
-            fresh = self.sensors.staleness(now) is None
+            missing = self.sensors.missing(self.laser_frame, frame)
+            stale = self.sensors.staleness(now)
             settled = min(self.sensors.scan_seen or 0.0, self.sensors.odometry_seen or 0.0) >= announced + SETTLE_S
-            if not missing and fresh and settled:
+            away = self._off_start() if not missing and stale is None and settled else None
+            if not missing and stale is None and settled and away is None:
                 return None
+            if away is not None and away != shown:
+                self.on_state(WAITING, away)
+                shown = away
             reason = self._why_stop(now, check_sensors=False)
             if reason is None and now > deadline:
-                waited = ", ".join(missing) if missing else self.sensors.staleness(now) or ""
-                reason = f"no start after {self.settings.sensor_wait:g} s: still waiting for {waited}"
+                waited = away or f"still waiting for {', '.join(missing) if missing else stale or 'the sensors to settle'}"
+                reason = f"no start after {self.settings.sensor_wait:g} s: {waited}"
             if reason is not None:
                 self.halt()
                 return reason
             time.sleep(0.02)
+
+    def _off_start(self) -> str | None:
+        """Why the robot does not stand at its stage's start now, else None (always None for an unstaged run)."""
+        s, stage = self.settings, self.stage
+        if stage is None:
+            return None
+        odometry = self.sensors.odometry
+        assert odometry is not None and self.sensors.newest_scan_ns is not None
+        if frame_name(stage.frame) == frame_name(s.odometry_frame):
+            robot = odometry.pose
+        else:
+            robot = self.sensors.lookup(stage.frame, s.base_frame, self.sensors.newest_scan_ns)
+            if robot is None:
+                return f"still waiting for the robot's pose in {stage.frame}"
+        return off_start(robot, stage, s.start_tolerance)
 
     # --- driving -------------------------------------------------------------------------------------
 
@@ -376,14 +404,15 @@ class LiveRun:
             self.halt()
 
     def _goal(self, goal_pose: tuple[float, ...], start: Pose2D, stamp_ns: int) -> np.ndarray:
-        s = self.settings
-        point = np.array(goal_pose[:2], dtype=float)
-        if s.goal_frame == START_FRAME:
-            return start.apply(point)[0]
-        if frame_name(s.goal_frame) == frame_name(s.odometry_frame):
+        """The goal in the odometry frame: the stage's, placed by tf, or (unstaged) `goal_pose` relative to the robot's start."""
+        s, stage = self.settings, self.stage
+        if stage is None:
+            return start.apply(np.array(goal_pose[:2], dtype=float))[0]
+        point = np.array(stage.goal, dtype=float)
+        if frame_name(stage.frame) == frame_name(s.odometry_frame):
             return point
-        placed = self.sensors.lookup(s.odometry_frame, s.goal_frame, stamp_ns)
-        assert placed is not None, "wait() saw the goal's frame placed"  # a failed assertion stops the robot like any exception
+        placed = self.sensors.lookup(s.odometry_frame, stage.frame, stamp_ns)
+        assert placed is not None, "wait() saw the stage's frame placed"  # a failed assertion stops the robot like any exception
         return placed.apply(point)[0]
 
     def _drive(self, controller: Controller, goal_pose: tuple[float, ...], sink: LiveSink) -> LiveEnd:
@@ -401,6 +430,7 @@ class LiveRun:
         reading, held_since = OPEN, None
         seen: tuple[float, Pose2D] | None = None
         stall = StallWatch(s)
+        counter = PeopleCounter()
         rows: deque[TrackRow] = deque()
         robot_poses: deque[tuple[float, np.ndarray]] = deque()
         trace = Trace()
@@ -441,6 +471,9 @@ class LiveRun:
                     # the two at one instant, not the people then with the robot as the newest odometry has it since.
                     base = sensor.compose(laser.inverse()) if laser is not None else sensors.lookup(s.odometry_frame, s.base_frame, scan.stamp_ns)
                     seen = (scan_t, base) if base is not None else seen
+                    if seen is not None:
+                        near = [tr for tr in result.tracks if math.hypot(tr.x - seen[1].x, tr.y - seen[1].y) <= s.people_radius]
+                        counter.add(scan_t, len(near))
                     sink.scan(scan_t, scan, sensor)
                     rows.extend(TrackRow(scan.stamp_ns, result.scan_index, tr.track_id, tr.x, tr.y, tr.vx, tr.vy, s.odometry_frame)
                                 for tr in result.tracks)
@@ -473,7 +506,8 @@ class LiveRun:
                 if t >= next_plan - 1e-9:
                     # The observation is logged every 0.4 s whether or not the controller is free to take it, so
                     # the public log's messages never count a slow controller's plans.
-                    observation = self._observation(t, robot, goal, robot_poses, rows, start_ns)
+                    world = tracker.world.static_points(robot.position, OBSTACLE_RANGE_M) if tracker.world is not None else None
+                    observation = self._observation(t, robot, goal, robot_poses, rows, start_ns, thinned(world) if world is not None else None)
                     sink.perceived(t, observation.pedestrian_ids, observation.pedestrian_history)
                     next_plan = max(next_plan + STEP_S, t)
                     if pending is None:
@@ -533,18 +567,19 @@ class LiveRun:
             trace.people.append({})
         metrics = measure(status if status != ABORTED else TIMEOUT, np.array(trace.time), np.array(trace.pose),
                           np.array(trace.velocity), trace.positions(), limits, PEDESTRIAN_RADIUS_M)
-        return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late)
+        return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late, counter)
 
     @staticmethod
     def _observation(t: float, robot: RobotState, goal: np.ndarray, poses: deque[tuple[float, np.ndarray]],
-                     rows: deque[TrackRow], start_ns: int) -> Observation:
+                     rows: deque[TrackRow], start_ns: int, obstacles: np.ndarray | None) -> Observation:
         times = np.array([p[0] for p in poses])
         xy = np.array([p[1] for p in poses]).reshape(-1, 2)
         instants = t - STEP_S * np.arange(T_OBS - 1, -1, -1)
         history = np.column_stack([np.interp(instants, times, xy[:, k]) for k in (0, 1)])
         ids, pedestrians = history_at(TrackTable(list(rows)), start_ns * 1e-9 + t) if rows else ((), np.zeros((0, T_OBS, 2)))
         return Observation(time=t, robot_pose=robot.pose, robot_velocity=np.array([robot.v, robot.w]), goal=goal.copy(),
-                           robot_history=history, pedestrian_ids=ids, pedestrian_history=pedestrians)
+                           robot_history=history, pedestrian_ids=ids, pedestrian_history=pedestrians,
+                           obstacles=np.zeros((0, 2)) if obstacles is None else obstacles)
 
 
 class StallWatch:

@@ -17,11 +17,12 @@ from pathlib import Path
 from types import FrameType
 
 from trials.controllers.base import Controller
-from trials.errors import RunAborted
-from trials.robot.live import ABORTED, LiveEnd, LiveRun, RobotLink, StopRequest
+from trials.errors import RunAborted, StudyError
+from trials.robot.live import ABORTED, LiveEnd, LiveRun, RobotLink, Sensors, StopRequest
 from trials.robot.live_log import LiveLog
 from trials.robot.live_state import write_state
 from trials.robot.settings import RobotSettings
+from trials.robot.staging import StartMark, stage_of
 from trials.robot.transport import open_transport
 from trials.study import LIVE_ESTOP, StudyFolder, utc_now
 
@@ -75,7 +76,12 @@ class LiveDriver:
         state: Callable[[str, str], None] = lambda name, detail: write_state(self.folder, code, name, detail)  # noqa: E731
         live = LiveRun(self.link, self.stop, state, estop)
         try:
-            reason = live.wait(code)
+            try:
+                stage = stage_of(self.settings, row, self.folder)
+            except StudyError as exc:
+                state(ABORTED, str(exc))
+                raise RunAborted(f"run {code} did not start: {exc}") from None
+            reason = live.wait(code, stage)
             if reason is not None:
                 state(ABORTED, reason)
                 raise RunAborted(f"run {code} did not start: {reason}")
@@ -97,3 +103,30 @@ def move_aside(source: Path, target: Path) -> Path | None:
     target.parent.mkdir(parents=True, exist_ok=True)
     os.replace(source, target)
     return target
+
+
+def measure_mark(settings: RobotSettings) -> StartMark:
+    """The robot's pose in its odometry frame now, as it stands on the lab's start mark (`trials run --robot URI --mark`).
+
+    Raises:
+        StudyError: the robot cannot be reached, or sent no valid odometry within `sensor_wait` seconds.
+    """
+    import time
+
+    transport = open_transport(settings.robot_uri, "navtrials_mark")
+    try:
+        sensors = Sensors(settings)
+        sensors.attach(transport)
+        deadline = time.monotonic() + settings.sensor_wait
+        where = f"odometry on {settings.odometry_topic}" if settings.odometry_topic else f"tf from {settings.odometry_frame} to {settings.base_frame}"
+        while sensors.odometry_seen is None or time.monotonic() - sensors.odometry_seen > settings.watchdog:
+            if time.monotonic() > deadline:
+                raise StudyError(f"no start mark measured: no valid {where} from {settings.uri} within {settings.sensor_wait:g} s")
+            time.sleep(0.05)
+        # The newest odometry after a short wait: a robot just put down may still be sending where it stood before.
+        time.sleep(0.5)
+        odometry = sensors.odometry
+        assert odometry is not None
+        return StartMark(settings.odometry_frame, odometry.pose, utc_now())
+    finally:
+        transport.close()

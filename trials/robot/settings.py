@@ -12,8 +12,12 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     estop_topic = "/e_stop"         # std_msgs/Bool: true stops the run at once
     odometry_frame = "odom"
     base_frame = "base_link"
+    goal_frame = "mark"             # the frame of start and goal: "mark" (the start mark measured by `trials run --robot URI
+                                    # --mark`), "map" or any frame tf connects to the odometry frame, the odometry frame, or
+                                    # "start" (wherever the robot stands when its run begins: rehearsals only, nothing staged)
+    start = [0.0, 0.0, 0.0]         # x, y, yaw of every run's start in goal_frame
+    start_tolerance = [0.3, 0.35]   # m and rad: a run starts only with the robot this near its start
     goal = [10.0, 0.0]              # x, y (and optionally yaw) in goal_frame
-    goal_frame = "start"            # "start": the robot's pose when the run starts; or the odometry frame, or "map" (by tf)
     max_speed = 1.0                 # m/s forward (backwards at most half of it)
     max_turn_rate = 2.0             # rad/s
     max_acceleration = 1.5          # m/s^2
@@ -25,7 +29,9 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     stall_time = 2.0                # s of commanded motion without motion in odometry that end the run (a stall, a deaf base)
     watchdog = 0.5                  # s: valid scans or odometry older than this stop the robot
     min_valid_share = 0.05          # share of a scan's beams that must return a range; a scan with fewer counts as missing
-    sensor_wait = 20.0              # s to wait for scans, odometry and the laser's transform before giving up
+    sensor_wait = 20.0              # s to wait for scans, odometry, the laser's transform and the robot at its start
+    people_radius = 8.0             # m: people tracked this near the robot count for the run's manipulation check
+    min_people_share = 0.5          # the row's condition is met when this share of its Pedestrians was tracked at once
     timeout = 60.0                  # s of driving before the run ends as a timeout
     command_rate = 20.0             # Hz of velocity commands
 
@@ -52,7 +58,8 @@ from trials.study import study_table
 
 #: The study.toml table this module reads.
 TABLE = "robot"
-START_FRAME = "start"
+#: The goal frames that are not tf frames: the robot's pose as its run begins, and the study's start mark.
+START_FRAME, MARK_FRAME = "start", "mark"
 DEFAULT_URI = "ros1://127.0.0.1:11311"
 
 
@@ -69,8 +76,10 @@ class RobotSettings:
     estop_topic: str = "/e_stop"
     odometry_frame: str = "odom"
     base_frame: str = "base_link"
+    goal_frame: str = MARK_FRAME
+    start: tuple[float, ...] = (0.0, 0.0, 0.0)
+    start_tolerance: tuple[float, ...] = (0.3, 0.35)
     goal: tuple[float, ...] = GOAL
-    goal_frame: str = START_FRAME
     goals: dict[str, tuple[float, ...]] = field(default_factory=dict)
     max_speed: float = RobotLimits.max_speed
     max_turn_rate: float = RobotLimits.max_turn_rate
@@ -84,6 +93,8 @@ class RobotSettings:
     watchdog: float = 0.5
     min_valid_share: float = 0.05
     sensor_wait: float = 20.0
+    people_radius: float = 8.0
+    min_people_share: float = 0.5
     timeout: float = 60.0
     command_rate: float = 20.0
 
@@ -115,13 +126,15 @@ RANGES: dict[str, tuple[float, float]] = {
     "max_speed": (0.01, 5.0), "max_turn_rate": (0.01, 10.0), "max_acceleration": (0.01, 20.0),
     "max_angular_acceleration": (0.01, 50.0), "protective_margin": (0.0, 2.0), "reaction_time": (0.0, 2.0),
     "protective_hold": (0.5, 600.0), "stall_time": (0.5, 60.0), "watchdog": (0.05, 5.0), "min_valid_share": (0.0, 1.0),
-    "sensor_wait": (0.5, 600.0), "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
+    "sensor_wait": (0.5, 600.0), "people_radius": (0.5, 50.0), "min_people_share": (0.0, 1.0), "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
 }
 TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "cmd_vel_type", "cmd_vel_frame", "estop_topic", "odometry_frame",
          "base_frame", "goal_frame")
-KEYS = (*TEXTS, "footprint", *RANGES, "goal", "goals")
+KEYS = (*TEXTS, "footprint", *RANGES, "start", "start_tolerance", "goal", "goals")
 #: The footprint's closed range of length and width (m).
 FOOTPRINT_M = (0.05, 10.0)
+#: The start tolerance's closed ranges (m, rad).
+START_TOLERANCE = ((0.01, 5.0), (0.01, math.pi))
 #: Furthest goal coordinate a table may give (m): beyond it a value is a typing slip.
 MAX_GOAL_M = 1e4
 
@@ -184,6 +197,18 @@ def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
             if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and low <= value <= high):
                 raise StudyError(f"{where}: {key} must be a number in [{low:g}, {high:g}], got {value!r}")
             values[key] = float(value)
+    if "start" in table:
+        values["start"] = _pose(table["start"], "start", where)
+        values["start"] += (0.0,) * (3 - len(values["start"]))
+    if "start_tolerance" in table:
+        tolerance = table["start_tolerance"]
+        if not (isinstance(tolerance, list) and len(tolerance) == 2 and all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high
+                for v, (low, high) in zip(tolerance, START_TOLERANCE))):
+            (m0, m1), (r0, r1) = START_TOLERANCE
+            raise StudyError(f"{where}: start_tolerance must be [metres, radians], in [{m0:g}, {m1:g}] and [{r0:g}, {r1:.4g}], "
+                             f"got {tolerance!r}")
+        values["start_tolerance"] = tuple(float(v) for v in tolerance)
     if "goal" in table:
         values["goal"] = _pose(table["goal"], "goal", where)
     if "goals" in table:

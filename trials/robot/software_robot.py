@@ -9,9 +9,11 @@ within the robot's limits, and like a real base it stops by itself when no comma
 The robot stands in a walled room (a rectangle in the odometry frame, 22 x 10 m by default, the robot's start 6 m
 from one end) and has a bumper: a move that would make its footprint touch a wall is not made, the base stops, and
 the contact is written to the `contacts` file, so a test can tell that a wall was touched. When a live run
-announces its code (`trials.robot.live.RUN_TOPIC`), the robot is brought back to its start, as the operator would
-bring a real one, and lays out that plan row's scene (`trials.scenario`, seeded as `trials run` would simulate it)
-around it, so the walkers appear ahead; without a study it lays out the default scene.
+announces its code (`trials.robot.live.RUN_TOPIC`), the robot is brought to that row's start, as the operator would
+bring a real one (`trials.robot.staging`: the row's start in the odometry frame, or relative to the study's start mark;
+its own start otherwise), and lays out that plan row's scene (`trials.scenario`, seeded as `trials run` would simulate it)
+around it, so the walkers appear ahead; without a study it lays out the default scene. `unstaged` rehearses a row staged
+wrong: a robot left where it stands, or walkers who never came.
 """
 
 from __future__ import annotations
@@ -20,24 +22,26 @@ import math
 import threading
 import time
 from collections import deque
+from contextlib import suppress
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
-from robot_logs.frames import Pose2D
+from robot_logs.frames import Pose2D, frame_name
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.records import Odometry, Scan, Transform
 from trials.errors import StudyError
 from trials.robot.live import RUN_TOPIC
 from trials.robot.settings import RobotSettings
+from trials.robot.staging import row_scenario, stage_of
 from trials.robot.transport import ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
-from trials.scenario import Scenario, build_scenario, settings_from_row
+from trials.scenario import Scenario
 from trials.sim.pedestrians import Crowd
 from trials.sim.robot import RobotState, footprint_gaps, step_robot
 from trials.sim.social_force import SocialForceParams
-from trials.study import PLAN, StudyFolder
+from trials.study import StudyFolder
 
 #: Failures a rehearsal can stage, each from some seconds after a run is announced: scans stop coming; scans keep
 #: coming but `FAULT_LAG_S` late by their stamps; scans keep coming with every range NaN; odometry stops; odometry
@@ -96,6 +100,8 @@ class SoftwareRobotConfig:
     faults: tuple[Fault, ...] = ()
     room: tuple[float, float, float, float] | None = ROOM
     start: Pose2D = Pose2D()
+    #: A row staged wrong: "robot" (it stays where it stands instead of being brought to its start), "walkers" (nobody walks).
+    unstaged: frozenset[str] = frozenset()
 
 
 def parse_room(text: str) -> tuple[float, float, float, float] | None:
@@ -200,18 +206,30 @@ class SoftwareRobot:
 
     def _scene(self, code: str, now: float) -> Scene:
         """The scene of run `code` (its plan row's, seeded as `trials run` seeds it) placed at the robot's pose."""
+        scenario = row_scenario(self.study, code, self.config.seed)
+        if "walkers" in self.config.unstaged:
+            scenario = replace(scenario, walkers=())
+        return Scene(scenario, Crowd(scenario, SocialForceParams(), self._crowd_seed(code)),
+                     Pose2D(self.robot.x, self.robot.y, self.robot.theta), now)
+
+    def _crowd_seed(self, code: str) -> int:
+        """The crowd's seed for run `code`, as `trials run` would simulate it."""
         from trials.runner import row_seeds, run_seed
 
-        row: dict[str, str] = {}
-        seeds = row_seeds(self.config.seed)
+        if self.study is not None and code in {r["run_code"] for r in self.study.read_plan()}:
+            return row_seeds(run_seed(int(self.study.read_design()["seed"]), code))[1]
+        return row_seeds(self.config.seed)[1]
+
+    def _start(self, code: str) -> Pose2D:
+        """Where the operator brings the robot for run `code`: the row's start in the odometry frame when the study stages
+        its rows there (its own frame, or a start mark), else the software robot's own start."""
         if self.study is not None and code:
-            plan = {r["run_code"]: r for r in self.study.read_plan()}
-            if code in plan:
-                row = {k: v for k, v in plan[code].items() if k not in ("order", "run_code", "Controller", "Log")}
-                seeds = row_seeds(run_seed(int(self.study.read_design()["seed"]), code))
-        scenario = build_scenario(settings_from_row(row, f"{self.study.path(PLAN) if self.study else 'the default scene'} run {code}"),
-                                  seeds[0])
-        return Scene(scenario, Crowd(scenario, SocialForceParams(), seeds[1]), Pose2D(self.robot.x, self.robot.y, self.robot.theta), now)
+            row = next((r for r in self.study.read_plan() if r["run_code"] == code), {})
+            with suppress(StudyError):  # no mark measured yet: the robot stands where it started
+                stage = stage_of(self.settings, row, self.study)
+                if stage is not None and frame_name(stage.frame) == frame_name(self.settings.odometry_frame):
+                    return stage.start
+        return self.config.start
 
     def step(self, dt: float, now: float) -> None:
         """Advance the robot and the walkers by `dt` seconds of the monotonic clock `now`."""
@@ -220,8 +238,9 @@ class SoftwareRobot:
             command = self._command if fresh else Velocity(0.0, 0.0)
             announced, self._announced = self._announced, []
         for code in announced:
-            start = self.config.start
-            self.robot = RobotState(start.x, start.y, start.yaw)
+            if "robot" not in self.config.unstaged:
+                start = self._start(code)
+                self.robot = RobotState(start.x, start.y, start.yaw)
             self.scene = self._scene(code, now)
             self._announced_once, self._frozen_ns = True, 0
         scene = self.scene
