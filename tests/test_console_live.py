@@ -6,6 +6,8 @@ recorded in run_events.csv. And a run played from an external log is marked as s
 from __future__ import annotations
 
 import csv
+import html
+import math
 import re
 import shutil
 import sys
@@ -15,14 +17,18 @@ from pathlib import Path
 import pytest
 
 import trials.console.live as live
+from robot_logs.frames import Pose2D
 from tests.support.blinding import NAMES
 from tests.support.console import CSRF, add_outcome, design_study, unblind
 from trials.console.access import console_access
 from trials.console.actions import Console
 from trials.console.app import create_app
 from trials.console.times import local_time
+from trials.live_checks import record_check, record_decision
 from trials.responses import record_response
 from trials.robot.live_state import read_state, write_state
+from trials.robot.people_check import PeopleCheck
+from trials.robot.staging import StartMark, write_mark
 from trials.runner import study_lock
 from trials.study import LIVE_ESTOP, RUN_EVENTS, StudyFolder
 
@@ -272,3 +278,36 @@ def test_serve_refuses_a_bad_robot_uri(plain, capsys):
 def test_the_live_command_is_trials_run_robot_on_the_one_run(tmp_path):
     assert live.run_command(ROBOT, "ABCDE", tmp_path) == [sys.executable, "-m", "trials.cli", "run", "--robot", ROBOT, "--only", "ABCDE",
                                                           "--study", str(tmp_path), "--quiet"]
+
+
+def test_the_run_page_and_the_staging_sheet_show_each_rows_scene(served, study):
+    console, client = served
+    code = codes_of(study)[0]
+    unmarked = client.get(f"/runs/{code}")  # staged on the start mark by default, and none was measured
+    assert unmarked.status_code == 200 and 'id="staging-error"' in unmarked.text and "trials run --robot URI --mark" in unmarked.text
+    assert client.get("/staging").status_code == 409
+    write_mark(StudyFolder(study), StartMark("odom", Pose2D(1.0, 2.0, math.pi / 2), "2026-12-05T10:00:00+00:00"))
+    page = client.get(f"/runs/{code}").text
+    # The mark turned a quarter left: the start is the mark, the goal 10 m ahead of it (x 1, y 12) in odom.
+    assert "robot: start (1.00, 2.00) facing 90 deg, goal (1.00, 12.00)" in page and 'id="staging-picture"' in page
+    picture = client.get(f"/runs/{code}/staging.png")
+    assert picture.status_code == 200 and picture.data.startswith(b"\x89PNG")
+    sheet = client.get("/staging").text
+    assert all(f'id="staging-{c}"' in sheet for c in codes_of(study)) and sheet.count("robot: start (1.00, 2.00)") == len(codes_of(study))
+    assert 'id="staging-link"' in client.get("/").text
+    for line in console.staging(code).lines():  # each walker's part, in the words the page shows
+        assert html.escape(line, quote=False).replace("'", "&#39;") in page
+
+
+def test_the_run_sheet_shows_each_live_runs_check_and_decision(served, study):
+    _, client = served
+    first, second = codes_of(study)[:2]
+    folder = StudyFolder(study)
+    record_check(folder, first, "goal", "", PeopleCheck(4, 3, 2.5, 2), blind=True)
+    record_check(folder, second, "timeout", "after 60 s", PeopleCheck(2, 0, None, 1), blind=True)
+    sheet = client.get("/").text
+    assert '<td class="check">ok</td>' in sheet
+    assert ("flagged: timeout: after 60 s; condition not met: at most 0 tracked at once, the row asks 2 (at least 1) [undecided]"
+            in sheet)
+    record_decision(folder, second, "stands", "walkers came late", blind=True)
+    assert "[stands: walkers came late]" in client.get("/").text

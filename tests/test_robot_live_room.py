@@ -1,7 +1,7 @@
 """Live runs in a walled room over a real ROS 1 master: the software robot (`trials robot-sim`) stands in a room and
 has a bumper, and a witness node hears every velocity command. A goal beyond a wall, a stalled base, a base that takes
 another message type, scans that turn blank and a killed worker each end with a zero velocity as the last command
-heard and the run aborted (pending, never counted as data), and the bumper never touches the wall; a base that takes
+heard and the run aborted or flagged (never counted as clean data), and the bumper never touches the wall; a base that takes
 TwistStamped is driven to its goal."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import pytest
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.run_log import ROBOT_STATE, SCAN
 from tests.support.live_rig import assert_stopped_and_kept, design, first_code, live_rig, ros1_env, set_robot_keys
+from trials.live_checks import read_checks
 from trials.outcomes import read_outcomes
 from trials.study import OUTCOMES
 
@@ -30,18 +31,28 @@ def test_a_goal_beyond_a_wall_stops_the_robot_before_it_touches_the_wall(tmp_pat
     uri, _ = master
     study = design(tmp_path / "study", uri)
     # The goal 8 m to the left of the start, 4 m beyond the room's side wall: only the wall stands between.
-    set_robot_keys(study.root, goal="[2.0, 8.0]", timeout="40.0")
+    set_robot_keys(study.root, goal="[2.0, 8.0]", timeout="30.0")
     code = first_code(study)
     with live_rig(str(uri), study.root, ros1_env(tmp_path), (f"--room=-6,-5,16,{WALL_Y:g}",)) as rig:
         run = rig.trials_run("--only", code)
-        assert run.wait(timeout=300) == 1, rig.output()
-        assert_stopped_and_kept(rig, study, code, "protective stop held 3 s")
+        ended = run.wait(timeout=300)
+        time.sleep(0.5)
+        assert rig.last_heard() == (0.0, 0.0) and rig.moving_commands() > 0
         assert rig.wall_contacts() == []
-    [kept] = (study.root / "runs" / "aborted").glob(f"{code}-*.mcap")
-    states = [m.data for m in FoxgloveReader(kept).messages([ROBOT_STATE.name])]
+    # The controller, given the wall, holds the robot off it until the timeout (flagged, for the operator to decide); or
+    # the protective field holds it and the run is aborted, pending. Either way it is no clean datum.
+    check = read_checks(study)[code]
+    if ended == 0:
+        (row,) = read_outcomes(study.path(OUTCOMES))
+        assert row.status == "timeout" and check.flag.startswith("timeout") and check.undecided
+        log = study.run_log(code)
+    else:
+        assert ended == 1 and check.ending == "aborted" and "protective stop held 3 s" in check.flag, rig.output()
+        [log] = (study.root / "runs" / "aborted").glob(f"{code}-*.mcap")
+    states = [m.data for m in FoxgloveReader(log).messages([ROBOT_STATE.name])]
     # The footprint's corner nearest the wall, at every recorded pose: it came near, and stayed off it.
     reach = max(s["y"] + abs(HALF_LENGTH * math.sin(s["theta"])) + abs(HALF_WIDTH * math.cos(s["theta"])) for s in states)
-    assert WALL_Y - 1.0 < reach < WALL_Y - 0.02, reach
+    assert WALL_Y - 1.5 < reach < WALL_Y - 0.02, reach
 
 
 @pytest.mark.parametrize("robot, reason", [

@@ -14,6 +14,7 @@ from typing import Any
 from analysis.records import HUMAN, SIMULATED
 from robot_logs.foxglove_log import partial_path
 from trials.field_study import field_reason
+from trials.live_checks import read_checks
 from trials.outcomes import STATUSES, outcome_cells, read_outcomes
 from trials.responses import read_responses
 from trials.robot.live_state import read_state
@@ -70,6 +71,9 @@ class StudyStatus:
     field: str | None = None
     #: Whether design.json carries the digest of its own content (earlier releases wrote none, so edits go unnoticed).
     design_digest: bool = True
+    #: Live runs checked (`trials.live_checks`, latest check of each), and the flagged ones with no decision yet.
+    checked: int = 0
+    undecided: tuple[str, ...] = ()
 
     @property
     def finished(self) -> int:
@@ -136,6 +140,8 @@ def study_status(folder: StudyFolder) -> StudyStatus:
         live=read_state(folder),
         field=field_reason(folder, bool(blinding)),
         design_digest=DESIGN_DIGEST in design,
+        checked=len(checks := read_checks(folder)),
+        undecided=tuple(code for code, check in checks.items() if check.undecided),
     )
 
 

@@ -75,6 +75,10 @@ def status_lines(status: StudyStatus) -> list[str]:
     lines.append(f"run settings ([run] of {SPEC}): {status.settings.describe()}")
     if status.robot is not None:
         lines.append(f"robot ([robot] of {SPEC}): {status.robot}; `trials run --robot {status.robot}` drives the pending runs")
+    if status.checked:
+        lines.append(f"  live checks: {status.checked} run(s); "
+                     + (f"flagged without a decision: {', '.join(status.undecided)} (`trials deviation CODE --stands|--rerun --reason TEXT`)"
+                        if status.undecided else "no flagged run awaits a decision"))
     if status.live is not None:
         live = status.live
         lines.append(f"  last live run {live.get('run_code', '?')}: {live.get('state', '?')} since {live.get('since_utc', '?')}"
