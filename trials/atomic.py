@@ -7,10 +7,12 @@ import errno
 import fcntl
 import os
 import secrets
+import stat
 import time
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 from trials.errors import DiskFullError, StudyError
 
@@ -41,6 +43,28 @@ def writing(path: Path) -> Iterator[None]:
         raise StudyError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
+def open_lock(path: Path, mode: str) -> IO[str]:
+    """A lock file opened as `mode` ("r": it must exist; "a" or "a+": made when absent), refused in one line when it is not
+    a regular file: opening a FIFO would wait for a writer or reader forever, and a link could point anywhere.
+
+    Raises:
+        FileNotFoundError: mode "r" and no file.
+        StudyError: a FIFO, a device, a folder or a symbolic link in its place.
+    """
+    flags = {"r": os.O_RDONLY, "a": os.O_WRONLY | os.O_CREAT | os.O_APPEND, "a+": os.O_RDWR | os.O_CREAT | os.O_APPEND}[mode]
+    refused = f"{path} is not a regular file (a FIFO, device, folder or link in its place): remove it and run the command again"
+    try:
+        fd = os.open(path, flags | os.O_NONBLOCK | os.O_NOFOLLOW, 0o644)
+    except OSError as exc:
+        if exc.errno in (errno.ENXIO, errno.ELOOP, errno.EISDIR):
+            raise StudyError(refused) from None
+        raise
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise StudyError(refused)
+    return os.fdopen(fd, mode, encoding="utf-8")
+
+
 #: Seconds a writer waits for another process's read-change-write of the same file before it gives up.
 LOCK_WAIT_S = 30.0
 
@@ -56,7 +80,7 @@ def one_writer(path: Path, wait_s: float = LOCK_WAIT_S) -> Iterator[None]:
     lock = path.with_name(f".{path.name}.writing")
     with writing(lock):
         lock.parent.mkdir(parents=True, exist_ok=True)
-        handle = lock.open("a")
+        handle = open_lock(lock, "a")
     deadline = time.monotonic() + wait_s
     try:
         while True:

@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from analysis.records import Outcome, RunMetrics
-from trials.atomic import no_space, write_files, write_text
+from trials.atomic import no_space, open_lock, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, DiskFullError, RunAborted, StudyError
@@ -238,7 +238,7 @@ def lock_state(folder: StudyFolder) -> LockState:
     """Whether runs/.lock is there, and held or stale; tries the lock without taking it for long."""
     lock = folder.path(RUN_LOCK)
     try:
-        handle = lock.open("r")
+        handle = open_lock(lock, "r")
     except FileNotFoundError:
         return LockState(False, False, "")
     with handle:
@@ -259,7 +259,7 @@ def study_lock(folder: StudyFolder) -> Iterator[LockState]:
     lock.parent.mkdir(parents=True, exist_ok=True)
     found = lock_state(folder)
     while True:
-        handle = lock.open("a+")
+        handle = open_lock(lock, "a+")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
