@@ -13,7 +13,7 @@ import pytest
 
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.run_log import ROBOT_STATE, SCAN
-from tests.support.live_rig import assert_stopped_and_kept, design, first_code, live_rig, ros1_env, set_robot_keys
+from tests.support.live_rig import TRIALS, assert_stopped_and_kept, design, first_code, live_rig, ros1_env, set_robot_keys
 from trials.live_checks import read_checks
 from trials.outcomes import read_outcomes
 from trials.study import OUTCOMES
@@ -142,3 +142,22 @@ def test_without_only_the_next_row_waits_for_the_operator(tmp_path, master):
         assert rig.moving_commands() == heard and rig.last_heard() == (0.0, 0.0)
         assert run.communicate(b"q\n", timeout=60) is not None and run.returncode == 0, rig.output()
     assert [row.run_code for row in read_outcomes(study.path(OUTCOMES))] == [first]
+
+
+def test_an_estop_ends_the_session_and_a_held_one_keeps_every_later_row_from_starting(tmp_path, master):
+    uri, _ = master
+    study = design(tmp_path / "study", uri)
+    first, second = [row["run_code"] for row in study.read_plan()[:2]]
+    with live_rig(str(uri), study.root, ros1_env(tmp_path)) as rig:
+        run = rig.trials_run("--only", first, second, operator=True)
+        rig.wait_state("driving")
+        time.sleep(2.0)
+        rig.start([TRIALS[0], "-m", "tests.support.press_estop", rig.uri, "/e_stop"], "estop.log")  # held down, latched
+        run.communicate(b"\n", timeout=300)  # an operator ready to go on: the session must not
+        assert run.returncode == 1 and "E-STOP: this session stopped there" in rig.output(), rig.output()
+        assert f"Next: order 2, {second}" not in rig.output()
+        heard = rig.moving_commands()
+        again = rig.trials_run("--only", second)  # a new session while the button is still held
+        assert again.wait(timeout=300) == 1 and "did not start: e-stop on /e_stop (held)" in rig.output(), rig.output()
+        assert rig.moving_commands() == heard and rig.last_heard() == (0.0, 0.0)
+    assert read_outcomes(study.path(OUTCOMES)) == [] and set(read_checks(study)) == {first}

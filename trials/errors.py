@@ -16,6 +16,11 @@ class RunAborted(StudyError):
     why and where its log went, and names no controller. The row stays pending."""
 
 
+class EStopped(RunAborted):
+    """A live run stopped, or kept from starting, by an e-stop (the console's, or the robot's e-stop topic): the whole
+    `trials run` session ends there, and no later row starts."""
+
+
 class DiskFullError(StudyError):
     """A file could not be written for want of space; every later write would fail too, so work stops."""
 

@@ -45,7 +45,7 @@ from analysis.records import Outcome, RunMetrics
 from trials.atomic import no_space, open_lock, write_files, write_text
 from trials.controllers import registry
 from trials.controllers.base import Controller
-from trials.errors import USER_ERRORS, DiskFullError, RunAborted, StudyError
+from trials.errors import USER_ERRORS, DiskFullError, EStopped, RunAborted, StudyError
 from trials.field_study import refuse_simulation
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
 from trials.metrics import measure
@@ -155,6 +155,8 @@ class Summary:
     done: int = 0
     #: The pid a stale runs/.lock recorded (a `trials run` that was killed), when one was taken over.
     stale_lock: str | None = None
+    #: A live run was e-stopped: the session ended there, the later rows pending.
+    estopped: bool = False
 
 
 def run_seed(study_seed: int, code: str) -> int:
@@ -399,13 +401,14 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
                 on_start(len(todo))
                 # Live rows go one at a time, the operator asked before each (to stage it).
                 for batch in [[task] for task in tasks] if live else [tasks]:
-                    if live and not between(batch[0].code):
+                    if summary.estopped or live and not between(batch[0].code):
                         break
                     for code, answer in _answers(pool, ((task.code, task) for task in batch), worker_died):
                         answered.add(code)
                         if isinstance(answer, Failure) and answer.kind == DiskFullError.__name__:
                             raise DiskFullError(answer.message)  # every later run would fail alike: stop now
                         if isinstance(answer, Failure):
+                            summary.estopped = summary.estopped or answer.kind == EStopped.__name__  # no later row starts
                             message = answer.message if answer.user_error else f"{answer.kind}: {answer.message}"
                             summary.failed.append((code, message))
                             _record_failure(folder, code, message, study.blind)
@@ -620,7 +623,7 @@ class TrialWorker:
         metrics. A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
         in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker exits once the run's files are kept."""
         from trials.live_checks import record_check
-        from trials.robot.live import ABORTED
+        from trials.robot.live import ABORTED, estopped
         from trials.robot.live_log import LiveLog
         from trials.robot.live_trial import aborted_stamp
 
@@ -646,7 +649,7 @@ class TrialWorker:
                 message = f"run {task.code} aborted: {why}; its log is {self._keep_aborted(task, level, arm, log, aborted_stamp())}"
                 _record_failure(self.folder, task.code, message, self.blind)
                 record_check(self.folder, task.code, ABORTED, why, people, self.blind)
-                raise RunAborted(message)
+                raise (EStopped if estopped(why) else RunAborted)(message)
             self._seal(task, level, arm, log.log)
             log.close()
             record_check(self.folder, task.code, end.status, end.detail, people, self.blind)

@@ -231,6 +231,9 @@ def run(args: argparse.Namespace) -> int:
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in ("goal", "collision", "timeout") if s in statuses)
     print(f"{len(summary.finished)} runs finished{f' ({counts})' if counts else ''}; {summary.done} of {len(study.codes)} "
           f"plan rows are done (outcomes in {study.folder.path(OUTCOMES)})")
+    if summary.estopped:
+        print("E-STOP: this session stopped there, and no later row was started; release the e-stop, then `trials run --robot` "
+              "goes on with the pending rows", file=sys.stderr)
     if summary.failed:
         print(f"{len(summary.failed)} runs failed and stay pending: {', '.join(c for c, _ in summary.failed)}", file=sys.stderr)
         return 1

@@ -66,8 +66,8 @@ WAITING, DRIVING = "waiting for sensors", "driving"
 PROTECTIVE_STOP = "protective stop"
 #: The field when the laser cannot be placed on the base: nothing may move.
 BLIND = FieldReading(0.0, 0.0, True, 0.0, 0.0)
-#: The reason a run stopped by the console's E-STOP gives.
-ESTOP_CONSOLE = "e-stop from the console"
+#: The reasons a run stopped by the console's E-STOP, or by the robot's e-stop topic (then its name), gives.
+ESTOP_CONSOLE, ESTOP_TOPIC = "e-stop from the console", "e-stop on"
 #: Where a run announces its code (std_msgs/String, latched): a software robot sets up that row's scene.
 RUN_TOPIC = "/trials/run"
 #: Zero velocity commands sent when a run stops, 20 ms apart, so that one lost message does not leave the robot moving.
@@ -84,6 +84,11 @@ SETTLE_S = 0.5
 #: A stall: over `stall_time` the commands would have moved the robot at least this far (m) or turned it this much
 #: (rad), and odometry shows less than `STALL_SHARE` of it.
 STALL_MIN_M, STALL_MIN_RAD, STALL_SHARE = 0.2, 0.4, 0.25
+
+
+def estopped(reason: str) -> bool:
+    """Whether a run's stop reason is an e-stop, which ends the whole `trials run` session."""
+    return reason == ESTOP_CONSOLE or reason.startswith(f"{ESTOP_TOPIC} ")
 
 
 class StopRequest:
@@ -123,6 +128,8 @@ class Sensors:
         #: Scans with too few valid beams, and odometry or transforms with non-finite values, ignored since the run began.
         self.blank_scans = 0
         self.bad_odometry = 0
+        #: Whether the e-stop topic's newest message says the button is pressed.
+        self.estop_held = False
         self._lock = threading.Lock()
 
     def attach(self, transport: Transport) -> None:
@@ -183,8 +190,9 @@ class Sensors:
                     self.odometry_seen = time.monotonic()
 
     def on_estop(self, pressed: bool) -> None:
+        self.estop_held = pressed  # a held button (true latched) keeps every later run from starting until released
         if pressed and self.stop is not None:
-            self.stop.request(f"e-stop on {self.settings.estop_topic}")
+            self.stop.request(f"{ESTOP_TOPIC} {self.settings.estop_topic}")
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> Pose2D | None:
         """Pose of `source` in `target` at a time, None when unknown or the frames are not connected."""
@@ -337,7 +345,8 @@ class LiveRun:
     def _why_stop(self, now: float, check_sensors: bool) -> str | None:
         # The console's E-STOP creates its file before it signals `trials run`: the file names the cause.
         reason = ESTOP_CONSOLE if self.estop_file is not None and self.estop_file.exists() else None
-        reason = reason or self.stop.reason or self.transport.lost()
+        held = f"{ESTOP_TOPIC} {self.settings.estop_topic} (held)" if self.sensors.estop_held else None
+        reason = reason or held or self.stop.reason or self.transport.lost()
         if reason is None and check_sensors:
             reason = self.sensors.staleness(now)
         return reason

@@ -17,8 +17,8 @@ from pathlib import Path
 from types import FrameType
 
 from trials.controllers.base import Controller
-from trials.errors import RunAborted, StudyError
-from trials.robot.live import ABORTED, LiveEnd, LiveRun, RobotLink, Sensors, StopRequest
+from trials.errors import EStopped, RunAborted, StudyError
+from trials.robot.live import ABORTED, LiveEnd, LiveRun, RobotLink, Sensors, StopRequest, estopped
 from trials.robot.live_log import LiveLog
 from trials.robot.live_state import write_state
 from trials.robot.settings import RobotSettings
@@ -40,6 +40,8 @@ class LiveDriver:
         self.stop: StopRequest | None = None
         self.terminated = False
         self._working = False
+        # An e-stop ends the session that saw it: a new session (`trials run`, the console's Start) begins released.
+        folder.path(LIVE_ESTOP).unlink(missing_ok=True)
         signal.signal(signal.SIGTERM, self._on_signal)
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
@@ -71,7 +73,6 @@ class LiveDriver:
             RunAborted: the run never started (its sensors were not all seen in time, or it was stopped while waiting).
         """
         estop = self.folder.path(LIVE_ESTOP)
-        estop.unlink(missing_ok=True)  # an e-stop stops one run, not the next
         self.stop = StopRequest()
         state: Callable[[str, str], None] = lambda name, detail: write_state(self.folder, code, name, detail)  # noqa: E731
         live = LiveRun(self.link, self.stop, state, estop)
@@ -84,7 +85,7 @@ class LiveDriver:
             reason = live.wait(code, stage)
             if reason is not None:
                 state(ABORTED, reason)
-                raise RunAborted(f"run {code} did not start: {reason}")
+                raise (EStopped if estopped(reason) else RunAborted)(f"run {code} did not start: {reason}")
             end = live.drive(controller, self.settings.goal_for(row), log)
         finally:
             self.stop = None
