@@ -34,8 +34,8 @@ import numpy as np
 from trials.controllers import registry
 from trials.live_checks import read_check_log
 from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest, warm_up
+from trials.robot.one_driver import new_session
 from trials.robot.settings import RobotSettings
-from trials.robot.transport import RobotUri, open_transport
 from trials.sealed_runs import read_sealed_run
 from trials.study import OUTCOMES, StudyFolder
 
@@ -104,7 +104,7 @@ def latency(kind: str, repeats: int, home: Path, loaded: int) -> None:
         study = design(home / f"latency-{kind}", uri)
         row = next(r for r in study.read_plan() if r["Pedestrians"] == "6")
         settings = RobotSettings(uri=uri, sensor_wait=60.0)
-        link = RobotLink(open_transport(RobotUri.parse(uri), "navtrials_bench"), settings)
+        link = RobotLink.open(settings, new_session())
         with software_robot(uri, study.root, 40.0), load(loaded):
             for name in registry.NAMES:
                 controller = registry.build(name)

@@ -134,14 +134,20 @@ class FrameTree:
         """The topmost frame above `frame`, or `prefer` where that lies above it, when some
         transform between the two changes over time (a frame the robot moves in, as odom is for its
         laser); None where none does."""
-        chain = self._chain(frame_name(frame))
+        chain = self.chain(frame_name(frame))
         if prefer is not None and prefer in chain[1:]:
             chain = chain[: chain.index(prefer) + 1]
         moves = any(len(set(self._edges[child].poses)) > 1 for child in chain[:-1])
         return chain[-1] if moves else None
 
-    def _chain(self, frame: str) -> list[str]:
-        chain = [frame]
+    def parent(self, child: str) -> str | None:
+        """The frame `child` hangs from, None for a root or an unknown frame."""
+        edge = self._edges.get(frame_name(child))
+        return edge.parent if edge is not None else None
+
+    def chain(self, frame: str) -> list[str]:
+        """`frame` and the frames above it, up to its root."""
+        chain = [frame_name(frame)]
         while chain[-1] in self._edges and len(chain) <= len(self._edges):
             chain.append(self._edges[chain[-1]].parent)
         return chain
@@ -162,7 +168,7 @@ class FrameTree:
             LogError: the two frames are not connected by any transform.
         """
         target, source = frame_name(target), frame_name(source)
-        up_source, up_target = self._chain(source), self._chain(target)
+        up_source, up_target = self.chain(source), self.chain(target)
         common = next((frame for frame in up_source if frame in up_target), None)
         if common is None:
             known = ", ".join(self.frames) or "none"

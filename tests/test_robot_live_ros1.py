@@ -22,7 +22,7 @@ def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, 
     check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), ros1_env(tmp_path))
 
 
-@pytest.mark.parametrize("fault, reason", [("scans-late@3", "stale scans"), ("odometry-stale@3", "stale odometry"),
+@pytest.mark.parametrize("fault, reason", [("scans-late@3", "the robot's clock stepped back"), ("odometry-stale@3", "stale odometry"),
                                            ("scans-blank@3", "under 5% valid beams")])
 def test_late_or_blank_scans_or_stale_odometry_stop_the_robot(tmp_path, master, fault, reason):
     uri, _ = master

@@ -51,6 +51,7 @@ from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, pla
 from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
 from trials.pool import Failure, PoolError, WorkerPool
+from trials.robot.one_driver import new_session
 from trials.robot.settings import RobotSettings
 from trials.run_log import RunLog, jsonable
 from trials.run_settings import LIVE, LOGGED, PERCEPTIONS, RunSettings, differences
@@ -105,6 +106,8 @@ class RunOptions:
     robot: RobotSettings | None = None
     #: Simulate rows even in a field study (`trials.field_study`).
     allow_simulated: bool = False
+    #: The tag the nodes of this `trials run` session share on the robot (`trials.robot.one_driver`).
+    robot_session: str = ""
 
     @property
     def noise(self) -> PositionNoise:
@@ -373,7 +376,9 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
         # One robot, one run at a time; a live worker is told to stop by SIGTERM and given time to stop the robot, and the
         # parent's guard stops the robot itself if that worker dies.
         live = options.robot is not None
-        guard = _guard(folder, options.robot, study.blind) if options.robot is not None else None
+        if options.robot is not None:
+            options = replace(options, robot_session=new_session())
+        guard = _guard(folder, options.robot, study.blind, options.robot_session) if options.robot is not None else None
         answered: set[str] = set()
 
         def worker_died(why: str) -> None:
@@ -429,10 +434,10 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
     return summary
 
 
-def _guard(folder: StudyFolder, robot: RobotSettings, blind: bool) -> Guard:
+def _guard(folder: StudyFolder, robot: RobotSettings, blind: bool, session: str) -> Guard:
     from trials.robot.guard import Guard
 
-    return Guard(folder, robot, blind)
+    return Guard(folder, robot, blind, session)
 
 
 def _same_settings(outcomes: Outcomes, rerun: set[str], settings: RunSettings, spec: Path) -> None:
@@ -528,7 +533,7 @@ class TrialWorker:
             from trials.robot.live_trial import LiveDriver
 
             warm_up(self._controllers.values())
-            self._driver = LiveDriver(folder, options.robot)
+            self._driver = LiveDriver(folder, options.robot, options.robot_session)
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
         label = row.get(CONTROLLER)

@@ -10,8 +10,8 @@ import sys
 
 from trials.controllers import registry
 from trials.robot.live import LiveRun, LiveSink, RobotLink, StopRequest
+from trials.robot.one_driver import new_session
 from trials.robot.settings import RobotSettings
-from trials.robot.transport import RobotUri, open_transport
 
 
 class FailingLog(LiveSink):
@@ -29,7 +29,7 @@ class FailingLog(LiveSink):
 if __name__ == "__main__":
     uri, code = sys.argv[1:3]
     settings = RobotSettings(uri=uri, sensor_wait=120.0)
-    live = LiveRun(RobotLink(open_transport(RobotUri.parse(uri), "navtrials_failing"), settings), StopRequest())
+    live = LiveRun(RobotLink.open(settings, new_session()), StopRequest())
     assert live.wait(code, None) is None
     controller = registry.build(registry.LATTICE)
     controller.reset(0)

@@ -12,10 +12,12 @@ from pathlib import Path
 
 from robot_logs.errors import LogError
 from robot_logs.foxglove_log import partial_path, recover
+from trials.errors import StudyError
 from trials.live_checks import record_check
 from trials.robot.live import ABORTED, DRIVING, WAITING, stop_robot, velocity_publisher
 from trials.robot.live_state import read_state, write_state
 from trials.robot.live_trial import aborted_stamp
+from trials.robot.one_driver import node_name, publisher_fault, wait_for_discovery
 from trials.robot.settings import RobotSettings
 from trials.robot.transport import open_transport
 from trials.study import StudyFolder, to_the_minute
@@ -25,12 +27,22 @@ class Guard:
     """The parent's node on the robot's middleware.
 
     Raises (on creation):
-        StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
+        StudyError: the robot cannot be reached (LinkError), its middleware is not installed, or another node drives it.
     """
 
-    def __init__(self, folder: StudyFolder, settings: RobotSettings, blind: bool) -> None:
+    def __init__(self, folder: StudyFolder, settings: RobotSettings, blind: bool, session: str) -> None:
         self.folder, self.blind = folder, blind
-        self.transport = open_transport(settings.robot_uri, "navtrials_guard")
+        self.transport = open_transport(settings.robot_uri, node_name(session, "guard"))
+        try:
+            # Asked before this session publishes a command, so that a session refused here never disturbs the one driving.
+            wait_for_discovery(self.transport)
+            fault = publisher_fault(self.transport, settings, session)
+        except StudyError:
+            self.transport.close()
+            raise
+        if fault is not None:
+            self.transport.close()
+            raise StudyError(f"trials run --robot did not start: {fault}")
         self.send = velocity_publisher(self.transport, settings)
 
     def halt(self) -> None:

@@ -49,11 +49,13 @@ from trials.controllers.base import Controller, Observation, Plan
 from trials.controllers.obstacles import OBSTACLE_RANGE_M, thinned
 from trials.log_trial import People
 from trials.metrics import measure
+from trials.robot.one_driver import PublisherWatch, node_name, wait_for_discovery
 from trials.robot.people_check import PeopleCounter
 from trials.robot.protective_field import OPEN, FieldReading, ProtectiveField, returns_in, valid_returns
+from trials.robot.sensor_checks import ClockCheck, OdometryCheck, blank_cause, scan_fault, tf_fault
 from trials.robot.settings import RobotSettings
 from trials.robot.staging import Stage, off_start
-from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
+from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity, open_transport
 from trials.sim.closed_loop import START, TIMEOUT, SimConfig, run_ending
 from trials.sim.follower import WaypointFollower
 from trials.sim.robot import RobotLimits, RobotState
@@ -130,6 +132,14 @@ class Sensors:
         self.bad_odometry = 0
         #: Whether the e-stop topic's newest message says the button is pressed.
         self.estop_held = False
+        #: The first message since the run began that must stop the robot (`trials.robot.sensor_checks`), and the checks
+        #: against the messages before it that only a driving run makes (a robot carried to its start may jump).
+        self.fault: str | None = None
+        self.blank_cause = ""
+        self.laser_frame: str | None = None
+        self._scan_clock: ClockCheck | None = None
+        self._odometry_clock: ClockCheck | None = None
+        self._odometry_jump: OdometryCheck | None = None
         self._lock = threading.Lock()
 
     def attach(self, transport: Transport) -> None:
@@ -148,12 +158,48 @@ class Sensors:
             while not waiting.empty():
                 waiting.get_nowait()
         self.blank_scans = self.bad_odometry = 0
+        self.fault = None
         self.stop = stop
+
+    def begin_drive(self, laser_frame: str) -> None:
+        """From now on until `end_drive`, check each message against the one before it: the robot's clock, the scan's frame
+        and how far odometry moves."""
+        s = self.settings
+        with self._lock:
+            odometry = self.odometry
+            assert odometry is not None and self.odometry_seen is not None and self.newest_scan_ns is not None and self.scan_seen is not None
+            self.laser_frame = laser_frame
+            # Each check starts from the newest message before the run, so that the run's first one is checked too.
+            self._scan_clock = ClockCheck(f"scans on {s.scan_topic}", s.watchdog, (self.newest_scan_ns, self.scan_seen))
+            self._odometry_clock = ClockCheck(f"odometry messages on {s.odometry_topic or '/tf'}", s.watchdog,
+                                              (odometry.stamp_ns, self.odometry_seen))
+            self._odometry_jump = OdometryCheck(f"odometry on {s.odometry_topic}" if s.odometry_topic else
+                                                f"tf from {s.odometry_frame} to {s.base_frame}", s.max_speed,
+                                                (odometry.stamp_ns, odometry.pose))
+
+    def end_drive(self) -> None:
+        with self._lock:
+            self.laser_frame = self._scan_clock = self._odometry_clock = self._odometry_jump = None
+
+    def fail(self, reason: str) -> None:
+        """Keep the first reason to stop since the run began."""
+        with self._lock:
+            self.fault = self.fault or reason
 
     def on_scan(self, scan: Scan) -> None:
         arrived = time.monotonic()
+        fault = scan_fault(scan, self.laser_frame)
+        if fault is not None:
+            self.fail(fault)
+            return
         if not len(scan.ranges) or valid_returns(scan).mean() < self.settings.min_valid_share:
             self.blank_scans += 1  # counts as no scan: the watchdog stops the robot when only such scans come
+            self.blank_cause = blank_cause(scan)
+            return
+        with self._lock:
+            clock = self._scan_clock.add(scan.stamp_ns, arrived) if self._scan_clock is not None else None
+        if clock is not None:
+            self.fail(clock)
             return
         with self._lock:
             self.scan_seen = arrived
@@ -167,18 +213,42 @@ class Sensors:
         if not all(map(math.isfinite, (odometry.pose.x, odometry.pose.y, odometry.pose.yaw, odometry.linear, odometry.angular))):
             self.bad_odometry += 1  # counts as no odometry
             return
+        fault = self._placed(odometry.frame_id, odometry.child_frame_id) or self._moved(odometry.stamp_ns, odometry.pose)
+        if fault is not None:
+            self.fail(fault)
+            return
         with self._lock:
             self.tree.add(odometry.frame_id, odometry.child_frame_id, odometry.stamp_ns, odometry.pose)
             if self.odometry is None or odometry.stamp_ns >= self.odometry.stamp_ns:
                 self.odometry = odometry
             self.odometry_seen = time.monotonic()
 
+    def _placed(self, parent: str, child: str) -> str | None:
+        """Why a transform cannot join the frame tree (a loop, a second parent), else None."""
+        with self._lock:
+            return tf_fault(self.tree, parent, child)
+
+    def _moved(self, stamp_ns: int, pose: Pose2D) -> str | None:
+        """Why the base's new pose cannot be believed while driving (the robot's clock, a jump), else None."""
+        arrived = time.monotonic()
+        with self._lock:
+            if self._odometry_clock is None or self._odometry_jump is None:
+                return None
+            return self._odometry_clock.add(stamp_ns, arrived) or self._odometry_jump.add(stamp_ns, pose)
+
     def on_transforms(self, transforms: list[Transform]) -> None:
         s = self.settings
         finite = [t for t in transforms if all(map(math.isfinite, (t.pose.x, t.pose.y, t.pose.yaw)))]
         if len(finite) < len(transforms):
             self.bad_odometry += 1
-        transforms = finite
+        transforms = []
+        for t in finite:
+            base = not s.odometry_topic and frame_name(t.child) == frame_name(s.base_frame) and not t.static
+            fault = self._placed(t.parent, t.child) or (self._moved(t.stamp_ns, t.pose) if base else None)
+            if fault is not None:
+                self.fail(fault)
+            else:
+                transforms.append(t)
         self.transforms.put(transforms)
         with self._lock:
             self.static.update((frame_name(t.child), t) for t in transforms if t.static)
@@ -228,7 +298,8 @@ class Sensors:
             odometry_age = now - self.odometry_seen if self.odometry_seen is not None else math.inf
             behind = (self.newest_scan_ns - self.odometry.stamp_ns) * 1e-9 if self.odometry and self.newest_scan_ns else 0.0
         if scan_age > s.watchdog:
-            blank = f"; {self.blank_scans} had under {s.min_valid_share:.0%} valid beams" if self.blank_scans else ""
+            blank = (f"; {self.blank_scans} had under {s.min_valid_share:.0%} valid beams, the last {self.blank_cause}"
+                     if self.blank_scans else "")
             return f"stale scans: no valid scan on {s.scan_topic} for {scan_age:.2f} s (watchdog {s.watchdog:g} s{blank})"
         if odometry_age > s.watchdog:
             bad = f"; {self.bad_odometry} with non-finite values" if self.bad_odometry else ""
@@ -301,14 +372,25 @@ class RobotLink:
     """A process's lasting hold on the robot: the sensors' subscriptions and the command and announcement publishers, made
     once (a middleware keeps a subscription until its node closes) and shared by every run driven through them."""
 
-    def __init__(self, transport: Transport, settings: RobotSettings) -> None:
+    def __init__(self, transport: Transport, settings: RobotSettings, session: str) -> None:
         self.transport, self.settings = transport, settings
         self.sensors = Sensors(settings)
         self.sensors.attach(transport)
         self.twist = velocity_publisher(transport, settings)
         self.announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
+        wait_for_discovery(transport)
+        self.publishers = PublisherWatch(transport, settings, session)
+
+    @classmethod
+    def open(cls, settings: RobotSettings, session: str) -> RobotLink:
+        """The worker's node of `trials run --robot` session `session` (`trials.robot.one_driver.new_session`).
+
+        Raises:
+            LinkError: the robot cannot be reached."""
+        return cls(open_transport(settings.robot_uri, node_name(session, "run")), settings, session)
 
     def close(self) -> None:
+        self.publishers.close()
         self.transport.close()
 
 
@@ -346,7 +428,7 @@ class LiveRun:
         # The console's E-STOP creates its file before it signals `trials run`: the file names the cause.
         reason = ESTOP_CONSOLE if self.estop_file is not None and self.estop_file.exists() else None
         held = f"{ESTOP_TOPIC} {self.settings.estop_topic} (held)" if self.sensors.estop_held else None
-        reason = reason or held or self.stop.reason or self.transport.lost()
+        reason = reason or held or self.stop.reason or self.transport.lost() or self.sensors.fault or self.link.publishers.fault
         if reason is None and check_sensors:
             reason = self.sensors.staleness(now)
         return reason
@@ -454,15 +536,16 @@ class LiveRun:
         waiting_scans: list[float] = []
         scans = 0
         period = 1.0 / s.command_rate
-        sent_at = time.monotonic()
+        began = sent_at = time.monotonic()
         t = 0.0
+        sensors.begin_drive(self.laser_frame)
         sink.event(0.0, START, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in frame {s.odometry_frame}")
         self.on_state(DRIVING, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in {s.odometry_frame}")
         ending: tuple[str, str] | None = None
         try:
             while ending is None:
                 now = time.monotonic()
-                reason = self._why_stop(now, check_sensors=True)
+                reason = self._why_stop(now, check_sensors=True) or self._command_gap(now - sent_at, scans)
                 if reason is not None:
                     ending = (ABORTED, reason)
                     break
@@ -527,7 +610,8 @@ class LiveRun:
                 wanted = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
                 command = reading.limit(*wanted)
                 at_scan = robot if seen is None else RobotState(seen[1].x, seen[1].y, seen[1].yaw, robot.v, robot.w)
-                ending = run_ending(t, at_scan, people, goal, ending_rule)
+                # The timeout runs on this computer's monotonic clock too: no step of the robot's clock stretches a run.
+                ending = run_ending(max(t, time.monotonic() - began), at_scan, people, goal, ending_rule)
                 if ending is not None:
                     break
                 if reading.blocks(wanted[0]) and wanted != (0.0, 0.0):
@@ -564,6 +648,7 @@ class LiveRun:
                 sink.event(t, ABORTED, detail)
             raise
         finally:
+            sensors.end_drive()
             planner.shutdown(wait=False, cancel_futures=True)
         self.halt()
         status, detail = ending
@@ -577,6 +662,13 @@ class LiveRun:
         metrics = measure(status if status != ABORTED else TIMEOUT, np.array(trace.time), np.array(trace.pose),
                           np.array(trace.velocity), trace.positions(), limits, PEDESTRIAN_RADIUS_M)
         return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late, counter)
+
+    def _command_gap(self, since: float, scans: int) -> str | None:
+        """Why the loop must stop because the base has gone `since` seconds without a command, else None."""
+        if since <= self.settings.watchdog:
+            return None
+        return (f"no command for {since:.2f} s (watchdog {self.settings.watchdog:g} s): tracking the scans "
+                f"({scans} so far) could not keep up")
 
     @staticmethod
     def _observation(t: float, robot: RobotState, goal: np.ndarray, poses: deque[tuple[float, np.ndarray]],

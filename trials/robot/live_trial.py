@@ -28,15 +28,15 @@ from trials.study import LIVE_ESTOP, StudyFolder, utc_now
 
 
 class LiveDriver:
-    """One worker's node on the robot's middleware, reused for every run it drives.
+    """One worker's node on the robot's middleware (of `trials run` session `session`), reused for every run it drives.
 
     Raises (on creation):
         StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
     """
 
-    def __init__(self, folder: StudyFolder, settings: RobotSettings) -> None:
+    def __init__(self, folder: StudyFolder, settings: RobotSettings, session: str) -> None:
         self.folder, self.settings = folder, settings
-        self.link = RobotLink(open_transport(settings.robot_uri, "navtrials_run"), settings)
+        self.link = RobotLink.open(settings, session)
         self.stop: StopRequest | None = None
         self.terminated = False
         self._working = False

@@ -93,6 +93,7 @@ class Ros1Transport:
         self._fault: str | None = None
         self._topics: list[Any] = []
         self.log_file = _init_node(rospy, node)
+        self.node_id = str(rospy.get_name())
         self._stop = threading.Event()
         self._watcher = threading.Thread(target=self._watch, name=f"ros1-master-watch-{node}", daemon=True)
         self._watcher.start()
@@ -131,6 +132,38 @@ class Ros1Transport:
                 self._fault = self._fault or (str(error) if isinstance(error, LogError) else f"{where}: {type(error).__name__}: {error}")
 
         self._topics.append(self._rospy.Subscriber(topic, _message_class(kind), receive, queue_size=QUEUE_SIZE, tcp_nodelay=True))
+
+    def publishers(self, topic: str) -> dict[str, str]:
+        """The nodes the master lists as publishing on `topic` (by name), within POLL_TIMEOUT_S.
+
+        Raises:
+            LinkError: the master did not answer."""
+        try:
+            with xmlrpc.client.ServerProxy(self.uri.master_uri, transport=_TimeoutTransport(POLL_TIMEOUT_S)) as master:
+                code, message, state = master.getSystemState(self.node_id)
+            if code != 1:
+                raise ValueError(f"getSystemState answered {code}: {message}")
+        except _MASTER_ERRORS as error:
+            raise LinkError(f"cannot ask the ROS 1 master at {self.uri} who publishes on {topic}: {_reason(error)}") from error
+        resolved = self._rospy.resolve_name(topic)
+        nodes = next((nodes for name, nodes in state[0] if name == resolved), [])
+        return {str(node): str(node) for node in nodes if node == self.node_id or self._alive(str(node))}
+
+    def _alive(self, node: str) -> bool:
+        """Whether a node the master lists still runs: a killed one stays registered until someone cleans up after it
+        (`rosnode cleanup`), but its own XML-RPC port refuses. A node that answers late (a frozen process) counts as alive."""
+        try:
+            with xmlrpc.client.ServerProxy(self.uri.master_uri, transport=_TimeoutTransport(POLL_TIMEOUT_S)) as master:
+                code, _, api = master.lookupNode(self.node_id, node)
+            if code != 1:
+                return False
+            with xmlrpc.client.ServerProxy(api, transport=_TimeoutTransport(POLL_TIMEOUT_S)) as other:
+                other.getPid(self.node_id)
+        except ConnectionRefusedError:
+            return False
+        except _MASTER_ERRORS:
+            return True
+        return True
 
     def lost(self) -> str | None:
         """Why this node can no longer be trusted: the master stopped answering or restarted (its registrations

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication
 from cyclonedds.core import DDSException, Entity, GuardCondition, InstanceState, Policy, Qos, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct
@@ -80,6 +81,8 @@ _LATCHED = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepL
 _SUBSCRIBER = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(10))
 _LATCHED_SUBSCRIBER = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1))
 _STATIC_SUBSCRIBER = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(100))
+#: Discovery samples read at most at once: participants or writers in one domain.
+MAX_DISCOVERED = 4096
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
 
 
@@ -173,6 +176,17 @@ def _kind(kind: str) -> _Kind:
     return _KINDS[kind]
 
 
+def _participant_name(key: str, qos: Qos | None) -> str:
+    """A participant as a message names it: its entity name (a ROS 2 node's participant often has none), process and host."""
+    if qos is None:
+        return f"DDS participant {key}"
+    properties = {p.key: p.value for p in qos if isinstance(p, Policy.Property)}
+    named = next((p.name for p in qos if isinstance(p, Policy.EntityName)), None) or f"DDS participant {key}"
+    pid, host = properties.get("__Pid"), properties.get("__Hostname")
+    where = ", ".join(part for part in (f"pid {pid}" if pid else "", f"host {host}" if host else "") if part)
+    return f"{named} ({where})" if where else named
+
+
 def _delete(entity: Entity) -> None:
     """Delete a DDS entity now, its children with it: cyclonedds-python deletes one only in its wrapper's `__del__`."""
     entity.__del__()
@@ -240,6 +254,10 @@ class Ros2Transport:
         except DDSException as e:
             _leave(uri.domain)
             raise LinkError(f"{uri}: cannot join DDS domain {uri.domain} as {node!r}: {e}") from e
+        self.node_id = str(self._participant.guid)
+        # DDS discovery's own topics: who is in the domain, and every writer they have.
+        self._participants = BuiltinDataReader(self._participant, BuiltinTopicDcpsParticipant)
+        self._writers = BuiltinDataReader(self._participant, BuiltinTopicDcpsPublication)
         self._topics: dict[str, Topic] = {}
         self._subscriptions: tuple[_Subscription, ...] = ()
         self._static: dict[str, dict[str, Transform]] = {}
@@ -285,6 +303,18 @@ class Ros2Transport:
             reader = DataReader(self._participant, self._topic(topic, how.type), qos)
             self._subscriptions += (_Subscription(reader, how.decode, callback, f"{self.uri} {topic}"),)
             self._waitset.attach(ReadCondition(reader, _ANY_SAMPLE))
+
+    def publishers(self, topic: str) -> dict[str, str]:
+        """The participants with a live writer on `topic`, as DDS discovery has found them so far (a participant that
+        joined within the last moments may be missing: discovery takes some hundred milliseconds)."""
+        name = dds_topic(topic)
+        with self._lock:
+            self._check_open()
+            keys = {str(w.participant_key) for w in self._writers.read(MAX_DISCOVERED)
+                    if w.sample_info.instance_state == InstanceState.Alive and w.topic_name == name}
+            known = {str(p.key): p.qos for p in self._participants.read(MAX_DISCOVERED)
+                     if p.sample_info.instance_state == InstanceState.Alive}
+        return {key: _participant_name(key, known.get(key)) for key in sorted(keys)}
 
     def lost(self) -> str | None:
         """Why this node stopped receiving, else None: DDS has no master to lose (see the module docstring)."""

@@ -45,11 +45,18 @@ from trials.study import StudyFolder
 
 #: Failures a rehearsal can stage, each from some seconds after a run is announced: scans stop coming; scans keep
 #: coming but `FAULT_LAG_S` late by their stamps; scans keep coming with every range NaN; odometry stops; odometry
-#: keeps coming with its stamp frozen; the wheels are blocked (commands are heard, the base does not move).
+#: keeps coming with its stamp frozen; the wheels are blocked (commands are heard, the base does not move); the robot's
+#: clock steps `CLOCK_STEP_S` back or ahead (every stamp after it); one scan is stamped `CLOCK_STEP_S` ahead; odometry
+#: jumps `JUMP_M` ahead; the scans' frame changes; tf gets a transform from the base back to the odometry frame (a loop);
+#: scans come with `HUGE_BEAMS` beams.
 SCANS_STOP, SCANS_LATE, SCANS_BLANK = "scans-stop", "scans-late", "scans-blank"
 ODOMETRY_STOP, ODOMETRY_STALE, STALL = "odometry-stop", "odometry-stale", "stall"
-FAULTS = (SCANS_STOP, SCANS_LATE, SCANS_BLANK, ODOMETRY_STOP, ODOMETRY_STALE, STALL)
+CLOCK_BACK, CLOCK_AHEAD, SCAN_FUTURE = "clock-back", "clock-ahead", "scan-future"
+ODOMETRY_JUMP, FRAME_CHANGE, TF_LOOP, SCANS_HUGE = "odometry-jump", "frame-change", "tf-loop", "scans-huge"
+FAULTS = (SCANS_STOP, SCANS_LATE, SCANS_BLANK, ODOMETRY_STOP, ODOMETRY_STALE, STALL,
+          CLOCK_BACK, CLOCK_AHEAD, SCAN_FUTURE, ODOMETRY_JUMP, FRAME_CHANGE, TF_LOOP, SCANS_HUGE)
 FAULT_LAG_S = 1.0
+CLOCK_STEP_S, JUMP_M, HUGE_BEAMS = 30.0, 50.0, 100_000
 #: The default room: x from, y from, x to, y to (m, odometry frame), around a start at the origin facing +x.
 ROOM = (-6.0, -5.0, 16.0, 5.0)
 #: Spacing (m) of the points along the walls that the bumper checks against the footprint.
@@ -184,6 +191,7 @@ class SoftwareRobot:
         self._announced: list[str] = []
         self._announced_once = False
         self._frozen_ns = 0
+        self._future_sent = False
         self._publish_scan = transport.publisher(settings.scan_topic, SCAN)
         self._late_scans: deque[tuple[float, Scan]] = deque()
         self._publish_odometry = transport.publisher(settings.odometry_topic, ODOMETRY) if settings.odometry_topic else None
@@ -242,7 +250,7 @@ class SoftwareRobot:
                 start = self._start(code)
                 self.robot = RobotState(start.x, start.y, start.yaw)
             self.scene = self._scene(code, now)
-            self._announced_once, self._frozen_ns = True, 0
+            self._announced_once, self._frozen_ns, self._future_sent = True, 0, False
         scene = self.scene
         local = scene.anchor.inverse().compose(Pose2D(self.robot.x, self.robot.y, self.robot.theta))
         in_scene = RobotState(local.x, local.y, local.yaw, self.robot.v, self.robot.w)
@@ -263,28 +271,46 @@ class SoftwareRobot:
         """Whether a staged fault of `kind` is on at monotonic time `now` (from its time after the last announcement on)."""
         return bool(self._announced_once) and any(f.kind == kind and now - self.scene.started >= f.after_s for f in self.config.faults)
 
+    def _clock(self, stamp_ns: int, now: float) -> int:
+        """A stamp of this computer's clock as the robot's clock gives it (stepped back or ahead by a staged fault)."""
+        step = -CLOCK_STEP_S if self._faulty(CLOCK_BACK, now) else CLOCK_STEP_S if self._faulty(CLOCK_AHEAD, now) else 0.0
+        return stamp_ns + int(step * 1e9)
+
     def publish_odometry(self, stamp_ns: int, now: float) -> None:
         s, robot = self.settings, self.robot
-        pose = Pose2D(robot.x, robot.y, robot.theta)
+        pose = Pose2D(robot.x + (JUMP_M if self._faulty(ODOMETRY_JUMP, now) else 0.0), robot.y, robot.theta)
         if self._faulty(ODOMETRY_STOP, now):
             return
+        stamp_ns = self._clock(stamp_ns, now)
         if self._faulty(ODOMETRY_STALE, now):
             self._frozen_ns = self._frozen_ns or stamp_ns
             stamp_ns = self._frozen_ns
         if self._publish_odometry is not None:
             self._publish_odometry(Odometry(stamp_ns, s.odometry_frame, s.base_frame, pose, robot.v, robot.w))
-        self._publish_tf([Transform(stamp_ns, s.odometry_frame, s.base_frame, pose, False)])
+        transforms = [Transform(stamp_ns, s.odometry_frame, s.base_frame, pose, False)]
+        if self._faulty(TF_LOOP, now):
+            transforms.append(Transform(stamp_ns, s.base_frame, s.odometry_frame, pose.inverse(), False))
+        self._publish_tf(transforms)
 
     def publish_scan(self, stamp_ns: int, now: float) -> None:
         if self._faulty(SCANS_STOP, now):
             return
+        stamp_ns = self._clock(stamp_ns, now)
         if self._faulty(SCANS_LATE, now):
             stamp_ns -= int(FAULT_LAG_S * 1e9)
+        if self._faulty(SCAN_FUTURE, now) and not self._future_sent:
+            self._future_sent = True
+            stamp_ns += int(CLOCK_STEP_S * 1e9)
         sensor = Pose2D(self.robot.x, self.robot.y, self.robot.theta).compose(self.config.mount)
         positions, velocities = self.scene.world()
         scan = self.lidar.scan(now - self.scene.started, sensor, positions, velocities)
         if self._faulty(SCANS_BLANK, now):
             scan = replace(scan, ranges=np.full(len(scan.ranges), np.nan))
+        if self._faulty(FRAME_CHANGE, now):
+            scan = replace(scan, frame_id=f"{scan.frame_id}_2")
+        if self._faulty(SCANS_HUGE, now):
+            k = -(-HUGE_BEAMS // len(scan.ranges))
+            scan = replace(scan, ranges=np.repeat(scan.ranges, k), angle_increment=scan.angle_increment / k)
         if self._truth is not None:
             robot = self.robot
             values = (robot.x, robot.y, robot.theta, *positions.ravel())

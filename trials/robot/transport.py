@@ -93,6 +93,8 @@ class Transport(Protocol):
     """One process's node on the robot's middleware."""
 
     uri: RobotUri
+    #: This node as `publishers` names it.
+    node_id: str
 
     def publisher(self, topic: str, kind: str, latched: bool = False) -> Callable[[Any], None]:
         """A function that publishes one value of `kind` on `topic`; `latched`: late subscribers get the
@@ -103,6 +105,14 @@ class Transport(Protocol):
         """Call `callback(value)` for every message of `kind` on `topic` (from the middleware's threads); `latched`: also
         the last value a latched publisher sent before (ROS 2 asks for it with transient-local durability, and then hears
         latched publishers only; ROS 1 delivers it anyway)."""
+        ...
+
+    def publishers(self, topic: str) -> dict[str, str]:
+        """Every node publishing on `topic` now, this one included: its `node_id` -> a description for messages
+        (its name, and where the middleware says, its process and host).
+
+        Raises:
+            LinkError: the middleware could not be asked."""
         ...
 
     def lost(self) -> str | None:
