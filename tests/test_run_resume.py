@@ -79,6 +79,14 @@ def check_complete(study: Path, before: list[dict[str, str]]) -> None:
     for code in planned:
         assert FoxgloveReader(study / "runs" / f"{code}.mcap").metadata["run"]["run_code"] == code
     assert not [p for p in study.rglob(".*") if p.name.endswith((".partial", ".tmp"))]
+    # Every finished run has its simulated judgments, exactly once, seeded by its seed, in plan order.
+    with (study / "responses.csv").open(newline="", encoding="utf-8") as handle:
+        judgments = list(csv.DictReader(handle))
+    judged = list(dict.fromkeys(j["run_code"] for j in judgments))
+    assert judged == planned
+    assert len({(j["run_code"], j["participant"]) for j in judgments}) == len(judgments)
+    seeds = {r["run_code"]: r["seed"] for r in rows}
+    assert all(j["source"] == "simulated" and j["seed"] == seeds[j["run_code"]] for j in judgments)
 
 
 def test_a_killed_run_loses_and_duplicates_nothing(study):

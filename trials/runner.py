@@ -137,11 +137,6 @@ class RunDone:
     live: bool = False
 
     @property
-    def simulated(self) -> bool:
-        """Whether the run was simulated (neither played from a log nor driven live): only then is it judged by simulated participants."""
-        return not (self.logged or self.live)
-
-    @property
     def row(self) -> dict[str, str]:
         """The outcome's cells as outcomes.csv holds them."""
         return outcome_cells(self.outcome)
@@ -328,11 +323,13 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
 
 def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], options: RunOptions,
               on_start: Callable[[int], None], on_done: Callable[[RunDone], None],
-              on_failed: Callable[[str, str], None], between: Callable[[str], bool] = lambda code: True) -> Summary:
+              on_failed: Callable[[str, str], None], between: Callable[[str], bool] = lambda code: True,
+              on_end: Callable[[], None] = lambda: None) -> Summary:
     """Run the pending rows (or the `only` / `rerun` ones) with `workers` processes.
 
     `on_start(n)` is called once the workers are ready and n runs are about to start;
-    `on_done` / `on_failed` after each run. Rows driven live go one at a time, and before each `between(code)` is asked
+    `on_done` / `on_failed` after each run; `on_end()` once the runs have ended however (none to run, an interruption),
+    still holding the study's lock. Rows driven live go one at a time, and before each `between(code)` is asked
     whether to go on (the operator stages the row; False ends the command, the rest pending).
     Ctrl-C (KeyboardInterrupt) stops the workers at once; finished runs are kept.
 
@@ -351,7 +348,7 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
     if unknown:
         raise StudyError(f"run {unknown[0]} is not in {folder.path(PLAN)}")
     summary = Summary()
-    with study_lock(folder) as found:
+    with study_lock(folder) as found, _finally(on_end):
         summary.stale_lock = found.pid if found.stale else None
         clean_partials(folder)
         outcomes = Outcomes(folder, study.blind)
@@ -432,6 +429,14 @@ def run_study(study: StudyRun, workers: int, only: list[str], rerun: list[str], 
             clean_partials(folder)
             summary.done = len(outcomes.finished & set(study.codes))
     return summary
+
+
+@contextmanager
+def _finally(then: Callable[[], None]) -> Iterator[None]:
+    try:
+        yield
+    finally:
+        then()
 
 
 def _guard(folder: StudyFolder, robot: RobotSettings, blind: bool, session: str) -> Guard:

@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     from robot_logs.topics import TopicNames
     from trials.errors import StudyError
     from trials.log_trial import ReplayOptions
-    from trials.outcomes import columns
+    from trials.outcomes import columns, read_outcomes
     from trials.progress import Progress
     from trials.run_settings import override, read_run_settings
     from trials.runner import RunOptions, StudyRun, run_study
@@ -161,21 +161,20 @@ def run(args: argparse.Namespace) -> int:
                   "Ctrl-C stops the robot.", flush=True)
         progress.start(count)
 
-    judged: dict[str, RunDone] = {}
-
     def done(run: RunDone) -> None:
         say(run.code, run_line(study.task(run.code).row, run.row) + _replayed(run))
-        if not args.no_responses and run.simulated:
-            judged[run.code] = run
 
     def judge() -> None:
-        """Simulated participants judge the finished runs (analysis.participants), seeded by each run's seed, in plan
-        order once the runs have ended (the order runs end in would time them); a logged trial's robot drove as
+        """Simulated participants judge every finished simulated run that has no judgments yet (analysis.participants),
+        seeded by each run's seed, in plan order once the runs have ended (the order runs end in would time them): this
+        session's runs, and those a killed session finished but never had judged. A logged trial's robot drove as
         recorded, not as its controller planned, and a live run is judged by real people, so neither is judged here."""
-        for code in (c for c in study.codes if c in judged):
-            row = judged[code].row
-            simulate_run(study.folder, code, int(row["seed"]), args.participants, row["finished_utc"])
-        if judged and study.blind:
+        if args.no_responses:
+            return
+        finished = {o.run_code: o for o in read_outcomes(study.folder.path(OUTCOMES), study.blind) if o.perception in PERCEPTIONS}
+        added = [simulate_run(study.folder, code, finished[code].seed, args.participants, finished[code].finished_utc)
+                 for code in study.codes if code in finished]
+        if any(added) and study.blind:
             to_the_minute(study.folder.path(RESPONSES), study.folder.root)
 
     def failed(code: str, message: str) -> None:
@@ -203,9 +202,8 @@ def run(args: argparse.Namespace) -> int:
                                    "or q and Enter to stop here: ")
 
     try:
-        summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed, staged)
+        summary = run_study(study, args.workers, args.only, args.rerun, options, started, done, failed, staged, judge)
     finally:
-        judge()
         progress.close()
         signal.signal(signal.SIGTERM, previous)
         progress.held([held[code] for code in study.codes if code in held])
