@@ -105,7 +105,7 @@ def test_the_study_reports_and_unblinds_with_no_command_in_between(day):
     assert (f"2 runs ({codes[0]}, {codes[1]}) were played from an external robot log: the toolkit did not drive those robots, so their "
             "6 judgment(s) and 2 human score(s) are not credited to a controller") in markdown
     assert "No judgments of runs the toolkit drove yet" in markdown
-    assert json.loads((study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    assert json.loads((study / "unblinding.json").read_text())["unblinded_utc"]
 
 
 # --- live runs: a real ROS 1 master, the software robot, `trials run --robot` started from the console ---------------
@@ -440,7 +440,7 @@ def test_an_early_unblinding_is_refused_and_the_console_stays_blinded(walk):
     assert code == 2 and "only 1 of 2 runs finished: opening the key now would be an interim look" in err
     experimenter_pages = [page for page in walk.pages if 'id="blinding"' in page]
     assert len(experimenter_pages) > 10 and {header(page) for page in experimenter_pages} == {"field-day · blinded"}
-    [opening] = json.loads((walk.study / "report" / "unblinding.json").read_text())["openings"]  # the final one only
+    [opening] = json.loads((walk.study / "unblinding.json").read_text())["openings"]  # the final one only
     assert (opening["completeness"], opening["interim"]) == ("2 of 2 runs finished", None)
 
 
@@ -498,7 +498,7 @@ def test_after_unblinding_every_page_says_since_when(walk):
     from zoneinfo import ZoneInfo
 
     assert walk.commands["unblinding"][0] == 0
-    [opened] = json.loads((walk.study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    [opened] = json.loads((walk.study / "unblinding.json").read_text())["unblinded_utc"]
     local = datetime.fromisoformat(opened).astimezone(ZoneInfo("Europe/Berlin"))
     assert {header(page) for page in walk.unblinded_pages} == {f"field-day · unblinded on {local:%Y-%m-%d %H:%M %Z}"}
     [progress] = [page for page in walk.unblinded_pages if "<h1>Progress</h1>" in page]

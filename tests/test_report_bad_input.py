@@ -162,7 +162,7 @@ def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(stud
     digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
     reason = "safety review after a collision"
     assert main(["report", "--study", str(study), "--unblind", "--commitment", digest, "--interim", reason]) == 0
-    record = json.loads((study / "report" / "unblinding.json").read_text())
+    record = json.loads((study / "unblinding.json").read_text())
     (opening,) = record["openings"]
     plan = json.loads((study / "design.json").read_text())["analysis_plan"]["sha256"]  # the plan in force, as committed
     assert opening == {"utc": record["unblinded_utc"][0], "completeness": f"{len(finished)} of 18 runs finished", "interim": reason,

@@ -72,7 +72,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     # The design section: the power under JMP's alternating coefficients, and no paper score shares on the A/B plan.
     assert "| Direction | 2 | 0.675 |" in markdown and "anticipated coefficients by JMP's convention" in markdown
     assert "86.7 %" not in markdown
-    assert not (ab_study / "report" / "unblinding.json").exists()
+    assert not (ab_study / "unblinding.json").exists()
     stems = ("scores", "trajectories", "ab_shares", "min_distance", "residuals", "correlation_map")
     assert {p.name for p in (ab_study / "report" / "figures").iterdir()} == {f"{stem}.{kind}" for stem in stems for kind in ("png", "svg")}
     # Every table is also a CSV file: Table II's rows, with runs and judgments per arm.
@@ -159,17 +159,24 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
     assert "| 64 % |" in row_four and "| 75 % |" in row_four  # the paper's SBPL and NaviGAN-R
     assert "Lattice" in out and "NaviGAN-R" in out
     assert "Controller\\[Lattice\\]" in markdown or "Controller\\[NaviGAN-R\\]" in markdown  # brackets escaped in Markdown
-    first = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    first = json.loads((ab_study / "unblinding.json").read_text())["unblinded_utc"]
     assert len(first) == 1
     # Unblinding again keeps the first time; a blinded report afterwards still names no controller.
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
-    times = json.loads((ab_study / "report" / "unblinding.json").read_text())["unblinded_utc"]
+    times = json.loads((ab_study / "unblinding.json").read_text())["unblinded_utc"]
     assert times[0] == first[0] and len(times) == 2
     capsys.readouterr()
     assert main(["report", "--study", str(ab_study)]) == 0
     console = capsys.readouterr().out
     text = _report_text(ab_study)
     assert not any(name in text.lower() or name in console.lower() for name in CONTROLLER_NAMES)
+    assert f"The key was opened before (first at {first[0]})" in (ab_study / "report" / "report.md").read_text()
+    # The record of the openings lies outside report/: deleting the report keeps it, and the next report knows.
+    shutil.rmtree(ab_study / "report")
+    capsys.readouterr()
+    assert main(["status", "--study", str(ab_study)]) == 0
+    assert f"yes, on {', '.join(times)}" in capsys.readouterr().out
+    assert main(["report", "--study", str(ab_study)]) == 0
     assert f"The key was opened before (first at {first[0]})" in (ab_study / "report" / "report.md").read_text()
 
 

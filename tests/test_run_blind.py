@@ -156,7 +156,7 @@ def test_log_show_unblind_adds_the_sealed_controller_and_plans(blind_run, capsys
     assert f"arm {row['Controller']} is {key[row['Controller']]}; controller: {key[row['Controller']]}" in out
     assert f"{plans} plans and {plans} controller records in" in out and "recorded outside the study" in out
     # Showing the key is an unblinding like the report's, recorded with the study's completeness.
-    (opening,) = json.loads((study / "report" / "unblinding.json").read_text())["openings"]
+    (opening,) = json.loads((study / "unblinding.json").read_text())["openings"]
     assert (opening["command"], opening["completeness"], opening["interim"]) == (f"trials log show {row['run_code']} --unblind",
                                                                                 "6 of 6 runs finished", None)
     assert main(["status", "--study", str(study)]) == 0

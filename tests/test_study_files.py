@@ -41,7 +41,7 @@ def _strings(path: Path) -> set[str]:
 def test_each_study_file_name_is_defined_once():
     names = _file_names()
     assert {"study.toml", "plan.csv", "outcomes.csv", "scores.csv", "responses.csv", "sealed/allocation.json",
-            "report/unblinding.json", "runs/.lock"} <= set(names.values())
+            "unblinding.json", "report/unblinding.json", "runs/.lock"} <= set(names.values())
     elsewhere = []
     for path in sorted(p for package in PRODUCT for p in (ROOT / package).rglob("*.py")):
         if path == OWNER:

@@ -6,7 +6,7 @@ each other file has one module: study.toml `designs.spec`, rubric.toml `analysis
 outcomes.csv `trials.outcomes`, scores.csv `trials.scores`, responses.csv `trials.responses`,
 runs/<code>.mcap `robot_logs.run_log`, runs/.lock `trials.runner`, sealed/runs/ `trials.sealed_runs`,
 run_events.csv `trials.run_events`, logs/ `trials.attached_logs`, console/access.json `trials.console.access`,
-report/unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
+unblinding.json `trials.study_data`, the rest of report/ `trials.commands.report`, power/power.csv
 `trials.power.campaigns`, the rest of power/ `trials.power.study_power`. Files a
 new design replaces are moved to superseded/<UTC time>/ (sealed ones to
 sealed/superseded/<UTC time>/; `-2`, `-3` ... after the time when that second's folder is taken), never deleted.
@@ -84,8 +84,10 @@ REPORT_FIGURES = f"{REPORT}/figures"
 REPORT_BLINDED = f"{REPORT}/blinded"
 #: Every table of the report as CSV.
 REPORT_TABLES = f"{REPORT}/tables"
-#: When the sealed key of the design was opened, every time.
-UNBLINDING = f"{REPORT}/unblinding.json"
+#: When the sealed key of the design was opened, every time: beside the report, not in it, so that deleting or remaking
+#: report/ keeps the record. Studies unblinded before 0.3 have it in report/ (`UNBLINDING_IN_REPORT`), read still.
+UNBLINDING = "unblinding.json"
+UNBLINDING_IN_REPORT = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 #: The experimenter's record of each run on the field day: started, finished, aborted, notes (`trials.run_events`).
 RUN_EVENTS = "run_events.csv"

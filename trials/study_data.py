@@ -2,7 +2,7 @@
 
 Blinding: without unblinding a blinded study's arms keep their labels. Unblinding opens the
 sealed key only after checking it against design.json's commitment, and the time of every
-verified unblinding is kept in report/unblinding.json (the report's metadata), first one first.
+verified unblinding is kept in unblinding.json, outside report/ so that no remaking of the report erases it, first one first.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from trials.study import (
     SCORES,
     SPEC,
     UNBLINDING,
+    UNBLINDING_IN_REPORT,
     StudyFolder,
 )
 
@@ -138,8 +139,11 @@ def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: li
 
 
 def _unblinding_file(folder: StudyFolder, commitment: str) -> dict[str, Any]:
-    """report/unblinding.json of this design (by its commitment), or {} when there is none (or it is of another design)."""
+    """unblinding.json of this design (by its commitment), or {} when there is none (or it is of another design); a study
+    unblinded before the record moved out of report/ has it there."""
     path = folder.path(UNBLINDING)
+    if not path.exists() and folder.path(UNBLINDING_IN_REPORT).exists():
+        path = folder.path(UNBLINDING_IN_REPORT)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -194,13 +198,13 @@ def unblinding_opening(folder: StudyFolder, commitment: str | None, interim: str
 
 
 def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
-    """report/unblinding.json after the report opened the key (`trials report --unblind`)."""
+    """unblinding.json after the report opened the key (`trials report --unblind`)."""
     opening = Opening(blinding.completeness, blinding.interim)
     return opened_record(folder, blinding.commitment or "", blinding.unblinded_utc[-1], opening, "trials report --unblind")
 
 
 def opened_record(folder: StudyFolder, commitment: str, utc: str, opening: Opening, command: str) -> bytes:
-    """report/unblinding.json with one more opening of the key: every time it was opened (`unblinded_utc`) and, for each
+    """unblinding.json with one more opening of the key: every time it was opened (`unblinded_utc`) and, for each
     opening recorded with them, its time, how complete the study was, any interim reason, the command that opened it and
     the digest of the analysis plan in force (`openings`). Whatever command shows the key records it here, so reports and `trials status` know."""
     earlier = _unblinding_file(folder, commitment)

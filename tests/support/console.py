@@ -98,7 +98,7 @@ def add_run_log(folder: Path, code: str, arm: str = "A") -> Path:
 
 
 def unblind(folder: Path, when: str = "2026-05-01T16:30:00+00:00") -> None:
-    """report/unblinding.json as `trials report --unblind` leaves it (through its owner), the key opened at `when`."""
+    """unblinding.json as `trials report --unblind` leaves it (through its owner), the key opened at `when`."""
     study = StudyFolder(folder)
     commitment = study.read_design()["blinding"]["commitment"]["digest"]
     record = unblinding_record(study, Blinding(True, "Controller", {}, True, commitment, (when,), "", "2 of 2 runs finished"))

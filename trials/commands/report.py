@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--unblind",
         action="store_true",
         help="open the sealed key (checked against design.json's commitment) and name the controllers; "
-        "the time is recorded in report/unblinding.json, and the blinded report is kept in report/blinded/",
+        "the time is recorded in unblinding.json, and the blinded report is kept in report/blinded/",
     )
     parser.add_argument(
         "--commitment",
@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--interim",
         metavar="REASON",
         help="with --unblind: open the key although runs are pending or failed (an interim look), for this reason; the "
-        "reason, the time and how many runs had finished are recorded in report/unblinding.json and printed in the report",
+        "reason, the time and how many runs had finished are recorded in unblinding.json and printed in the report",
     )
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")

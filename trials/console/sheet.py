@@ -1,6 +1,6 @@
 """The run sheet as the console shows it: every plan row in order with its settings (a blinded factor's
 arm label, never a controller), status and what has been recorded for it, and whether the study's key has
-been opened (report/unblinding.json, through its owner). Read from the public study files only; the sealed
+been opened (unblinding.json, through its owner). Read from the public study files only; the sealed
 key is never opened."""
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ class StudyKey:
 
 
 def study_key(folder: StudyFolder, design: dict[str, Any] | None = None) -> StudyKey:
-    """The study's key state from design.json and report/unblinding.json (the openings of this design's key)."""
+    """The study's key state from design.json and unblinding.json (the openings of this design's key)."""
     design = folder.read_design() if design is None else design
     blinding = design.get("blinding") or {}
     opened = read_unblinding(folder, blinding["commitment"]["digest"]) if blinding else ()
