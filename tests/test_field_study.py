@@ -1,6 +1,6 @@
 """A field study (a [robot] table, or a run driven live or played from a robot log) never gets simulated runs or
-simulated judgments unless asked for by name: `trials run` and `trials respond --simulate` refuse with one line and
-exit 2, and `--allow-simulated` lets them."""
+simulated judgments unless asked for by name: `trials run`, `trials respond --simulate` and `trials respond --import` of
+simulated judgments refuse with one line and exit 2, and `--allow-simulated` lets them."""
 
 from __future__ import annotations
 
@@ -57,6 +57,17 @@ def test_a_study_with_a_played_log_is_a_field_study(tmp_path, robot_logs_dir, ca
     assert f"its run {first} was played from a robot log" in capsys.readouterr().err
     assert main(["respond", "--simulate", "--study", str(study)]) == 2
     assert not (study / RESPONSES).exists()
+    # Imported judgments obey the same rule: people's pass, simulated ones only when asked for by name.
+    sheet = tmp_path / "judgments.csv"
+    sheet.write_text(f"run_code,participant,compliant,source\n{first},P1,yes,human\n{first},S1,no,simulated\n")
+    capsys.readouterr()
+    assert main(["respond", "--import", str(sheet), "--study", str(study)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert f"refusing to import 1 simulated judgment(s) from {sheet} (source simulated, first on line 3)" in error and "\n" not in error
+    assert not (study / RESPONSES).exists()
+    assert main(["respond", "--import", str(sheet), "--study", str(study), "--allow-simulated"]) == 0
+    assert [(r.participant, r.source) for r in read_responses(study / RESPONSES)] == [("P1", "human"), ("S1", "simulated")]
+    (study / RESPONSES).unlink()
     assert main(["respond", "--simulate", "--study", str(study), "--allow-simulated", "--seed", "1"]) == 0
     assert {r.run_code for r in read_responses(study / RESPONSES)} == {first}
 

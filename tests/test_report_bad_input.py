@@ -88,7 +88,8 @@ def test_respond_rejects_bad_input(study: Path, capsys: pytest.CaptureFixture[st
     _fails(["respond", unfinished[0], "P1", "no"], study, capsys, f"not finished yet: {unfinished[0]}")
     _fails(["respond", finished[0], "P1", "yes", "--simulate"], study, capsys, "not several")
     _fails(["respond", "--simulate", "--participants", "0"], study, capsys, "argument --participants: expected a whole number from 1 to 1000, got '0'")
-    _fails(["respond", "--seed", "3"], study, capsys, "--participants, --seed and --allow-simulated go with --simulate")
+    _fails(["respond", "--seed", "3"], study, capsys, "--participants and --seed go with --simulate")
+    _fails(["respond", "--allow-simulated"], study, capsys, "--allow-simulated goes with --simulate or --import")
     sheet = study.parent / "judgments.csv"
     sheet.write_text(f"run_code,participant,compliant\n{finished[0]},P1,yes\nZZZZZ,P1,no\n")
     _fails(["respond", "--import", str(sheet)], study, capsys, "unknown run code(s) ZZZZZ")

@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="with --simulate: judgments per run (default: one per pedestrian of the run)")
     parser.add_argument("--seed", type=types.seed, metavar="S", help="with --simulate: the seed (default: drawn and recorded)")
     parser.add_argument("--allow-simulated", action="store_true",
-                        help="with --simulate: judge even in a field study (runs driven live or played from robot logs)")
+                        help="with --simulate or --import: enter simulated judgments even in a field study (runs driven live "
+                        "or played from robot logs)")
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
     parser.set_defaults(handler=run)
 
@@ -50,8 +51,10 @@ def run(args: argparse.Namespace) -> int:
     positional = [args.run_code, args.participant, args.answer]
     if (args.import_file is not None or args.simulate) and any(positional):
         raise StudyError("give either CODE PARTICIPANT yes|no, or --import FILE, or --simulate; not several")
-    if (args.participants is not None or args.seed is not None or args.allow_simulated) and not args.simulate:
-        raise StudyError("--participants, --seed and --allow-simulated go with --simulate")
+    if (args.participants is not None or args.seed is not None) and not args.simulate:
+        raise StudyError("--participants and --seed go with --simulate")
+    if args.allow_simulated and not (args.simulate or args.import_file is not None):
+        raise StudyError("--allow-simulated goes with --simulate or --import")
     plan_codes = [row["run_code"] for row in folder.read_plan()]
     finished = finished_codes(folder)
     if args.simulate:
@@ -59,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
             refuse_simulation(folder, bool(folder.read_design().get("blinding")), "simulate participants' judgments")
         return _simulate(folder, finished, args.participants, args.seed)
     if args.import_file is not None:
-        return _import(folder, args.import_file, plan_codes, finished)
+        return _import(folder, args.import_file, plan_codes, finished, args.allow_simulated)
     if not all(positional):
         raise StudyError("give a run code, a participant and yes or no (e.g. `trials respond NGAC3 P07 yes`), --import FILE or --simulate")
     return _record_one(folder, args.run_code, args.participant, args.answer)
@@ -74,10 +77,12 @@ def _record_one(folder: StudyFolder, code: str, participant: str, answer: str) -
     return 0
 
 
-def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: list[str]) -> int:
+def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: list[str], allow_simulated: bool) -> int:
     from dataclasses import replace
 
+    from analysis.records import SIMULATED
     from trials.errors import StudyError
+    from trials.field_study import refuse_simulation
     from trials.outcomes import check_run_codes
     from trials.responses import append_responses, read_responses
     from trials.study import RESPONSES, utc_now
@@ -87,6 +92,10 @@ def _import(folder: StudyFolder, path: Path, plan_codes: list[str], finished: li
     now = utc_now()
     new = [replace(r, recorded_utc=r.recorded_utc or now) for r in read_responses(path)]
     check_run_codes([r.run_code for r in new], plan_codes, finished, f"{path.name} has judgments")
+    simulated = [line for line, r in enumerate(new, start=2) if r.source == SIMULATED]
+    if simulated and not allow_simulated:
+        refuse_simulation(folder, bool(folder.read_design().get("blinding")),
+                          f"import {len(simulated)} simulated judgment(s) from {path} (source simulated, first on line {simulated[0]})")
     known = {(r.run_code, r.participant, r.compliant, r.source) for r in read_responses(folder.path(RESPONSES))}
     fresh = [r for r in new if (r.run_code, r.participant, r.compliant, r.source) not in known]
     if fresh:
