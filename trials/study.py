@@ -103,7 +103,7 @@ POWER_MARKDOWN = f"{POWER}/power.md"
 POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, RUN_EVENTS, LOGS)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, UNBLINDING, RUN_EVENTS, LOGS)
 #: Its sealed part: the key, the spec naming the real levels, and the sealed records of the old plan's runs.
 SEALED_STUDY_FILES = (ALLOCATION, SEALED_SPEC, SEALED_RUNS)
 
@@ -294,18 +294,6 @@ class StudyFolder:
         except (KeyError, TypeError):
             raise StudyError(f"{self.path(DESIGN)}: blinding.commitment lacks its algorithm or digest") from None
         return sealed, check
-
-    def report_inputs(self) -> str:
-        """A digest of every file a report is made from (the design, plan, results and rubric; absent ones count as
-        absent): `trials report` records it, and `trials status` compares it, so freshness never depends on clocks
-        (a blinded study's files are stamped to the minute)."""
-        digest = hashlib.sha256()
-        for name in (SPEC, PLAN, DESIGN, OUTCOMES, SCORES, RESPONSES, RUBRIC):
-            path = self.path(name)
-            content = path.read_bytes() if path.is_file() else None
-            digest.update(f"{name}:{-1 if content is None else len(content)}:".encode())
-            digest.update(content or b"")
-        return digest.hexdigest()
 
     def keep_blinded_report(self) -> Path | None:
         """Move the blinded report (report.md, .html, .json, figures/, tables/) to report/blinded/ before an

@@ -7,8 +7,10 @@ verified unblinding is kept in unblinding.json, outside report/ so that no remak
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED_RUN, Blinding, HumanScore, Outcome, Response, StudyData, StudyRun
@@ -16,15 +18,20 @@ from designs.spec import read_spec
 from trials.analysis_plan import plan_in_force, plan_status
 from trials.controllers import registry
 from trials.errors import StudyError
+from trials.live_checks import FILE as LIVE_CHECKS
 from trials.live_checks import read_check_log
 from trials.outcomes import outcome_cells, read_outcomes
 from trials.responses import read_responses
 from trials.run_settings import LIVE, LOGGED, distinct, recorded_text
 from trials.scores import read_scores
 from trials.study import (
+    DESIGN,
+    LOGS,
     OUTCOMES,
     PLAN,
     RESPONSES,
+    RUBRIC,
+    RUNS,
     SCORES,
     SPEC,
     UNBLINDING,
@@ -38,8 +45,27 @@ CONTROLLER_FACTOR = "Controller"
 #: unblinding.json's key, in each opening, for the digest of the analysis plan in force (`AnalysisPlan.digest`).
 PLAN_KEY = "analysis_plan_sha256"
 
-#: report.json's key for the digest of the files the report was made from (`StudyFolder.report_inputs`).
-INPUTS_KEY = "inputs_sha256"
+#: report.json's keys for the digest of the files the report was made from (`report_inputs`), and for the rubric file
+#: it read from outside the study (`--rubric`), if any.
+INPUTS_KEY, RUBRIC_KEY = "inputs_sha256", "rubric_file"
+
+
+def report_inputs(folder: StudyFolder, rubric: Path | None = None) -> str:
+    """A digest of every file a report is made from: the design, plan, results, live checks, the record of openings, the
+    rubric (the study's, or `rubric` from elsewhere) and every run log, absent ones counted as absent. `trials report`
+    records it and `trials status` compares it, so freshness never depends on clocks (a blinded study's files are
+    stamped to the minute)."""
+    named = [folder.path(name) for name in (SPEC, PLAN, DESIGN, OUTCOMES, SCORES, RESPONSES, RUBRIC, LIVE_CHECKS, UNBLINDING,
+                                            UNBLINDING_IN_REPORT)]
+    logs = sorted(p for where in (folder.path(RUNS), folder.path(LOGS)) if where.is_dir() for p in where.iterdir() if p.is_file()
+                  and not p.name.startswith("."))
+    digest = hashlib.sha256()
+    for path in [*named, *([rubric] if rubric is not None else []), *logs]:
+        content = path.read_bytes() if path.is_file() else None
+        digest.update(f"{path.relative_to(folder.root) if path.is_relative_to(folder.root) else path}:"
+                      f"{-1 if content is None else len(content)}:".encode())
+        digest.update(content or b"")
+    return digest.hexdigest()
 
 
 def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | None = None,

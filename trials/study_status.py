@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 from analysis.records import HUMAN, SIMULATED
@@ -24,7 +25,7 @@ from trials.run_settings import RunSettings, distinct, read_run_settings, settin
 from trials.runner import LockState, lock_state
 from trials.scores import read_scores
 from trials.study import DESIGN_DIGEST, OUTCOMES, REPORT_RECORD, RESPONSES, RUN_EVENTS, SCORES, SPEC, StudyFolder
-from trials.study_data import CONTROLLER_FACTOR, INPUTS_KEY, read_unblinding
+from trials.study_data import CONTROLLER_FACTOR, INPUTS_KEY, RUBRIC_KEY, read_unblinding, report_inputs
 
 #: The group of runs of a study that compares no controllers.
 ALL_RUNS = "all"
@@ -147,11 +148,12 @@ def study_status(folder: StudyFolder) -> StudyStatus:
 
 def _report_state(folder: StudyFolder) -> str:
     """`none`, `current`, or `older than the data`: the digest of the report's inputs recorded in report.json against
-    the files now (`StudyFolder.report_inputs`); a report.json without one is older than this rule."""
+    the files now (`trials.study_data.report_inputs`); a report.json without one is older than this rule."""
     try:
-        recorded = json.loads(folder.path(REPORT_RECORD).read_text(encoding="utf-8")).get(INPUTS_KEY)
+        record = json.loads(folder.path(REPORT_RECORD).read_text(encoding="utf-8"))
+        recorded, rubric = record.get(INPUTS_KEY), record.get(RUBRIC_KEY)
     except FileNotFoundError:
         return "none"
     except (OSError, ValueError, AttributeError, RecursionError):  # unreadable (RecursionError: nested too deeply)
-        recorded = None
-    return "current" if recorded == folder.report_inputs() else "older than the data"
+        return "older than the data"
+    return "current" if recorded == report_inputs(folder, Path(rubric) if isinstance(rubric, str) else None) else "older than the data"

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         StudyFolder,
         utc_now,
     )
-    from trials.study_data import INPUTS_KEY, load_study, unblinding_opening, unblinding_record
+    from trials.study_data import INPUTS_KEY, RUBRIC_KEY, load_study, report_inputs, unblinding_opening, unblinding_record
 
     folder = StudyFolder(args.study)
     if args.commitment is not None and not args.unblind:
@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     now = utc_now()
     Progress("figure", "report", args.quiet or args.json).loading(
         f"Reading the study in {folder.root} and fitting its model{' (opening the sealed key)' if args.unblind else ''}")
-    inputs = folder.report_inputs()  # before reading, so a change made while the report is built shows as stale
+    # Before reading, so a change made while the report is built shows as stale.
+    inputs = report_inputs(folder, args.rubric)
     data = load_study(folder, args.unblind, now, args.commitment, opening)
     if not data.finished:
         raise StudyError(f"no finished runs in {folder.path(OUTCOMES)} yet: nothing to report (run `trials run` first)")
@@ -93,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
     files = {
         folder.path(REPORT_MARKDOWN): report.markdown().encode(),
         folder.path(REPORT_HTML): report.html().encode(),
-        folder.path(REPORT_RECORD): (json.dumps({**report.record, INPUTS_KEY: inputs}, indent=1) + "\n").encode(),
+        folder.path(REPORT_RECORD): (json.dumps({**report.record, INPUTS_KEY: inputs,
+                                                  RUBRIC_KEY: str(args.rubric.resolve()) if args.rubric else None}, indent=1) + "\n").encode(),
         **{path: data for figure in report.figures for path, data in figure.image.files(figures / figure.name, args.dpi).items()},
         **{tables / f"{name}.csv": text.encode() for name, text in report.tables().items()},
     }
