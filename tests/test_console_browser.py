@@ -26,11 +26,16 @@ from pathlib import Path
 import pytest
 
 from tests.support.blinding import NAMES
-from tests.support.console import PHONE, WINDOW, browser, chromium_ready, design_study, field_day, go, served
+from tests.support.console import PHONE, WINDOW, browser, design_study, field_day, go, need_chromium, served
 from tests.support.live_rig import Rig
 from trials.cli import main
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(not chromium_ready(), reason="no chromium and chromium-driver (apt-get install chromium chromium-driver)")]
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True)
+def _chromium() -> None:
+    need_chromium()
 
 
 def rows(path: Path) -> list[dict[str, str]]:

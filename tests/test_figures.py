@@ -29,6 +29,7 @@ from analysis.intervals import wilson
 from robot_logs.figure_files import BODY_TEXT_PT, FORMATS, PRINT_COLUMN_IN, Rendered, figure_bytes
 from robot_logs.run_log import LoggedRun
 from tests.support.scripts import load_script
+from tests.support.system_packages import need
 from trials.run_figure import MARK_EVERY_S, ROBOT_COLOUR, mark_indices, run_figure
 
 screenshot_report = load_script("screenshot_report")
@@ -145,8 +146,8 @@ def test_the_screenshot_script_finds_debians_headless_shell(tmp_path: Path, monk
 
 
 @pytest.mark.slow  # starts Chromium twice
-@pytest.mark.skipif(screenshot_report.find_browser() is None, reason="no Chromium installed (apt-get install chromium)")
 def test_the_screenshot_captures_a_page_taller_than_6000_px(tmp_path: Path):
+    need(screenshot_report.find_browser() is not None, "Chromium", "sudo apt-get install chromium")
     page = tmp_path / "page.html"
     page.write_text('<html><body style="margin:0"><div style="height:9000px;background:#f00"></div>'
                     '<div style="height:100px;background:#00f"></div></body></html>')

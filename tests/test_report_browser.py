@@ -19,11 +19,16 @@ from PIL import Image
 
 from analysis.document import Figure, Heading, Paragraph, to_html
 from robot_logs.figure_files import Rendered
-from tests.support.console import browser, chromium_ready
+from tests.support.console import browser, need_chromium
 from tests.support.synthetic_study import design, run_all
 from trials.cli import main
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(not chromium_ready(), reason="no chromium and chromium-driver (apt-get install chromium chromium-driver)")]
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True)
+def _chromium() -> None:
+    need_chromium()
 
 #: A4's width, mm; CSS pixels per inch and per point.
 A4_MM = 210.0

@@ -19,6 +19,7 @@ from scipy.stats import fisher_exact
 from robot_logs.figure_files import DEFAULT_DPI
 from tests.support.scripts import load_script
 from tests.support.synthetic_study import Behaviour, design, run_all, write_run
+from tests.support.system_packages import need
 from trials.cli import main
 
 pytestmark = pytest.mark.slow  # whole study folders synthesised and reported
@@ -363,8 +364,8 @@ def test_html_is_self_contained_with_png_figures(ab_study: Path) -> None:
     assert page.count("<table>") >= 5 and "A/B comparison (Table II)" in page
 
 
-@pytest.mark.skipif(screenshot_report.find_browser() is None, reason="no Chromium installed (apt-get install chromium)")
 def test_html_renders_in_headless_chromium(ab_study: Path, tmp_path: Path) -> None:
+    need(screenshot_report.find_browser() is not None, "Chromium", "sudo apt-get install chromium")
     assert main(["report", "--study", str(ab_study)]) == 0
     shot = tmp_path / "shot.png"
     page = ab_study / "report" / "report.html"

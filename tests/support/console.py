@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from analysis.records import Blinding, Outcome
+from tests.support.system_packages import need
 from trials.atomic import write_files
 from trials.cli import main
 from trials.outcomes import Outcomes
@@ -106,9 +107,10 @@ def unblind(folder: Path, when: str = "2026-05-01T16:30:00+00:00") -> None:
     write_files({study.path(UNBLINDING): record})
 
 
-def chromium_ready() -> bool:
-    """Whether Debian's chromium and chromium-driver are installed (apt-get install chromium chromium-driver)."""
-    return CHROMIUM.exists() and CHROMEDRIVER.exists()
+def need_chromium() -> None:
+    """Skip, or in CI fail, a test that drives a browser when Debian's chromium and chromium-driver are not installed."""
+    need(CHROMIUM.exists() and CHROMEDRIVER.exists(), "Chromium (Debian's chromium and chromium-driver)",
+         "sudo apt-get install chromium chromium-driver")
 
 
 @contextmanager

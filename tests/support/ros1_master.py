@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 from tests.support.ros1_echo import environment
-from trials.robot.ros1 import INSTALL
+from tests.support.system_packages import need
+from trials.robot.ros1 import DIST_PACKAGES, INSTALL
 from trials.robot.transport import ROS1, RobotUri
 
 #: Seconds a master has to start answering (a loaded 2-core machine starts Python slowly).
@@ -47,8 +48,8 @@ def master_process(ros_home: Path) -> Iterator[tuple[RobotUri, subprocess.Popen]
     A port another process takes between the pick and the bind makes the master exit; that is retried.
     """
     rosmaster = shutil.which("rosmaster")
-    if rosmaster is None:
-        pytest.fail(f"no rosmaster on PATH: install Debian 12's ROS 1 packages with `{INSTALL}`")
+    need(rosmaster is not None and Path(DIST_PACKAGES, "rospy").is_dir(), "ROS 1 (rosmaster and rospy from Debian 12)", INSTALL)
+    assert rosmaster is not None
     ros_home.mkdir(parents=True, exist_ok=True)
     for _ in range(3):
         uri = RobotUri(ROS1, host="127.0.0.1", port=_free_port())
