@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -32,7 +32,7 @@ from analysis.participants import ParticipantModel
 from analysis.plan import PlanStatus, default_plan
 from analysis.primary import SENSITIVITY_NAMES, OddsRatio, PrimaryResult, arm_effect, primary_analysis
 from analysis.randomization import MAX_ALLOCATIONS
-from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, Response, StudyData
+from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, HumanScore, Response, StudyData
 from analysis.run_log import RunLog
 from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
 from analysis.scoring import Rubric
@@ -146,6 +146,51 @@ class _Analysis:
     #: The analysis plan in force and its standing; the planned primary analysis (None without judgments).
     plan: PlanStatus
     primary: PrimaryResult | None
+    #: Human scores and judgments recorded after the key was first opened: left out of everything above, counted here.
+    late: Late
+
+
+@dataclass(frozen=True)
+class Late:
+    """People's scores and judgments recorded after the key was first opened (`opened`, None while it never was): those who
+    recorded them may have known the arms, so they are counted apart from the blind data and left out of the analysis."""
+
+    opened: str | None
+    scores: tuple[HumanScore, ...] = ()
+    judgments: tuple[Response, ...] = ()
+
+    @classmethod
+    def split(cls, data: StudyData) -> tuple[StudyData, Late]:
+        """The data recorded blind (before the first opening), and what came after."""
+        opened = data.blinding.unblinded_utc[0] if data.blinding.unblinded_utc else None
+        if opened is None:
+            return data, cls(None)
+        scores, late_scores = _partition(data.scores, opened)
+        responses, late_judgments = _partition(data.responses, opened)
+        return replace(data, scores=scores, responses=responses), cls(opened, tuple(late_scores), tuple(late_judgments))
+
+    def note(self, arm_of: dict[str, str], word: str) -> str | None:
+        """The report's line on them, counted by arm, or None when there are none."""
+        if not (self.scores or self.judgments):
+            return None
+        arms = sorted({arm_of.get(x.run_code, "?") for x in (*self.scores, *self.judgments)})
+        by_arm = "; ".join(f"{word} {arm}: {sum(arm_of.get(j.run_code) == arm for j in self.judgments)} judgment(s), "
+                           f"{sum(arm_of.get(s.run_code) == arm for s in self.scores)} score(s)" for arm in arms)
+        return (f"**{len(self.judgments)} judgment(s) and {len(self.scores)} human score(s) were recorded after the key was first "
+                f"opened ({self.opened})**, by people who may have known the arms: they are left out of every table, test and "
+                f"fit of this report and counted apart ({by_arm}).")
+
+    def record(self) -> dict[str, Any]:
+        return {"opened": self.opened, "judgments": len(self.judgments), "scores": len(self.scores),
+                "runs": sorted({x.run_code for x in (*self.scores, *self.judgments)})}
+
+
+def _partition(records: list[Any], opened: str) -> tuple[list[Any], list[Any]]:
+    """People's scores or judgments recorded before the minute of `opened`, and those recorded in it or after (a blinded
+    study stamps them to the minute, so one of that minute may have come after). Simulated judgments know no arm: never late."""
+    minute = opened[:16]  # YYYY-MM-DDTHH:MM
+    after = [getattr(r, "source", None) != SIMULATED and bool(r.recorded_utc) and r.recorded_utc[:16] >= minute for r in records]
+    return [r for r, late in zip(records, after, strict=True) if not late], [r for r, late in zip(records, after, strict=True) if late]
 
 
 def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_utc: str, participants: ParticipantModel = ParticipantModel()) -> Report:
@@ -167,6 +212,7 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
 
 
 def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
+    data, late = Late.split(data)
     notes = list(data.notes)
     logs: dict[str, RunLog | None] = {}
     for run in data.finished:
@@ -206,7 +252,7 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     metric_fits = fit_metrics(data) if data.compared else []
     primary = primary_analysis(data, judged, plan.plan) if judged else None
     return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes,
-                     left_out, plan, primary)
+                     left_out, plan, primary, late)
 
 
 def _left_out_note(data: StudyData, codes: list[str]) -> str:
@@ -290,10 +336,9 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     primary = _primary_result(a)
     if primary:
         items.append(primary)
-    if blinding.unblinded_utc:
-        late = [s for s in data.scores if s.recorded_utc and s.recorded_utc > blinding.unblinded_utc[0]]
-        if late:
-            items.append(f"**{len(late)} human score(s) were recorded after the study was first unblinded** (runs {', '.join(sorted({s.run_code for s in late}))}): those evaluators may not have been blind.")
+    late = a.late.note({run.code: run.arm for run in data.runs}, blinding.arm_word)
+    if late:
+        items.append(late)
     blocks: list[Block] = [Heading("Study"), Bullets(items)]
     if a.notes:
         blocks += [Paragraph("**Notes on the data:**"), Bullets(a.notes)]
@@ -855,6 +900,7 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
         },
         "score_counts": dict(zip(map(str, SCORES), counts(s.final for code, s in a.scores.items() if code not in a.left_out))),
         "judgments": {"source": a.judgment_source, "count": len(a.judgments)},
+        "recorded_after_opening": a.late.record(),
         "table_ii": [
             {
                 "min_pedestrians": row.min_pedestrians,

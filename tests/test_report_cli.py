@@ -201,7 +201,10 @@ def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_stu
     with (ab_study / "responses.csv").open() as handle:
         answers = [row["compliant"] for row in csv.DictReader(handle) if row["run_code"] == external]
     judgments, yes = len(answers), answers.count("yes")
-    assert main(["score", external, "3", "--by", "ana", "--study", str(ab_study)]) == 0
+    # Scored while the study was blind (a score in the minute the key is opened would count as after it).
+    sheet = ab_study.parent / "scores.csv"
+    sheet.write_text(f"run_code,score,scorer,note,recorded_utc\n{external},3,ana,,2026-01-01T09:00:00+00:00\n")
+    assert main(["score", "--import", str(sheet), "--study", str(ab_study)]) == 0
     capsys.readouterr()
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     out = capsys.readouterr().out
@@ -403,3 +406,24 @@ def test_all_yes_against_all_no_arms_report_without_crashing(ab_study: Path, cap
     assert record["primary"]["randomization"]["difference"] == 1.0
     assert record["primary"]["p"] == pytest.approx(2 / 48_620)
     assert "**Primary result** (run-level randomization test of Controller" in (ab_study / "report" / "report.md").read_text()
+
+
+def test_judgments_recorded_after_the_key_was_opened_are_counted_apart(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
+    primary = json.loads((ab_study / "report" / "report.json").read_text())["primary"]
+    codes = [row["run_code"] for row in csv.DictReader((ab_study / "plan.csv").open())]
+    for participant in ("P1", "P2"):  # people who saw the unblinded report judge three runs
+        for code in codes[:3]:
+            assert main(["respond", code, participant, "no", "--study", str(ab_study)]) == 0
+    assert main(["score", codes[0], "1", "--by", "ana", "--study", str(ab_study)]) == 0
+    capsys.readouterr()
+    assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
+    record = json.loads((ab_study / "report" / "report.json").read_text())
+    # Six human judgments would replace the simulated ones; recorded after the opening, they change nothing.
+    assert record["primary"] == primary and record["judgments"]["source"] == "simulated"
+    assert record["recorded_after_opening"] == {"opened": record["blinding"]["unblinded_utc"][0], "judgments": 6, "scores": 1,
+                                                "runs": sorted(codes[:3])}
+    assert record["scores"][codes[0]]["human"] == []
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "**6 judgment(s) and 1 human score(s) were recorded after the key was first opened" in markdown
+    assert "left out of every table, test and fit of this report and counted apart" in markdown
