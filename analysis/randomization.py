@@ -53,10 +53,12 @@ class RandomizationTest:
     draws: int
     mc_error: float
     seed: int | None
-    #: Interval for the difference by test inversion, at `level` (NaN when not asked for).
+    #: Interval for the difference by test inversion, at `level` (NaN when not asked for, or when none can be formed).
     low: float = math.nan
     high: float = math.nan
     level: float = math.nan
+    #: Why no interval could be formed, in words ("" when one was, or none was asked for).
+    no_interval: str = ""
 
     def describe(self) -> str:
         """How the p-value was found, in one phrase."""
@@ -169,10 +171,14 @@ def randomization_test(shares: np.ndarray, first: np.ndarray, strata: np.ndarray
     p = p_at(0.0)
     mc_error = 0.0 if exact else math.sqrt(p * (1.0 - p) / draws)
     low = high = math.nan
-    if level is not None:
+    no_interval = ""
+    if level is not None and np.ptp(y) == 0.0:
+        # Every allocation gives the same statistic: the data say nothing about how far apart the arms could be.
+        no_interval = f"every run's share of yes is {y[0]:.0%}, so no interval can be formed"
+    elif level is not None:
         low, high = (_edge(p_at, observed, 1.0 - level, side) for side in (-1.0, 1.0))
     return RandomizationTest(len(y), len(layout.sizes), observed, p, count, exact, 0 if exact else draws, mc_error,
-                             None if exact else seed, low, high, math.nan if level is None else level)
+                             None if exact else seed, low, high, math.nan if level is None else level, no_interval)
 
 
 def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float) -> float:

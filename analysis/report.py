@@ -553,8 +553,8 @@ def _primary_result(a: _Analysis) -> str | None:
     shares = f"mean run share of yes {percent(r.mean_shares[first])} for {first} against {percent(r.mean_shares[second])} for {second}"
     if r.randomization is not None:
         t = r.randomization
-        effect = (f"difference {_points(t.difference)} points ({100 * (1 - r.plan.alpha):g} % CI {_points(t.low)} to {_points(t.high)}), "
-                  f"p {_equals(p_text(t.p_value))} ({t.describe()})")
+        interval = t.no_interval or f"{100 * (1 - r.plan.alpha):g} % CI {_points(t.low)} to {_points(t.high)}"
+        effect = f"difference {_points(t.difference)} points ({interval}), p {_equals(p_text(t.p_value))} ({t.describe()})"
     else:
         effect = f"p {_equals(p_text(r.p_value))}"
     ratio = (f"; odds ratio {first} to {second} {_ratio(r.odds_ratio.estimate)} (95 % CI {_ratio(r.odds_ratio.low)} - "
@@ -625,8 +625,9 @@ def _primary_table(r: PrimaryResult) -> DataTable:
     t = r.randomization
     if t is not None:
         level = f"{100 * (1 - r.plan.alpha):g} %"
+        how = t.no_interval or f"{level} interval by inverting it"
         rows.append([f"Difference {first} - {second} (points)", _points(t.difference), _points(t.low), _points(t.high), p_text(t.p_value),
-                     f"randomization test, {t.describe()}; {level} interval by inverting it"])
+                     f"randomization test, {t.describe()}; {how}"])
         data_rows.append([f"difference {first} - {second}", _value(t.difference), _value(t.low), _value(t.high), _value(t.p_value),
                           t.describe()])
     elif not math.isnan(r.p_value):
@@ -945,7 +946,7 @@ def _primary_record(r: PrimaryResult | None) -> dict[str, Any] | None:
         "randomization": None if t is None else {
             "difference": _json_number(t.difference), "low": _json_number(t.low), "high": _json_number(t.high), "level": t.level,
             "p": t.p_value, "allocations": t.allocations, "exact": t.exact, "draws": t.draws, "mc_standard_error": t.mc_error,
-            "seed": t.seed, "strata": t.strata},
+            "seed": t.seed, "strata": t.strata, "no_interval": t.no_interval or None},
         "odds_ratio": None if r.odds_ratio is None else {"estimate": _json_number(r.odds_ratio.estimate), "low": _json_number(r.odds_ratio.low),
                                                           "high": _json_number(r.odds_ratio.high), "p": _json_number(r.odds_ratio.p_value),
                                                           "source": r.odds_ratio.source},

@@ -197,3 +197,17 @@ def test_a_planned_gee_test_of_a_three_level_factor_gives_its_p_value(ab: Path) 
     assert len(result.arms) == 3 and result.odds_ratio is None
     gee = result.sensitivity[0][1]
     assert result.p_value == next(e.p_value for e in gee.effects if e.term == "Direction") and 0.0 < result.p_value < 1.0
+
+
+def test_design_states_no_runs_needed_from_too_few_data_sets(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One data set gives a power of 0 or 1: a plan size that "reaches" 0.8 from it has not shown anything."""
+    root, spec = tmp_path / "small", tmp_path / "spec.toml"
+    spec.write_text(SMALL_SPEC.format(name="small-ab", blind="true"))
+    assert main(["design", "--spec", str(spec), "--study", str(root), "--seed", "4", "--power", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"^  6 runs  power [01]\.000 \(Wilson 95 % (0\.000-0\.793|0\.207-1\.000)\)$", printed, flags=re.M), printed
+    assert ("  runs needed for power 0.8: not stated from 1 data sets per plan size (at least 100 are needed for the power's "
+            "interval to be narrow enough)") in printed
+    capsys.readouterr()
+    assert main(["design", "--spec", str(spec), "--study", str(tmp_path / "again"), "--seed", "4", "--power", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["planned_power"]["needed_runs"] is None

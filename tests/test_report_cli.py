@@ -408,6 +408,19 @@ def test_all_yes_against_all_no_arms_report_without_crashing(ab_study: Path, cap
     assert "**Primary result** (run-level randomization test of Controller" in (ab_study / "report" / "report.md").read_text()
 
 
+def test_every_run_judged_yes_says_that_no_interval_can_be_formed(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    responses = ab_study / "responses.csv"
+    lines = responses.read_text().splitlines()
+    responses.write_text("\n".join([lines[0], *(",".join([c[0], c[1], "yes", *c[3:]]) for c in (line.split(",") for line in lines[1:]))]) + "\n")
+    assert main(["report", "--study", str(ab_study)]) == 0
+    test = json.loads((ab_study / "report" / "report.json").read_text())["primary"]["randomization"]
+    assert (test["difference"], test["p"], test["low"], test["high"]) == (0.0, 1.0, None, None)
+    assert test["no_interval"] == "every run's share of yes is 100%, so no interval can be formed"
+    markdown = (ab_study / "report" / "report.md").read_text()
+    assert "difference +0.0 points (every run's share of yes is 100%, so no interval can be formed), p = 1.000" in markdown
+    assert "95 % CI -0.0" not in markdown
+
+
 def test_judgments_recorded_after_the_key_was_opened_are_counted_apart(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     primary = json.loads((ab_study / "report" / "report.json").read_text())["primary"]

@@ -16,6 +16,9 @@ from trials.study import SPEC, StudyFolder
 #: Data sets per plan size that `trials design` simulates by default, and the most plan sizes it tries.
 SIMULATIONS = 200
 MULTIPLES = 4
+#: Fewest data sets per plan size from which the runs needed are stated: with fewer, the power's Wilson interval is wider
+#: than about +-0.1 and a plan size may seem to reach the target by chance (one data set gives power 0 or 1).
+MIN_FOR_NEEDED = 100
 #: `trials power`'s defaults, so that its figures and these agree.
 DEFAULT_ANTICIPATED = Anticipated()
 
@@ -36,7 +39,10 @@ class PlannedPower:
 
     def lines(self) -> list[str]:
         sizes = ",".join(map(str, self.powers))
-        if self.needed is not None:
+        if self.simulations < MIN_FOR_NEEDED:
+            found = (f"not stated from {self.simulations} data sets per plan size (at least {MIN_FOR_NEEDED} are needed for the "
+                     "power's interval to be narrow enough)")
+        elif self.needed is not None:
             found = f"{self.needed}"
         elif self.searched:
             found = f"more than {max(self.powers)}"
@@ -73,5 +79,5 @@ def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULA
         powers[runs] = planned_power(plan, spec, analysis, anticipated, seed, simulations)
         if powers[runs].power >= target:
             break
-    needed = next((runs for runs, p in powers.items() if p.power >= target), None)
+    needed = next((runs for runs, p in powers.items() if p.power >= target), None) if simulations >= MIN_FOR_NEEDED else None
     return PlannedPower(analysis.describe_test(), anticipated.describe(), seed, simulations, target, powers, needed, search)
