@@ -19,7 +19,7 @@ HUMAN = "human"
 SIMULATED = "simulated"
 #: How a finished run was made (`StudyRun.origin`): simulated or driven live by the toolkit, or played from the log
 #: of a robot the toolkit did not drive, whose judgments and scores are therefore not its arm's.
-SIMULATED_RUN, LIVE_RUN, EXTERNAL_LOG = "simulated", "driven live", "external log"
+SIMULATED_RUN, LIVE_RUN, SOFTWARE_ROBOT_RUN, EXTERNAL_LOG = "simulated", "driven live", "software robot", "external log"
 
 
 @dataclass(frozen=True)
@@ -129,6 +129,9 @@ class Blinding:
     #: This opening: how complete the study was (e.g. "18 of 18 runs finished") and, for an interim look, why.
     completeness: str = ""
     interim: str | None = None
+    #: `recorded_key` of every human score and judgment recorded when the key was first opened (None: not known, for a key
+    #: opened by an earlier release, or never opened): what was recorded blind.
+    recorded_before: frozenset[str] | None = None
 
     @property
     def open(self) -> bool:
@@ -138,6 +141,12 @@ class Blinding:
     @property
     def arm_word(self) -> str:
         return "Controller" if self.open else "Arm"
+
+
+def recorded_key(record: HumanScore | Response) -> str:
+    """A score or judgment as the record of the key's first opening lists it: run, who, and when it was recorded."""
+    who = record.scorer if isinstance(record, HumanScore) else record.participant
+    return f"{type(record).__name__}|{record.run_code}|{who}|{record.recorded_utc}"
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,17 @@ from analysis.participants import ParticipantModel
 from analysis.plan import PlanStatus, default_plan
 from analysis.primary import SENSITIVITY_NAMES, OddsRatio, PrimaryResult, arm_effect, primary_analysis
 from analysis.randomization import MAX_ALLOCATIONS
-from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED, SIMULATED_RUN, HumanScore, Response, StudyData
+from analysis.records import (
+    EXTERNAL_LOG,
+    LIVE_RUN,
+    SIMULATED,
+    SIMULATED_RUN,
+    SOFTWARE_ROBOT_RUN,
+    HumanScore,
+    Response,
+    StudyData,
+    recorded_key,
+)
 from analysis.run_log import RunLog
 from analysis.score_summary import SCORES, RunScore, by_factor, counts, paper_score_shares, score_runs
 from analysis.scoring import Rubric
@@ -165,8 +175,9 @@ class Late:
         opened = data.blinding.unblinded_utc[0] if data.blinding.unblinded_utc else None
         if opened is None:
             return data, cls(None)
-        scores, late_scores = _partition(data.scores, opened)
-        responses, late_judgments = _partition(data.responses, opened)
+        before = data.blinding.recorded_before
+        scores, late_scores = _partition(data.scores, opened, before)
+        responses, late_judgments = _partition(data.responses, opened, before)
         return replace(data, scores=scores, responses=responses), cls(opened, tuple(late_scores), tuple(late_judgments))
 
     def note(self, arm_of: dict[str, str], word: str) -> str | None:
@@ -185,11 +196,15 @@ class Late:
                 "runs": sorted({x.run_code for x in (*self.scores, *self.judgments)})}
 
 
-def _partition(records: list[Any], opened: str) -> tuple[list[Any], list[Any]]:
-    """People's scores or judgments recorded before the minute of `opened`, and those recorded in it or after (a blinded
-    study stamps them to the minute, so one of that minute may have come after). Simulated judgments know no arm: never late."""
+def _partition(records: list[Any], opened: str, before: frozenset[str] | None) -> tuple[list[Any], list[Any]]:
+    """People's scores or judgments recorded blind, and those recorded after the key was first opened at `opened`: those
+    not in `before`, the list the first opening kept; without one (a key opened by an earlier release), those stamped in
+    the minute of the opening or later (a blinded study stamps them to the minute, so one of that minute may have come
+    after). Simulated judgments know no arm: never late."""
     minute = opened[:16]  # YYYY-MM-DDTHH:MM
-    after = [getattr(r, "source", None) != SIMULATED and bool(r.recorded_utc) and r.recorded_utc[:16] >= minute for r in records]
+    after = [getattr(r, "source", None) != SIMULATED and
+             (recorded_key(r) not in before if before is not None else bool(r.recorded_utc) and r.recorded_utc[:16] >= minute)
+             for r in records]
     return [r for r, late in zip(records, after, strict=True) if not late], [r for r, late in zip(records, after, strict=True) if late]
 
 
@@ -271,7 +286,9 @@ def _origins(data: StudyData) -> str | None:
     made = [run.origin for run in data.finished]
     if all(origin == SIMULATED_RUN for origin in made):
         return None
-    words = {LIVE_RUN: "driven live on the robot", SIMULATED_RUN: "simulated", EXTERNAL_LOG: "played from an external robot log"}
+    words = {LIVE_RUN: "driven live on the robot",
+             SOFTWARE_ROBOT_RUN: "driven live on the software robot (`trials robot-sim`, a rehearsal: no real robot, no real people)",
+             SIMULATED_RUN: "simulated", EXTERNAL_LOG: "played from an external robot log"}
     return "How the finished runs were made: " + ", ".join(f"{made.count(o)} {word}" for o, word in words.items() if o in made) + "."
 
 
@@ -891,7 +908,8 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             "interim": blinding.interim if blinding.revealed else None,
         },
         "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished],
-                 "made": {origin: sum(r.origin == origin for r in data.finished) for origin in (SIMULATED_RUN, LIVE_RUN, EXTERNAL_LOG)},
+                 "made": {origin: sum(r.origin == origin for r in data.finished)
+                          for origin in (SIMULATED_RUN, LIVE_RUN, SOFTWARE_ROBOT_RUN, EXTERNAL_LOG)},
                  "left_out_of_comparisons": a.left_out},
         "rubric": {"source": rubric_source, "thresholds": asdict(a.rubric)},
         "scores": {

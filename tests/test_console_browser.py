@@ -104,7 +104,7 @@ def test_the_study_reports_and_unblinds_with_no_command_in_between(day):
     record = json.loads((study / "report" / "report.json").read_text())
     assert [record["scores"][row["run_code"]]["arm"] for row in plan] == [arms[row["Controller"]] for row in plan]
     # Both logs were attached: the toolkit drove neither robot, so no judgment or score is credited to a controller.
-    assert record["runs"]["made"] == {"simulated": 0, "driven live": 0, "external log": 2}
+    assert record["runs"]["made"] == {"simulated": 0, "driven live": 0, "software robot": 0, "external log": 2}
     assert record["runs"]["left_out_of_comparisons"] == codes and record["table_ii"] == [] and record["fits"] == []
     markdown = (study / "report" / "report.md").read_text()
     assert (f"2 runs ({codes[0]}, {codes[1]}) were played from an external robot log: the toolkit did not drive those robots, so their "
@@ -201,14 +201,14 @@ def test_start_drives_a_run_live_and_the_page_follows_it_to_its_end(robot):
         watch(driver, ("driving",), seen)
         pages.append(driver.page_source)
         ending = watch(driver, ENDINGS, seen)
-        until(lambda: "Driven live by the toolkit." in driver.page_source, "reloaded page with the outcome")
+        until(lambda: "Driven live by the toolkit on the software robot" in driver.page_source, "reloaded page with the outcome")
         pages += [driver.page_source, driver.execute_script("return document.body.innerText")]
         assert 'id="estop"' not in driver.page_source and f"Outcome: {ending}" in driver.find_element(By.TAG_NAME, "body").text
         driver.get(robot.url.split("?")[0])
         pages.append(driver.page_source)
     assert seen[0] in ("starting", "waiting for sensors", "driving") and seen[-2:] == ["driving", ending]
     [outcome] = [row for row in rows(robot.study / "outcomes.csv") if row["run_code"] == code]
-    assert (outcome["status"], outcome["perception"]) == (ending, "live") and "controller" not in outcome
+    assert (outcome["status"], outcome["perception"]) == (ending, "software-robot") and "controller" not in outcome
     assert [(e["event"], e["detail"]) for e in rows(robot.study / "run_events.csv") if e["run_code"] == code] == [
         ("start", f"driven live on {robot.uri}"), ("finish", "")]
     assert (robot.study / "runs" / f"{code}.mcap").stat().st_size > 10_000

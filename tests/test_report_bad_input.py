@@ -167,7 +167,8 @@ def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(stud
     (opening,) = record["openings"]
     plan = json.loads((study / "design.json").read_text())["analysis_plan"]["sha256"]  # the plan in force, as committed
     assert opening == {"utc": record["unblinded_utc"][0], "completeness": f"{len(finished)} of 18 runs finished", "interim": reason,
-                       "command": "trials report --unblind", "analysis_plan_sha256": plan}
+                       "command": "trials report --unblind", "analysis_plan_sha256": plan,
+                       "recorded_before": []}  # no person had scored or judged a run yet (the judgments are simulated)
     blinding = json.loads((study / "report" / "report.json").read_text())["blinding"]
     assert (blinding["completeness"], blinding["interim"]) == (opening["completeness"], reason)
     assert f"**Interim unblinding** with {len(finished)} of 18 runs finished, for this reason: {reason}" in (study / "report" / "report.md").read_text()

@@ -201,15 +201,12 @@ def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_stu
     with (ab_study / "responses.csv").open() as handle:
         answers = [row["compliant"] for row in csv.DictReader(handle) if row["run_code"] == external]
     judgments, yes = len(answers), answers.count("yes")
-    # Scored while the study was blind (a score in the minute the key is opened would count as after it).
-    sheet = ab_study.parent / "scores.csv"
-    sheet.write_text(f"run_code,score,scorer,note,recorded_utc\n{external},3,ana,,2026-01-01T09:00:00+00:00\n")
-    assert main(["score", "--import", str(sheet), "--study", str(ab_study)]) == 0
+    assert main(["score", external, "3", "--by", "ana", "--study", str(ab_study)]) == 0
     capsys.readouterr()
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
     out = capsys.readouterr().out
     record = json.loads((ab_study / "report" / "report.json").read_text())
-    assert record["runs"]["made"] == {"simulated": 16, "driven live": 1, "external log": 1}
+    assert record["runs"]["made"] == {"simulated": 16, "driven live": 1, "software robot": 0, "external log": 1}
     assert record["runs"]["left_out_of_comparisons"] == [external]
     # Table II: every arm figure counted without the external run's judgments; 17 runs in the first row.
     expected = _expected_table(ab_study, left_out=(external,))
@@ -325,7 +322,7 @@ def test_unfinished_runs_are_reported(tmp_path: Path, capsys: pytest.CaptureFixt
     assert f"not finished yet: {', '.join(missing)}" in out
     record = json.loads((folder.root / "report" / "report.json").read_text())
     assert record["runs"] == {"planned": 18, "finished": 10, "not_finished": missing,
-                              "made": {"simulated": 10, "driven live": 0, "external log": 0}, "left_out_of_comparisons": []}
+                              "made": {"simulated": 10, "driven live": 0, "software robot": 0, "external log": 0}, "left_out_of_comparisons": []}
     assert "How the finished runs were made" not in (folder.root / "report" / "report.md").read_text()  # all simulated: nothing to say
     markdown = (folder.root / "report" / "report.md").read_text()
     assert f"**Not finished yet (8):** {', '.join(missing)}" in markdown

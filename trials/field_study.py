@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from trials.outcomes import read_outcomes
 from trials.robot.settings import read_robot_settings
-from trials.run_settings import NOT_SIMULATED
+from trials.run_settings import LOGGED, NOT_SIMULATED, SOFTWARE_ROBOT
 from trials.study import OUTCOMES, SPEC, StudyFolder
 
 #: The flag that lets `trials run` simulate, and `trials respond --simulate` judge, in a field study.
@@ -19,7 +19,7 @@ def field_reason(folder: StudyFolder, blind: bool) -> str | None:
         return f"{folder.path(SPEC)} has a [robot] table (runs are driven live on {robot.uri})"
     field_run = next((row for row in read_outcomes(folder.path(OUTCOMES), blind) if row.perception in NOT_SIMULATED), None)
     if field_run is not None:
-        how = "driven live" if field_run.perception == "live" else "played from a robot log"
+        how = {LOGGED: "played from a robot log", SOFTWARE_ROBOT: "driven live on the software robot"}.get(field_run.perception, "driven live")
         return f"its run {field_run.run_code} was {how}"
     return None
 

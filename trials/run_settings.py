@@ -37,10 +37,11 @@ MAX_TIMEOUT_S = 3600.0
 SHIPPED_WEIGHTS = "shipped"
 #: The perception recorded for a logged trial (played from a robot log, not simulated).
 LOGGED = "log"
-#: The perception recorded for a run driven live on a robot (`trials run --robot`).
-LIVE = "live"
+#: The perception recorded for a run driven live on a robot (`trials run --robot`), and on the software robot
+#: (`trials robot-sim`, which says so on `trials.robot.live.SOFTWARE_ROBOT_TOPIC`): a rehearsal, not a real robot.
+LIVE, SOFTWARE_ROBOT = "live", "software-robot"
 #: Runs that were not simulated, so no simulation setting applies to them.
-NOT_SIMULATED = (LOGGED, LIVE)
+NOT_SIMULATED = (LOGGED, LIVE, SOFTWARE_ROBOT)
 
 
 @dataclass(frozen=True)

@@ -572,8 +572,8 @@ class TrialWorker:
         replay: dict[str, str] = {}
         settings = self.options.settings
         if self.options.robot is not None:
-            status, metrics = self._live(task, level, arm, controller, path)
-            recorded = {"perception": LIVE, "timeout_s": self.options.robot.timeout}
+            status, metrics, perception = self._live(task, level, arm, controller, path)
+            recorded = {"perception": perception, "timeout_s": self.options.robot.timeout}
         elif task.scene is None:
             status, metrics = self._simulate(task, level, arm, controller, seeds, path)
             recorded: dict[str, Any] = {"perception": settings.perception, "noise_std_m": settings.noise_std_m,
@@ -628,9 +628,9 @@ class TrialWorker:
                                       np.array(trace.pedestrians).reshape(len(trace.time), len(scenario.walkers), 2),
                                       config.limits, config.pedestrian_radius_m)
 
-    def _live(self, task: RunTask, level: str, arm: str | None, controller: Controller, path: Path) -> tuple[str, RunMetrics]:
-        """Drive a row live on the robot (`trials.robot.live_trial`), writing its log; returns how it ended and its
-        metrics. A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
+    def _live(self, task: RunTask, level: str, arm: str | None, controller: Controller, path: Path) -> tuple[str, RunMetrics, str]:
+        """Drive a row live on the robot (`trials.robot.live_trial`), writing its log; returns how it ended, its metrics and
+        its perception (`live`, or `software-robot`). A run stopped before its own ending keeps its log (and sealed record) in runs/aborted/, records why
         in runs/<code>.failed.txt and raises RunAborted; after SIGTERM the worker exits once the run's files are kept."""
         from trials.live_checks import record_check
         from trials.robot.live import ABORTED, estopped
@@ -663,7 +663,7 @@ class TrialWorker:
             self._seal(task, level, arm, log.log)
             log.close()
             record_check(self.folder, task.code, end.status, end.detail, people, self.blind)
-        return end.status, end.metrics
+        return end.status, end.metrics, end.perception
 
     def _keep_aborted(self, task: RunTask, level: str, arm: str | None, log: LiveLog, stamp: str) -> Path | None:
         """Close an aborted run's log and move it (and its sealed record) to where aborted runs are kept."""

@@ -13,7 +13,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from analysis.records import EXTERNAL_LOG, LIVE_RUN, SIMULATED_RUN, Blinding, HumanScore, Outcome, Response, StudyData, StudyRun
+from analysis.records import (
+    EXTERNAL_LOG,
+    LIVE_RUN,
+    SIMULATED,
+    SIMULATED_RUN,
+    SOFTWARE_ROBOT_RUN,
+    Blinding,
+    HumanScore,
+    Outcome,
+    Response,
+    StudyData,
+    StudyRun,
+    recorded_key,
+)
 from designs.spec import read_spec
 from trials.analysis_plan import plan_in_force, plan_status
 from trials.controllers import registry
@@ -22,7 +35,7 @@ from trials.live_checks import FILE as LIVE_CHECKS
 from trials.live_checks import read_check_log
 from trials.outcomes import outcome_cells, read_outcomes
 from trials.responses import read_responses
-from trials.run_settings import LIVE, LOGGED, distinct, recorded_text
+from trials.run_settings import LIVE, LOGGED, SOFTWARE_ROBOT, distinct, recorded_text
 from trials.scores import read_scores
 from trials.study import (
     DESIGN,
@@ -42,8 +55,9 @@ from trials.study import (
 UNBLINDING_FORMAT = "navtrials.unblinding/1"
 CONTROLLER_FACTOR = "Controller"
 
-#: unblinding.json's key, in each opening, for the digest of the analysis plan in force (`AnalysisPlan.digest`).
-PLAN_KEY = "analysis_plan_sha256"
+#: unblinding.json's key, in each opening, for the digest of the analysis plan in force (`AnalysisPlan.digest`); and, in
+#: the first, for the scores and judgments recorded by then (`analysis.records.recorded_key`).
+PLAN_KEY, BEFORE_KEY = "analysis_plan_sha256", "recorded_before"
 
 #: report.json's keys for the digest of the files the report was made from (`report_inputs`), and for the rubric file
 #: it read from outside the study (`--rubric`), if any.
@@ -137,7 +151,7 @@ def run_origin(outcome: Outcome | None) -> str:
     """How a run was made, by its outcome row's perception: driven live (`live`), played from an external robot log
     (`log`: the toolkit did not drive that robot), else simulated."""
     perception = outcome.perception if outcome is not None else ""
-    return {LIVE: LIVE_RUN, LOGGED: EXTERNAL_LOG}.get(perception, SIMULATED_RUN)
+    return {LIVE: LIVE_RUN, SOFTWARE_ROBOT: SOFTWARE_ROBOT_RUN, LOGGED: EXTERNAL_LOG}.get(perception, SIMULATED_RUN)
 
 
 def _no_unknown_codes(found: list[str], codes: list[str], what: str) -> None:
@@ -157,11 +171,28 @@ def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: li
         return Blinding(False, factor, {v: v for v in plan_values})
     digest = record["commitment"]["digest"]
     history = read_unblinding(folder, digest)
+    before = _recorded_before(folder, digest)
     if not unblind:
-        return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history)
+        return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history, recorded_before=before)
     sealed, check = folder.open_sealed(commitment)
     completeness, interim = (opening.completeness, opening.interim) if opening is not None else ("", None)
-    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check, completeness, interim)
+    if not history:  # opened now for the first time: everything recorded so far was recorded blind
+        before = frozenset(_people_records(folder))
+    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check, completeness, interim, before)
+
+
+def _people_records(folder: StudyFolder) -> list[str]:
+    """`recorded_key` of every human score and of every judgment by a person, sorted."""
+    records = [*read_scores(folder.path(SCORES)), *(r for r in read_responses(folder.path(RESPONSES)) if r.source != SIMULATED)]
+    return sorted({recorded_key(r) for r in records})
+
+
+def _recorded_before(folder: StudyFolder, commitment: str) -> frozenset[str] | None:
+    """What the record of the key's first opening lists as recorded by then; None when it lists nothing (never opened,
+    or opened by a release that did not keep the list)."""
+    openings = _unblinding_file(folder, commitment).get("openings", [])
+    listed = openings[0].get(BEFORE_KEY) if openings and isinstance(openings[0], dict) else None
+    return frozenset(map(str, listed)) if isinstance(listed, list) else None
 
 
 def _unblinding_file(folder: StudyFolder, commitment: str) -> dict[str, Any]:
@@ -232,12 +263,16 @@ def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
 def opened_record(folder: StudyFolder, commitment: str, utc: str, opening: Opening, command: str) -> bytes:
     """unblinding.json with one more opening of the key: every time it was opened (`unblinded_utc`) and, for each
     opening recorded with them, its time, how complete the study was, any interim reason, the command that opened it and
-    the digest of the analysis plan in force (`openings`). Whatever command shows the key records it here, so reports and `trials status` know."""
+    the digest of the analysis plan in force (`openings`); the first opening also lists the people's scores and judgments
+    recorded by then (`recorded_before`), which the report counts as blind. Whatever command shows the key records it here, so
+    reports and `trials status` know."""
     earlier = _unblinding_file(folder, commitment)
     spec_path = folder.path(SPEC)
     plan, _ = plan_in_force(spec_path, read_spec(spec_path), folder.read_design())
     entry = {"utc": utc, "completeness": opening.completeness, "interim": opening.interim, "command": command,
              PLAN_KEY: plan.digest()}
+    if not earlier.get("openings"):
+        entry[BEFORE_KEY] = _people_records(folder)
     data = {"format": UNBLINDING_FORMAT, "commitment": commitment, "unblinded_utc": [*earlier.get("unblinded_utc", []), utc],
             "openings": [*earlier.get("openings", []), entry]}
     return (json.dumps(data, indent=1) + "\n").encode()

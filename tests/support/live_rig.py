@@ -202,7 +202,7 @@ def assert_stopped_and_kept(rig: Rig, study: StudyFolder, code: str, reason: str
 def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None:
     """Drive the blinded study's first row live against the software robot: it drives to its end, a zero velocity was the
     last command, the log holds the robot's scans and tf at its real stamps and no controller output, the sealed record
-    holds the plans, and no public file names a controller."""
+    holds the plans, no public file names a controller, and the outcome and the report say the software robot drove."""
     code = first_code(study)
     with live_rig(uri, study.root, env) as rig:
         run = rig.trials_run("--only", code)
@@ -213,7 +213,7 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
     (row,) = read_outcomes(study.path(OUTCOMES), True)
     # The run ends as the motion decides: at its goal, or (about 1 run in 18 over ROS 2, measured by
     # benchmarks/bench_live.py, more often on a loaded machine) touching a simulated walker.
-    assert (row.run_code, row.perception) == (code, "live") and row.status in ("goal", "collision"), row
+    assert (row.run_code, row.perception) == (code, "software-robot") and row.status in ("goal", "collision"), row
     reached = row.status == "goal"
     assert (5.0 if reached else 1.0) < row.duration_s < 40.0 and row.path_length_m > (8.0 if reached else 1.0), row
     reader = FoxgloveReader(study.run_log(code))
@@ -221,7 +221,7 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
     assert {fmt.SCAN.name, fmt.ROBOT_TF.name, fmt.ROBOT_STATE.name, fmt.PEDESTRIANS.name} <= set(reader.topics)
     assert not {t.name for t in fmt.CONTROLLER_TOPICS} & set(reader.topics)
     metadata = reader.metadata[fmt.RUN_METADATA]
-    assert "controller" not in metadata and metadata["perception"] == "live"
+    assert "controller" not in metadata and metadata["perception"] == "software-robot"  # the software robot said what it is
     # Real stamps: the log starts at the robot's clock (this machine's), moved back to its minute in a blinded study.
     start_ns = int(metadata["robot_start_stamp_ns"])
     assert start_ns % 60_000_000_000 == 0 and abs(start_ns * 1e-9 - time.time()) < 600
@@ -236,3 +236,9 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
         if "sealed" not in public.parts:
             data = public.read_bytes()
             assert b"NaviGAN" not in data and b"Lattice" not in data, public
+    # The report says the run was the software robot's, a rehearsal, not a real robot's.
+    report = subprocess.run([*TRIALS, "report", "--study", str(study.root), "--quiet"], capture_output=True, text=True, env=env)
+    assert report.returncode == 0, report.stderr
+    markdown = (study.root / "report" / "report.md").read_text(encoding="utf-8")
+    assert "How the finished runs were made: 1 driven live on the software robot (`trials robot-sim`, a rehearsal" in markdown
+    assert json.loads((study.root / "report" / "report.json").read_text(encoding="utf-8"))["runs"]["made"]["software robot"] == 1

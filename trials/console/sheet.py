@@ -9,7 +9,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN, LiveCheck, Outcome
+from analysis.records import EXTERNAL_LOG, HUMAN, SIMULATED_RUN, SOFTWARE_ROBOT_RUN, LiveCheck, Outcome
 from designs.questionnaire import LikertItem
 from designs.spec import LOG_COLUMN, PLAN_COLUMNS, read_spec
 from trials.controllers import registry
@@ -95,6 +95,11 @@ class SheetRow:
     def made(self) -> str:
         """How the run was made, as the sheet marks it: `driven live` or `external log` (nothing for a simulated run)."""
         return "" if self.origin == SIMULATED_RUN else self.origin
+
+    @property
+    def software_robot(self) -> bool:
+        """Whether the run was driven live on the software robot (`trials robot-sim`): a rehearsal."""
+        return self.origin == SOFTWARE_ROBOT_RUN
 
     @property
     def external(self) -> bool:

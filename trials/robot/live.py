@@ -56,6 +56,7 @@ from trials.robot.sensor_checks import ClockCheck, OdometryCheck, blank_cause, s
 from trials.robot.settings import RobotSettings
 from trials.robot.staging import Stage, off_start
 from trials.robot.transport import FLAG, ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity, open_transport
+from trials.run_settings import LIVE, SOFTWARE_ROBOT
 from trials.sim.closed_loop import START, TIMEOUT, SimConfig, run_ending
 from trials.sim.follower import WaypointFollower
 from trials.sim.robot import RobotLimits, RobotState
@@ -72,6 +73,8 @@ BLIND = FieldReading(0.0, 0.0, True, 0.0, 0.0)
 ESTOP_CONSOLE, ESTOP_TOPIC = "e-stop from the console", "e-stop on"
 #: Where a run announces its code (std_msgs/String, latched): a software robot sets up that row's scene.
 RUN_TOPIC = "/trials/run"
+#: Where the software robot says what it is (std_msgs/String, latched): runs driven on it are recorded as such.
+SOFTWARE_ROBOT_TOPIC = "/trials/software_robot"
 #: Zero velocity commands sent when a run stops, 20 ms apart, so that one lost message does not leave the robot moving.
 STOP_REPEATS = 3
 #: Where `warm_up` puts the goal (m ahead).
@@ -132,6 +135,8 @@ class Sensors:
         self.bad_odometry = 0
         #: Whether the e-stop topic's newest message says the button is pressed.
         self.estop_held = False
+        #: What the software robot said it is, None while no software robot spoke (a real robot).
+        self.software_robot: str | None = None
         #: The first message since the run began that must stop the robot (`trials.robot.sensor_checks`), and the checks
         #: against the messages before it that only a driving run makes (a robot carried to its start may jump).
         self.fault: str | None = None
@@ -150,6 +155,7 @@ class Sensors:
         transport.subscribe("/tf", TF, self.on_transforms)
         transport.subscribe("/tf_static", TF_STATIC, self.on_transforms)
         transport.subscribe(s.estop_topic, FLAG, self.on_estop)
+        transport.subscribe(SOFTWARE_ROBOT_TOPIC, TEXT, self.on_software_robot, latched=True)
 
     def start_run(self, stop: StopRequest) -> None:
         """Forget the scans and tf messages queued since the last run (the frame tree and the newest odometry stay: static
@@ -259,6 +265,9 @@ class Sensors:
                     self.odometry = Odometry(t.stamp_ns, s.odometry_frame, s.base_frame, t.pose, math.nan, math.nan)
                     self.odometry_seen = time.monotonic()
 
+    def on_software_robot(self, said: str) -> None:
+        self.software_robot = said
+
     def on_estop(self, pressed: bool) -> None:
         self.estop_held = pressed  # a held button (true latched) keeps every later run from starting until released
         if pressed and self.stop is not None:
@@ -348,12 +357,14 @@ class LiveEnd:
     late_plans: int = 0
     #: The most people tracked within `people_radius` of the robot at once (`trials.robot.people_check`), and from when.
     people: PeopleCounter = field(default_factory=PeopleCounter)
+    #: `live`, or `software-robot` when the software robot drove (`trials.run_settings`).
+    perception: str = LIVE
 
 
 class LiveSink:
     """Where a live run reports (the MCAP run log through `trials.robot.live_log`, or nothing)."""
 
-    def started(self, start_ns: int, goal: np.ndarray) -> None: ...
+    def started(self, start_ns: int, goal: np.ndarray, perception: str) -> None: ...
 
     def scan(self, time: float, scan: Scan, sensor: Pose2D) -> None: ...
 
@@ -513,7 +524,8 @@ class LiveRun:
         assert odometry is not None and sensors.newest_scan_ns is not None and self.laser_frame is not None
         start_ns = sensors.newest_scan_ns
         goal = self._goal(goal_pose, odometry.pose, start_ns)
-        sink.started(start_ns, goal)
+        perception = SOFTWARE_ROBOT if sensors.software_robot is not None else LIVE
+        sink.started(start_ns, goal, perception)
         sink.transforms(0.0, list(sensors.static.values()))
         tracker = PersonTracker.learned()
         follower = WaypointFollower(limits)
@@ -661,7 +673,7 @@ class LiveRun:
             trace.people.append({})
         metrics = measure(status if status != ABORTED else TIMEOUT, np.array(trace.time), np.array(trace.pose),
                           np.array(trace.velocity), trace.positions(), limits, PEDESTRIAN_RADIUS_M)
-        return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late, counter)
+        return LiveEnd(status, detail, t, metrics, latencies, plan_seconds, late, counter, perception)
 
     def _command_gap(self, since: float, scans: int) -> str | None:
         """Why the loop must stop because the base has gone `since` seconds without a command, else None."""

@@ -40,8 +40,9 @@ class LiveLog:
         self.path, self.metadata, self.blind, self.limits = path, dict(metadata), blind, limits
         self.log: RunLog | None = None
 
-    def started(self, start_ns: int, goal: np.ndarray) -> None:
+    def started(self, start_ns: int, goal: np.ndarray, perception: str) -> None:
         origin = minute_ns(start_ns) if self.blind else start_ns
+        self.metadata["perception"] = perception
         self.log = RunLog(self.path, {**self.metadata, "robot_start_stamp_ns": str(origin)}, (float(goal[0]), float(goal[1])),
                           None, self.blind, self.limits, start_ns=origin, chunk_size=LIVE_CHUNK_BYTES)
 

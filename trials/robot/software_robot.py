@@ -33,7 +33,7 @@ from robot_logs.frames import Pose2D, frame_name
 from robot_logs.lidar_sim import BodyModel, LidarSimulator, LidarSpec
 from robot_logs.records import Odometry, Scan, Transform
 from trials.errors import StudyError
-from trials.robot.live import RUN_TOPIC
+from trials.robot.live import RUN_TOPIC, SOFTWARE_ROBOT_TOPIC
 from trials.robot.settings import RobotSettings
 from trials.robot.staging import row_scenario, stage_of
 from trials.robot.transport import ODOMETRY, SCAN, TEXT, TF, TF_STATIC, TWIST_KINDS, Transport, Velocity
@@ -199,6 +199,10 @@ class SoftwareRobot:
         self._publish_static = transport.publisher("/tf_static", TF_STATIC, latched=True)
         transport.subscribe(settings.cmd_vel_topic, TWIST_KINDS[settings.cmd_vel_type], self._on_command)
         transport.subscribe(RUN_TOPIC, TEXT, self._on_run, latched=True)
+        # Said once, latched (the publisher kept, so that late subscribers hear it): every run driven on this robot is
+        # recorded as a software robot's, not a real one's.
+        self._say = transport.publisher(SOFTWARE_ROBOT_TOPIC, TEXT, latched=True)
+        self._say("trials robot-sim")
 
     def _on_command(self, velocity: Velocity) -> None:
         now = time.monotonic()
