@@ -29,6 +29,8 @@ FAULTS = {
     "tf-loop@3": "tf loop: base_link -> odom closes a loop",
     "scans-huge@3": "a scan of 100",
     "scans-blank@3": "the last 768 NaN of 768 ranges",  # the fitted lidar's 768 beams
+    "scans-late@3": "the robot's clock stepped back",  # the laser's stamps turn 1 s late
+    "odometry-stale@3": "stale odometry",
 }
 
 

@@ -22,18 +22,6 @@ def test_a_blinded_live_run_drives_to_its_end_and_names_no_controller(tmp_path, 
     check_blinded_run(design(tmp_path / "study", uri, "--ab"), str(uri), ros1_env(tmp_path))
 
 
-@pytest.mark.parametrize("fault, reason", [("scans-late@3", "the robot's clock stepped back"), ("odometry-stale@3", "stale odometry"),
-                                           ("scans-blank@3", "under 5% valid beams")])
-def test_late_or_blank_scans_or_stale_odometry_stop_the_robot(tmp_path, master, fault, reason):
-    uri, _ = master
-    study = design(tmp_path / "study", uri)
-    code = first_code(study)
-    with live_rig(str(uri), study.root, ros1_env(tmp_path), ("--fault", fault)) as rig:
-        run = rig.trials_run("--only", code)
-        assert run.wait(timeout=300) == 1, rig.output()
-        assert_stopped_and_kept(rig, study, code, reason)
-
-
 #: What stops a run midway, as done to the rig (the robot is its second process), `trials run` and the master, and the
 #: reason the run must give. The e-stop node holds the topic at true, as a robot's button does.
 INTERRUPTIONS = {
