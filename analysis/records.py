@@ -109,6 +109,15 @@ class StudyRun:
 
 
 @dataclass(frozen=True)
+class Look:
+    """One interim look at a blinded study's arms: when, how complete the study was, and why."""
+
+    utc: str
+    completeness: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class Blinding:
     """How the report may name arms.
 
@@ -126,12 +135,20 @@ class Blinding:
     commitment: str | None = None
     unblinded_utc: tuple[str, ...] = ()
     check: str = ""
-    #: This opening: how complete the study was (e.g. "18 of 18 runs finished") and, for an interim look, why.
+    #: This opening, or this interim look at the blinded arms: how complete the study was (e.g. "4 of 18 runs finished")
+    #: and, for an interim one, why.
     completeness: str = ""
     interim: str | None = None
     #: `recorded_key` of every human score and judgment recorded when the key was first opened (None: not known, for a key
     #: opened by an earlier release, or never opened): what was recorded blind.
     recorded_before: frozenset[str] | None = None
+    #: Every interim look at the blinded arms (`trials report --interim` without `--unblind`), this one included, oldest first.
+    looks: tuple[Look, ...] = ()
+
+    @property
+    def looking(self) -> bool:
+        """Whether this report is an interim look at the blinded arms (compared by label, the key closed)."""
+        return self.blinded and not self.revealed and self.interim is not None
 
     @property
     def open(self) -> bool:

@@ -69,6 +69,8 @@ EXPLORATORY_WHY = (
 )
 PEDESTRIANS = "Pedestrians"
 NOT_AVAILABLE = "n/a"
+#: The one arm every run is shown in while a blinded report compares no arms.
+POOLED = "all arms"
 
 
 @dataclass(frozen=True)
@@ -158,6 +160,8 @@ class _Analysis:
     primary: PrimaryResult | None
     #: Human scores and judgments recorded after the key was first opened: left out of everything above, counted here.
     late: Late
+    #: Why this report compares no arms (a blinded study with runs to go and no interim look: every run is in POOLED), else None.
+    pooled: str | None = None
 
 
 @dataclass(frozen=True)
@@ -228,6 +232,9 @@ def build_report(data: StudyData, rubric: Rubric, rubric_source: str, generated_
 
 def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
     data, late = Late.split(data)
+    pooled = _pooled_because(data)
+    if pooled:
+        data = replace(data, runs=[replace(run, arm=POOLED) for run in data.runs])
     notes = list(data.notes)
     logs: dict[str, RunLog | None] = {}
     for run in data.finished:
@@ -258,16 +265,28 @@ def _analyse(data: StudyData, rubric: Rubric) -> _Analysis:
         notes.append(f"Human judgments are used; {len(skipped)} simulated judgments are left out of the analysis.")
     pedestrians = {run.code: _pedestrian_count(run.values, logs.get(run.code)) for run in data.finished}
     arm_of = {run.code: run.arm for run in data.runs}
-    arms = _arm_order(data)
+    arms = [POOLED] if pooled else _arm_order(data)
     judged = count_judgments(judgments, arm_of, pedestrians)
     table = table_ii(judged, arms) if judged else []
     plan = data.analysis_plan or PlanStatus(default_plan(data.spec, data.seed or 0), False, None)
+    fitted = bool(judged) and not pooled  # every model holds the arm term: fitting it would compare the arms
     judgment_fits = ([fit_judgments_by_run(data, judged, plan.plan.gee_options()), fit_run_shares(data, judged), fit_judgments(data, judged)]
-                     if judged else [])
-    metric_fits = fit_metrics(data) if data.compared else []
-    primary = primary_analysis(data, judged, plan.plan) if judged else None
+                     if fitted else [])
+    metric_fits = fit_metrics(data) if data.compared and not pooled else []
+    primary = primary_analysis(data, judged, plan.plan) if fitted else None
     return _Analysis(data, rubric, logs, scores, arms, pedestrians, judgments, source, judged, table, judgment_fits, metric_fits, notes,
-                     left_out, plan, primary, late)
+                     left_out, plan, primary, late, pooled)
+
+
+def _pooled_because(data: StudyData) -> str | None:
+    """Why a report of this study must compare no arms: a blinded study, the key closed, runs still to go, and no interim
+    look asked for (`--interim REASON`), so nobody sees the arms compared before the planned end. None when it may."""
+    blinding = data.blinding
+    if not blinding.blinded or blinding.revealed or blinding.looking or not data.unfinished:
+        return None
+    return (f"{len(data.finished)} of {len(data.runs)} runs have finished in this blinded study, so this report compares no arms: "
+            f"every table and figure pools them ({POOLED}) and no model or test is fitted, so that nobody looks at the arms before "
+            "the planned end. `trials report --interim REASON` compares them by label and records the look in unblinding.json.")
 
 
 def _left_out_note(data: StudyData, codes: list[str]) -> str:
@@ -330,7 +349,8 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
         + (f" **Not finished yet ({len(data.unfinished)}):** {', '.join(r.code for r in data.unfinished)}; this report covers the finished runs only." if data.unfinished else ""),
     ]
     if blinding.blinded and not blinding.revealed:
-        items.append(f"**Blinded:** runs are shown by arm label ({', '.join(a.arms)}); the sealed key was not opened. `trials report --unblind` names the controllers.")
+        items.append(f"**Blinded, arms pooled:** {a.pooled}" if a.pooled else
+                     f"**Blinded:** runs are shown by arm label ({', '.join(a.arms)}); the sealed key was not opened. `trials report --unblind` names the controllers.")
         if blinding.unblinded_utc:
             items.append(f"The key was opened before (first at {blinding.unblinded_utc[0]}).")
     elif blinding.blinded:
@@ -343,6 +363,13 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
                          else f"The key was opened with {blinding.completeness}.")
     else:
         items.append("Not blinded.")
+    if blinding.looking:
+        items.append(f"**Interim look** at the blinded arms with {blinding.completeness}, for this reason: {blinding.interim} "
+                     "(recorded in unblinding.json).")
+    earlier = blinding.looks[:-1] if blinding.looking else blinding.looks
+    if earlier:
+        items.append(f"Interim looks at the blinded arms before this report ({len(earlier)}): "
+                     + "; ".join(f"{look.utc}, {look.completeness}, for this reason: {look.reason}" for look in earlier) + ".")
     origins = _origins(data)
     if origins:
         items.append(origins)
@@ -492,7 +519,7 @@ def _runs_table(a: _Analysis) -> Table:
 
 def _ab_section(a: _Analysis) -> list[Block]:
     blinding = a.data.blinding
-    if len(a.arms) < 2 and not a.judged:
+    if len(a.arms) < 2 and not a.judged and not a.pooled:
         return []
     heading = "A/B comparison (Table II)" if len(a.arms) > 1 else "Judgments (share judged socially compliant)"
     blocks: list[Block] = [Heading(heading)]
@@ -602,6 +629,8 @@ def _primary_section(a: _Analysis) -> list[Block]:
     if plan.test == "randomization":
         items.append(f"Randomization test: exact when at most {MAX_ALLOCATIONS:,} allocations, else {plan.draws:,} Monte Carlo draws from seed {plan.seed}.")
     blocks.append(Bullets(items))
+    if a.pooled:
+        return blocks + [Paragraph("Not tested yet: the arms are pooled until every run has finished (see the study's overview).")]
     if r is None:
         return blocks + [Paragraph("No judgments yet: nothing to test.")]
     line = _primary_result(a)
@@ -675,6 +704,8 @@ def _models_section(a: _Analysis) -> list[Block]:
     blocks: list[Block] = [Heading("The design's model fitted to the results")]
     terms = ", ".join(a.data.model.term_names[1:]) or "intercept only"
     blocks.append(Paragraph(f"Model terms (from the plan): {terms}. Factors are coded as in the design: numeric ones on [-1, 1], categorical ones effect-coded (the last level is minus the sum of the others)."))
+    if a.pooled:
+        return blocks + [Paragraph("Not fitted yet: every model holds the arm, so it waits until every run has finished (see the study's overview).")]
     if a.judgment_fits:
         primary, shares, naive = a.judgment_fits
         blocks += [
@@ -906,6 +937,9 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
             "key_check": blinding.check if blinding.revealed else None,
             "completeness": blinding.completeness if blinding.revealed else None,
             "interim": blinding.interim if blinding.revealed else None,
+            "compares_arms": a.pooled is None,
+            "interim_look": {"completeness": blinding.completeness, "reason": blinding.interim} if blinding.looking else None,
+            "interim_looks": [asdict(look) for look in blinding.looks],
         },
         "runs": {"planned": len(data.runs), "finished": len(data.finished), "not_finished": [r.code for r in data.unfinished],
                  "made": {origin: sum(r.origin == origin for r in data.finished)
@@ -1019,7 +1053,11 @@ def _summary(a: _Analysis) -> list[str]:
             cells = "   ".join(f"{arm} {percent(p.share)} ({p.k}/{p.n})" for arm, p in row.shares.items())
             test = f"   Fisher p {_equals(p_text(row.p_value))} (Holm {p_text(row.holm_p)})" if len(row.shares) == 2 else ""
             lines.append(f"  >= {row.min_pedestrians} pedestrians: {cells}{test}")
-    if data.blinding.blinded:
+    if a.pooled:
+        lines.append(f"Blinded, arms pooled: {a.pooled}")
+    elif data.blinding.looking:
+        lines.append(f"Interim look at the blinded arms ({data.blinding.completeness}), recorded in unblinding.json: {data.blinding.interim}")
+    elif data.blinding.blinded:
         lines.append("Controllers named (unblinded)" if data.blinding.revealed else "Blinded: arms shown by label")
     lines += [f"Note: {note}" for note in a.notes]
     return lines

@@ -151,7 +151,7 @@ def test_report_refuses_broken_results(study: Path, capsys: pytest.CaptureFixtur
     _fails(["report", "--unblind", "--commitment", digest], study, capsys, f"only {len(finished)} of 18 runs finished",
            "interim look", "--interim REASON")
     _fails(["report", "--unblind", "--commitment", digest, "--interim", " "], study, capsys, "--interim needs a reason")
-    _fails(["report", "--interim", "why"], study, capsys, "give it with --unblind")
+    _fails(["report", "--interim", " "], study, capsys, "--interim needs a reason")
     (study / "sealed" / "allocation.json").unlink()
     _fails(["report", "--unblind", "--commitment", digest, "--interim", "a look"], study, capsys, "the sealed key", "is missing")
     assert not (study / "report").exists()

@@ -66,7 +66,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
         assert name not in (console.out + console.err).lower(), name
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"] == {"blinded": True, "controllers_named": False, "unblinded_utc": [], "arms": None, "key_check": None,
-                                  "completeness": None, "interim": None}
+                                  "completeness": None, "interim": None, "compares_arms": True, "interim_look": None, "interim_looks": []}
     assert set(record["table_ii"][0]["arms"]) == {"A", "B"}
     markdown = (ab_study / "report" / "report.md").read_text()
     assert "| Runs with | A: runs | A: yes / judged |" in markdown
@@ -326,6 +326,7 @@ def test_unfinished_runs_are_reported(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "How the finished runs were made" not in (folder.root / "report" / "report.md").read_text()  # all simulated: nothing to say
     markdown = (folder.root / "report" / "report.md").read_text()
     assert f"**Not finished yet (8):** {', '.join(missing)}" in markdown
+    assert "10 of 18 runs have finished in this blinded study, so this report compares no arms" in markdown
     assert "No judgments of finished runs yet" in markdown
     assert markdown.count("not run yet") == 8
 

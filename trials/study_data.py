@@ -3,6 +3,7 @@
 Blinding: without unblinding a blinded study's arms keep their labels. Unblinding opens the
 sealed key only after checking it against design.json's commitment, and the time of every
 verified unblinding is kept in unblinding.json, outside report/ so that no remaking of the report erases it, first one first.
+An interim look at the blinded arms (a report that compares them before every run has finished) is kept there too.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from analysis.records import (
     SOFTWARE_ROBOT_RUN,
     Blinding,
     HumanScore,
+    Look,
     Outcome,
     Response,
     StudyData,
@@ -58,6 +60,8 @@ CONTROLLER_FACTOR = "Controller"
 #: unblinding.json's key, in each opening, for the digest of the analysis plan in force (`AnalysisPlan.digest`); and, in
 #: the first, for the scores and judgments recorded by then (`analysis.records.recorded_key`).
 PLAN_KEY, BEFORE_KEY = "analysis_plan_sha256", "recorded_before"
+#: unblinding.json's list of interim looks at the blinded arms (`trials report --interim REASON` without `--unblind`).
+LOOKS_KEY = "interim_looks"
 
 #: report.json's keys for the digest of the files the report was made from (`report_inputs`), and for the rubric file
 #: it read from outside the study (`--rubric`), if any.
@@ -86,7 +90,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
                opening: Opening | None = None) -> StudyData:
     """Read and cross-check plan, design, outcomes, scores and responses; open the key if asked,
     checked against design.json's commitment and the recorded `commitment` when given (`opening`: how complete the
-    study is as it is opened, `unblinding_opening`)."""
+    study is as it is opened, `unblinding_opening`, or as its blinded arms are looked at, `interim_look`)."""
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
     design = folder.read_design()
@@ -172,13 +176,23 @@ def _blinding(folder: StudyFolder, design: dict[str, Any], spec_factor_names: li
     digest = record["commitment"]["digest"]
     history = read_unblinding(folder, digest)
     before = _recorded_before(folder, digest)
-    if not unblind:
-        return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history, recorded_before=before)
-    sealed, check = folder.open_sealed(commitment)
     completeness, interim = (opening.completeness, opening.interim) if opening is not None else ("", None)
+    looks = _looks(folder, digest)
+    if not unblind:
+        if interim is not None:
+            looks = (*looks, Look(now, completeness, interim))
+        return Blinding(True, record["factor"], {arm: arm for arm in record["arms"]}, False, digest, history, "", completeness, interim,
+                        before, looks)
+    sealed, check = folder.open_sealed(commitment)
     if not history:  # opened now for the first time: everything recorded so far was recorded blind
         before = frozenset(_people_records(folder))
-    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check, completeness, interim, before)
+    return Blinding(True, record["factor"], dict(sealed.arms), True, digest, (*history, now), check, completeness, interim, before, looks)
+
+
+def _looks(folder: StudyFolder, commitment: str) -> tuple[Look, ...]:
+    """The interim looks at the blinded arms that unblinding.json records, oldest first."""
+    looks = _unblinding_file(folder, commitment).get(LOOKS_KEY, [])
+    return tuple(Look(str(x.get("utc", "")), str(x.get("completeness", "")), str(x.get("interim", ""))) for x in looks if isinstance(x, dict))
 
 
 def _people_records(folder: StudyFolder) -> list[str]:
@@ -242,20 +256,56 @@ def unblinding_opening(folder: StudyFolder, commitment: str | None, interim: str
     if commitment is None:
         raise StudyError("--unblind needs --commitment HEX, the commitment `trials design` printed and you recorded outside "
                          "the study folder: the key is opened only against it")
+    completeness, complete = _completeness(folder)
+    reason = _reason(interim)
+    if not complete and reason is None:
+        raise StudyError(f"only {completeness}: opening the key now would be an interim look that the analysis did not plan; "
+                         "finish the runs, or give --interim REASON to open it anyway (the reason is recorded and printed in the report)")
+    return Opening(completeness, reason)
+
+
+def interim_look(folder: StudyFolder, interim: str | None) -> Opening | None:
+    """For a report that keeps the key closed: the interim look `--interim REASON` asks for at a blinded study whose runs
+    are not all finished, or None (no reason given: the report then compares no arms while runs remain).
+
+    Raises:
+        StudyError: a reason given to a study that is not blinded or whose runs have all finished, or an empty reason.
+    """
+    if interim is None:
+        return None
+    if not folder.read_design().get("blinding"):
+        raise StudyError("--interim: the study is not blinded, so its report compares the arms at any time; leave --interim out")
+    completeness, complete = _completeness(folder)
+    if complete:
+        raise StudyError(f"--interim: {completeness}, so the report is not an interim look; leave --interim out")
+    return Opening(completeness, _reason(interim))
+
+
+def _completeness(folder: StudyFolder) -> tuple[str, bool]:
+    """How many of the plan's runs have finished (and failed), in words, and whether all have finished."""
     codes = [row["run_code"] for row in folder.read_plan()]
     finished = {row.run_code for row in read_outcomes(folder.path(OUTCOMES), True)} & set(codes)
     failed = [c for c in codes if c not in finished and folder.run_failure(c).exists()]
-    completeness = f"{len(finished)} of {len(codes)} runs finished" + (f", {len(failed)} failed" if failed else "")
+    return f"{len(finished)} of {len(codes)} runs finished" + (f", {len(failed)} failed" if failed else ""), len(finished) == len(codes)
+
+
+def _reason(interim: str | None) -> str | None:
     if interim is not None and not interim.strip():
         raise StudyError("--interim needs a reason, e.g. --interim \"safety review after a collision\"")
-    if len(finished) < len(codes) and interim is None:
-        raise StudyError(f"only {completeness}: opening the key now would be an interim look that the analysis did not plan; "
-                         "finish the runs, or give --interim REASON to open it anyway (the reason is recorded and printed in the report)")
-    return Opening(completeness, interim.strip() if interim is not None else None)
+    return interim.strip() if interim is not None else None
 
 
 def unblinding_record(folder: StudyFolder, blinding: Blinding) -> bytes:
-    """unblinding.json after the report opened the key (`trials report --unblind`)."""
+    """unblinding.json after the report opened the key (`trials report --unblind`) or looked at the blinded arms
+    (`trials report --interim`)."""
+    if not blinding.revealed:
+        look = blinding.looks[-1]
+        earlier = _unblinding_file(folder, blinding.commitment or "")
+        entry = {"utc": look.utc, "completeness": look.completeness, "interim": look.reason, "command": "trials report --interim",
+                 PLAN_KEY: _plan_digest(folder)}
+        data = {"unblinded_utc": [], "openings": [], **earlier, "format": UNBLINDING_FORMAT, "commitment": blinding.commitment,
+                LOOKS_KEY: [*earlier.get(LOOKS_KEY, []), entry]}
+        return (json.dumps(data, indent=1) + "\n").encode()
     opening = Opening(blinding.completeness, blinding.interim)
     return opened_record(folder, blinding.commitment or "", blinding.unblinded_utc[-1], opening, "trials report --unblind")
 
@@ -267,12 +317,17 @@ def opened_record(folder: StudyFolder, commitment: str, utc: str, opening: Openi
     recorded by then (`recorded_before`), which the report counts as blind. Whatever command shows the key records it here, so
     reports and `trials status` know."""
     earlier = _unblinding_file(folder, commitment)
-    spec_path = folder.path(SPEC)
-    plan, _ = plan_in_force(spec_path, read_spec(spec_path), folder.read_design())
     entry = {"utc": utc, "completeness": opening.completeness, "interim": opening.interim, "command": command,
-             PLAN_KEY: plan.digest()}
+             PLAN_KEY: _plan_digest(folder)}
     if not earlier.get("openings"):
         entry[BEFORE_KEY] = _people_records(folder)
-    data = {"format": UNBLINDING_FORMAT, "commitment": commitment, "unblinded_utc": [*earlier.get("unblinded_utc", []), utc],
+    data = {**earlier, "format": UNBLINDING_FORMAT, "commitment": commitment, "unblinded_utc": [*earlier.get("unblinded_utc", []), utc],
             "openings": [*earlier.get("openings", []), entry]}
     return (json.dumps(data, indent=1) + "\n").encode()
+
+
+def _plan_digest(folder: StudyFolder) -> str:
+    """The digest of the analysis plan in force."""
+    spec_path = folder.path(SPEC)
+    plan, _ = plan_in_force(spec_path, read_spec(spec_path), folder.read_design())
+    return plan.digest()

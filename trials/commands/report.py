@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "distribution and the A/B table (Table II) with Wilson intervals and Fisher's exact tests, fit "
             "the design's model to the judgments (primary: logistic GEE clustered by run) and outcome metrics, and write report/report.md, a "
             "self-contained report/report.html, report/report.json and report/figures/. A blinded study is "
-            "reported by arm label unless --unblind is given."
+            "reported by arm label unless --unblind is given; before every run has finished its report pools the arms "
+            "unless --interim REASON is given."
         ),
     )
     parser.add_argument("--study", type=types.folder, default=types.folder("."), metavar="DIR", help="the study folder (default: current folder)")
@@ -37,8 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--interim",
         metavar="REASON",
-        help="with --unblind: open the key although runs are pending or failed (an interim look), for this reason; the "
-        "reason, the time and how many runs had finished are recorded in unblinding.json and printed in the report",
+        help="an interim look, for this reason, while runs are pending or failed: a blinded report then compares the arms "
+        "by label (without it, it pools them), and with --unblind the key is opened; the reason, the time and how many runs "
+        "had finished are recorded in unblinding.json and printed in the report",
     )
     parser.add_argument("--rubric", type=Path, metavar="FILE", help="rubric thresholds: a TOML file with a [rubric] table "
                         "(default: the study's rubric.toml if any, else the documented defaults)")
@@ -69,14 +71,12 @@ def run(args: argparse.Namespace) -> int:
         StudyFolder,
         utc_now,
     )
-    from trials.study_data import INPUTS_KEY, RUBRIC_KEY, load_study, report_inputs, unblinding_opening, unblinding_record
+    from trials.study_data import INPUTS_KEY, RUBRIC_KEY, interim_look, load_study, report_inputs, unblinding_opening, unblinding_record
 
     folder = StudyFolder(args.study)
     if args.commitment is not None and not args.unblind:
         raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
-    if args.interim is not None and not args.unblind:
-        raise StudyError("--interim gives the reason for opening the key early: give it with --unblind")
-    opening = unblinding_opening(folder, args.commitment, args.interim) if args.unblind else None
+    opening = unblinding_opening(folder, args.commitment, args.interim) if args.unblind else interim_look(folder, args.interim)
     now = utc_now()
     Progress("figure", "report", args.quiet or args.json).loading(
         f"Reading the study in {folder.root} and fitting its model{' (opening the sealed key)' if args.unblind else ''}")
@@ -100,10 +100,10 @@ def run(args: argparse.Namespace) -> int:
         **{tables / f"{name}.csv": text.encode() for name, text in report.tables().items()},
     }
     kept = None
-    if data.blinding.revealed:
+    if data.blinding.revealed or data.blinding.looking:
         files[folder.path(UNBLINDING)] = unblinding_record(folder, data.blinding)
-        if not _unblinded(folder.path(REPORT_RECORD)):
-            kept = folder.keep_blinded_report()
+    if data.blinding.revealed and not _unblinded(folder.path(REPORT_RECORD)):
+        kept = folder.keep_blinded_report()
     write_files(files)
     for stale in [*figures.glob("*.png"), *figures.glob("*.svg"), *tables.glob("*.csv")]:
         if stale not in files:
