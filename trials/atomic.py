@@ -9,8 +9,8 @@ import os
 import secrets
 import stat
 import time
-from collections.abc import Collection, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Collection, Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
@@ -31,6 +31,14 @@ def no_space(path: Path) -> Iterator[None]:
         if exc.errno in NO_SPACE:
             raise DiskFullError(f"no space left on the device to write {path}; free some and run the command again") from None
         raise
+
+
+def os_error_text(exc: OSError) -> str:
+    """What the file system refused, in one line naming the file (both, for a move): for the error a command ends with."""
+    where = " -> ".join(os.fsdecode(name) for name in (exc.filename, exc.filename2) if name is not None)
+    if exc.errno in NO_SPACE:
+        return f"no space left on the device{' to write ' + where if where else ''}; free some and run the command again"
+    return f"{where}: {exc.strerror}" if where and exc.strerror else str(exc)
 
 
 @contextmanager
@@ -58,7 +66,10 @@ def open_lock(path: Path, mode: str) -> IO[str]:
     except OSError as exc:
         if exc.errno in (errno.ENXIO, errno.ELOOP, errno.EISDIR):
             raise StudyError(refused) from None
-        raise
+        if mode == "r":
+            raise
+        with writing(path):  # a read-only folder or a full disk: an error naming the lock file
+            raise
     if not stat.S_ISREG(os.fstat(fd).st_mode):
         os.close(fd)
         raise StudyError(refused)
@@ -97,12 +108,13 @@ def one_writer(path: Path, wait_s: float = LOCK_WAIT_S) -> Iterator[None]:
         handle.close()  # closing the file releases the lock
 
 
-def write_files(files: dict[Path, bytes], private: Collection[Path] = ()) -> None:
+def write_files(files: dict[Path, bytes], private: Collection[Path] = (), before_commit: Callable[[], object] | None = None) -> None:
     """Write several files so that none is left half-written; those in `private` are created 0600.
 
     Each file is first written and flushed to a temporary name in its own folder; only when
     all are staged are they renamed over their targets, so a failure or an interrupt before
-    that point leaves every existing file as it was.
+    that point leaves every existing file as it was. `before_commit` runs once everything is staged, just before the
+    renames: moving the old files aside there means a full disk or a read-only folder fails before anything moved.
     """
     staged: list[tuple[Path, Path]] = []
     try:
@@ -110,18 +122,22 @@ def write_files(files: dict[Path, bytes], private: Collection[Path] = ()) -> Non
             temporary = target.with_name(f".{target.name}.{secrets.token_hex(4)}.tmp")
             with writing(target):
                 target.parent.mkdir(parents=True, exist_ok=True)
-                staged.append((temporary, target))
                 mode = PRIVATE_FILE if target in private else 0o666  # 0o666: as open() does, less the umask
-                with os.fdopen(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, mode), "wb") as handle:
+                descriptor = os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, mode)
+                staged.append((temporary, target))
+                with os.fdopen(descriptor, "wb") as handle:
                     handle.write(content)
                     handle.flush()
                     os.fsync(handle.fileno())
+        if before_commit is not None:
+            before_commit()
         for temporary, target in staged:
             with writing(target):
                 os.replace(temporary, target)
     finally:
         for temporary, _ in staged:
-            temporary.unlink(missing_ok=True)
+            with suppress(OSError):  # the error that got here is the one to report
+                temporary.unlink(missing_ok=True)
 
 
 def write_text(path: Path, text: str) -> None:

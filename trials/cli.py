@@ -1,7 +1,8 @@
 """The `trials` console command: one subcommand per module of `trials.commands`.
 
-User mistakes (`trials.errors.USER_ERRORS`, every package's error type) print `error: ...` on one line and exit 2;
-a usage error points to the `--help` of the (sub)command that was typed.
+User mistakes (`trials.errors.USER_ERRORS`, every package's error type) and what the file system refuses (a read-only
+folder, a full disk) print `error: ...` on one line and exit 2; a usage error points to the `--help` of the (sub)command
+that was typed.
 """
 
 from __future__ import annotations
@@ -92,6 +93,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # the reader went away (`| head`): the rest of the output is not wanted
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:  # the file system refused (a read-only folder, a full disk): one line naming the file
+        from trials.atomic import os_error_text
+
+        sys.stderr.write(f"error: {os_error_text(exc)}\n")
+        return EXIT_USAGE
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: finished work is kept; run the command again to continue\n")
         return 130

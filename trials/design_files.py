@@ -3,7 +3,7 @@ content from `trials.study`, `designs.spec` and, when asked for, the design figu
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,14 +45,16 @@ if TYPE_CHECKING:
 
 
 def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | None = None,
-                 tables: Mapping[str, Mapping[str, Any]] | None = None, figures_dpi: int | None = None) -> list[Path]:
+                 tables: Mapping[str, Mapping[str, Any]] | None = None, figures_dpi: int | None = None,
+                 before_commit: Callable[[], object] | None = None) -> list[Path]:
     """Write study.toml, plan.csv, design.json, the design figures when `figures_dpi` is given (PNG at that
     resolution, and SVG) and the sealed key (sealed/ 0700, its files 0600).
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
     it is kept under sealed/. `tables` are the study's own tables beside the design (`[run]`:
     `trials.run_settings`; `[robot]`: `trials.robot.settings`; `[analysis]`: `trials.analysis_plan`, committed to in design.json),
-    written after the design's. Returns the public files written.
+    written after the design's. `before_commit` runs once every file is staged (`trials.atomic.write_files`). Returns the
+    public files written.
     """
     created = utc_now()
     table = plan_table(plan)
@@ -76,7 +78,7 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
         secret[folder.path(SEALED_SPEC)] = sealed_spec_text.encode()
     if secret:
         private_folder(folder, folder.path(SEALED))
-    write_files({**public, **secret}, private=set(secret))
+    write_files({**public, **secret}, private=set(secret), before_commit=before_commit)
     return list(public)
 
 

@@ -34,7 +34,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from analysis.records import Outcome, RunMetrics
-from trials.atomic import no_space, open_lock, write_files, write_text
+from trials.atomic import no_space, open_lock, write_files, write_text, writing
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.errors import USER_ERRORS, DiskFullError, EStopped, RunAborted, StudyError
@@ -272,14 +272,16 @@ def study_lock(folder: StudyFolder) -> Iterator[LockState]:
             break
         handle.close()
     try:
-        handle.seek(0)
-        handle.truncate()
-        handle.write(str(os.getpid()))
-        handle.flush()
+        with writing(lock):
+            handle.seek(0)
+            handle.truncate()
+            handle.write(str(os.getpid()))
+            handle.flush()
         yield found
     finally:
         lock.unlink(missing_ok=True)
-        handle.close()
+        with suppress(OSError):  # a pid that could not be flushed fails again here; the error above is the one to tell
+            handle.close()
 
 
 def clean_partials(folder: StudyFolder) -> list[Path]:
@@ -312,10 +314,18 @@ def supersede_runs(folder: StudyFolder, outcomes: Outcomes, codes: list[str], st
                 originals.append(source)
                 if base != target / RUNS:
                     private.add(base / source.name)
-    if private:
-        private_folder(folder, secret / RUNS)
-    write_files(files, private)
-    outcomes.remove(codes)
+    try:
+        if private:
+            private_folder(folder, secret / RUNS)
+        write_files(files, private)
+        outcomes.remove(codes)
+    except BaseException:  # the runs are still in place: copies left aside would pass for superseded runs
+        for copy in files:
+            copy.unlink(missing_ok=True)
+        for made in (target / RUNS, target, secret / RUNS, secret):
+            with suppress(OSError):
+                made.rmdir()  # only when empty
+        raise
     for source in originals:
         source.unlink()
     return target

@@ -31,6 +31,7 @@ from designs.blinding import SealedAllocation, canonical_bytes, verify
 from designs.errors import DesignError
 from designs.spec import LOG_COLUMN
 from robot_logs.figure_files import FORMATS
+from trials.atomic import writing
 from trials.csv_table import read_rows, table_text
 from trials.errors import StudyError
 
@@ -112,8 +113,9 @@ def private_folder(folder: StudyFolder, path: Path) -> None:
     """Create `path` (sealed/ or a folder in it) and each folder from sealed/ down to it, owner-only (0700)."""
     sealed = folder.path(SEALED)
     for level in [*(sealed / above for above in reversed(path.relative_to(sealed).parents)), path]:
-        level.mkdir(parents=True, exist_ok=True)
-        level.chmod(0o700)
+        with writing(level):
+            level.mkdir(parents=True, exist_ok=True)
+            level.chmod(0o700)
 
 
 def minute_ns(stamp_ns: int) -> int:
@@ -314,12 +316,14 @@ class StudyFolder:
         then `-2`, `-3` ... while that name is taken. The public folder is made here, exclusively, so two moves in
         the same second (or two processes at once) never share a folder and never overwrite each other's files."""
         time = utc_now().replace(":", "")
-        self.path(SUPERSEDED).mkdir(parents=True, exist_ok=True)
+        with writing(self.path(SUPERSEDED)):
+            self.path(SUPERSEDED).mkdir(parents=True, exist_ok=True)
         for stamp in itertools.chain([time], (f"{time}-{count}" for count in itertools.count(2))):
-            try:
-                (self.path(SUPERSEDED) / stamp).mkdir()
-            except FileExistsError:
-                continue
+            with writing(self.path(SUPERSEDED) / stamp):
+                try:
+                    (self.path(SUPERSEDED) / stamp).mkdir()
+                except FileExistsError:
+                    continue
             if not (self.path(SEALED) / SUPERSEDED / stamp).exists():
                 return stamp
             (self.path(SUPERSEDED) / stamp).rmdir()  # ours, empty: a sealed folder of that name exists without it
@@ -329,9 +333,13 @@ class StudyFolder:
         """Copy existing entries (files) into a new superseded/<UTC time>/ (`aside_stamp`), leaving them in place;
         returns that folder."""
         target = self.path(SUPERSEDED) / self.aside_stamp()
-        for name in names:
-            if self.path(name).exists():
-                shutil.copy2(self.path(name), target / Path(name).name)
+        try:
+            for name in names:
+                if self.path(name).exists():
+                    shutil.copy2(self.path(name), target / Path(name).name)
+        except BaseException:
+            shutil.rmtree(target, ignore_errors=True)  # no half-made copy is left to pass for the old files
+            raise
         return target
 
     def supersede(self, names: tuple[str, ...], sealed_names: tuple[str, ...] = ()) -> Path | None:

@@ -155,14 +155,15 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
                       threads=_threads(args))
     tables = {"run": run_table(folder.path(SPEC)), "robot": robot_table(folder.path(SPEC), args.robot),  # they stay with the study
               "analysis": analysis_table(folder.path(SPEC), plan.spec, plan.seed)}
-    copied = folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))
-    written = write_design(folder, plan, None, tables, args.dpi if args.figures else None)
+    copies: list[Path] = []  # the previous design files, copied aside once the new ones are staged
+    written = write_design(folder, plan, None, tables, args.dpi if args.figures else None,
+                           lambda: copies.append(folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))))
     if not args.figures:
         for name in DESIGN_FIGURES:  # they show the old plan; their copies are in superseded/
             folder.path(name).unlink(missing_ok=True)
     print("\n".join(summary_lines(plan)))
     print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
-          f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copied}")
+          f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copies[0]}")
     return 0
 
 
@@ -227,8 +228,13 @@ def run(args: argparse.Namespace) -> int:
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed
     original = own_spec.read_text(encoding="utf-8") if names_real_levels else None
-    moved = folder.supersede(PUBLIC_STUDY_FILES, SEALED_STUDY_FILES) if args.force else None
-    written = write_design(folder, plan, original, tables, args.dpi if args.figures else None)
+    aside: list[Path | None] = [None]  # where --force moved the old files: only once the new ones are staged
+
+    def move_aside() -> None:
+        aside[0] = folder.supersede(PUBLIC_STUDY_FILES, SEALED_STUDY_FILES)
+
+    written = write_design(folder, plan, original, tables, args.dpi if args.figures else None, move_aside if args.force else None)
+    moved = aside[0]
 
     planned = None
     if args.power != 0:
