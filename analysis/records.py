@@ -189,6 +189,20 @@ class LiveCheck:
         return bool(self.flag) and not self.decision
 
 
+#: What a pre-registration binds (`trials.preregistration`), by the names its Bindings section gives them.
+DESIGN_BINDING, PLAN_BINDING, KEY_BINDING = "design", "analysis plan", "sealed key"
+
+
+@dataclass(frozen=True)
+class Registration:
+    """A study's pre-registration (`trials.preregistration`): its file, the file's SHA-256, and which of what it binds
+    (DESIGN_BINDING, PLAN_BINDING, KEY_BINDING) the study's files no longer match."""
+
+    file: str
+    digest: str
+    differs: tuple[str, ...]
+
+
 @dataclass(frozen=True)
 class StudyData:
     """Everything the report needs from a study folder."""
@@ -209,6 +223,8 @@ class StudyData:
     analysis_plan: PlanStatus | None = None
     #: Every live run's manipulation checks, each with the operator's decision on it, in the order they were made.
     checks: list[LiveCheck] = field(default_factory=list)
+    #: The pre-registration and how the study stands against it (None: a study designed before pre-registrations).
+    registration: Registration | None = None
 
     @property
     def finished(self) -> list[StudyRun]:

@@ -35,10 +35,12 @@ from analysis.randomization import MAX_ALLOCATIONS
 from analysis.records import (
     EXTERNAL_LOG,
     LIVE_RUN,
+    PLAN_BINDING,
     SIMULATED,
     SIMULATED_RUN,
     SOFTWARE_ROBOT_RUN,
     HumanScore,
+    Registration,
     Response,
     StudyData,
     recorded_key,
@@ -376,6 +378,7 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     human = {s.run_code for s in data.scores if s.run_code in a.scores}
     items.append(f"Scores: {len(human)} of {len(a.scores)} finished runs have a human score; the rest are scored by the rubric.")
     items.append(_judgment_line(a))
+    items.append(_registration_line(data.registration))
     items.append(a.plan.describe())
     primary = _primary_result(a)
     if primary:
@@ -387,6 +390,18 @@ def _overview(a: _Analysis, generated_utc: str) -> list[Block]:
     if a.notes:
         blocks += [Paragraph("**Notes on the data:**"), Bullets(a.notes)]
     return blocks
+
+
+def _registration_line(registration: Registration | None) -> str:
+    """The pre-registration's digest and whether the study, and the analysis run, are what it registered."""
+    if registration is None:
+        return "No pre-registration: the study was designed by an earlier release (its key's commitment is what binds it)."
+    line = f"Pre-registration: {registration.file}, sha256 {registration.digest}. "
+    changed = [name for name in registration.differs if name != PLAN_BINDING]
+    line += (f"**Changed since it was written: the {' and the '.join(changed)}** (the study is not the one registered). " if changed
+             else "The design and sealed key are those it registered. ")
+    return line + ("**The analysis run is not the registered one**: study.toml's [analysis] table changed after the pre-registration."
+                   if PLAN_BINDING in registration.differs else "The analysis run is the registered one.")
 
 
 def _deviations_section(a: _Analysis) -> list[Block]:
@@ -977,6 +992,8 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
         "design": {key: value for key, value in data.diagnostics.items() if key != "correlation_map"},
         "score_shares": {str(score): dict(zip(("share", "low", "high"), map(_json_number, _share_interval(count, sum(total)))))
                          for score, count in zip(SCORES, total)} if sum(total) else {},
+        "preregistration": {"sha256": data.registration.digest, "differs": list(data.registration.differs),
+                            "analysis_registered": PLAN_BINDING not in data.registration.differs} if data.registration else None,
         "analysis_plan": {"table": a.plan.plan.table(), "sha256": a.plan.plan.digest(), "declared": a.plan.declared,
                           "committed_sha256": a.plan.committed, "matches_commitment": a.plan.matches,
                           "changed_after_key_opened": a.plan.changed_after_opening, "statement": a.plan.describe()},

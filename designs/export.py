@@ -150,8 +150,6 @@ def summary_lines(plan: StudyPlan) -> list[str]:
         lines += [
             f"Blinded: {plan.sealed.factor} appears as arms {', '.join(sorted(plan.sealed.arms))}; the key is sealed, committed to by",
             f"  {plan.sealed.commitment()}",
-            "Record this commitment outside the study folder (lab notebook, preregistration): unblinding with "
-            "`trials report --unblind --commitment <it>` refuses a key that does not match it.",
         ]
     return lines
 

@@ -28,6 +28,7 @@ import pytest
 from tests.support.blinding import NAMES
 from tests.support.console import PHONE, WINDOW, browser, design_study, field_day, go, need_chromium, served
 from tests.support.live_rig import Rig
+from tests.support.registration import recorded_digest
 from trials.cli import main
 
 pytestmark = pytest.mark.slow
@@ -96,7 +97,7 @@ def test_the_experimenter_the_evaluator_and_three_participants_are_recorded(day)
 
 def test_the_study_reports_and_unblinds_with_no_command_in_between(day):
     study, _, _, _ = day
-    commitment = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]  # as `trials design` printed it
+    commitment = recorded_digest(study)  # as `trials design` printed it
     assert main(["report", "--study", str(study), "--unblind", "--commitment", commitment]) == 0
     arms = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
     plan = rows(study / "plan.csv")
@@ -336,7 +337,7 @@ def walk(tmp_path_factory, robot_logs_dir) -> Walk:
     log = robot_logs_dir / "stationary_ros1.bag"
     codes = [r["run_code"] for r in rows(study / "plan.csv")]
     walk = Walk(study, codes)
-    commitment = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    commitment = recorded_digest(study)
 
     with served(study, "--host", "0.0.0.0", env={**os.environ, "TZ": CENTRAL_EUROPE}, printed=walk.printed) as url, browser() as experimenter:
         base = url.split("?")[0]

@@ -32,7 +32,7 @@ def test_ab_plan_public_outputs_name_no_controller(tmp_path, capsys):
     assert all(word not in console for word in CONTROLLER_WORDS)
     files = public_files(tmp_path)
     assert sorted(p.name for p in files) == ["correlation_map.png", "correlation_map.svg", "design.json", "design_evaluation.png",
-                                             "design_evaluation.svg", "plan.csv", "study.toml"]
+                                             "design_evaluation.svg", "plan.csv", "preregistration.md", "study.toml"]
     for path in files:
         content = path.read_bytes().lower()
         assert all(word.encode() not in content for word in CONTROLLER_WORDS), path.name
@@ -142,16 +142,14 @@ def test_design_prints_the_whole_commitment_and_seals_privately(tmp_path, capsys
     key = json.loads((tmp_path / "sealed" / "allocation.json").read_text())
     digest = json.loads((tmp_path / "design.json").read_text())["blinding"]["commitment"]["digest"]
     assert set(key) == {"factor", "arms", "salt", "allocation_seed"} and digest == _digest(key)
-    assert f"  {digest}\n" in out and "Record this commitment outside the study folder" in out
+    assert f"  {digest}\n" in out and "Record this digest outside the study folder" in out
     assert "readable by you only (folder 0700, files 0600)" in out
     assert stat.S_IMODE((tmp_path / "sealed").stat().st_mode) == 0o700
     assert stat.S_IMODE((tmp_path / "sealed" / "allocation.json").stat().st_mode) == 0o600
 
 
-def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(study):
-    folder, path, design = StudyFolder(study), study / "sealed" / "allocation.json", study / "design.json"
-    recorded = json.loads(design.read_text())["blinding"]["commitment"]["digest"]
-    assert "recorded outside the study" in folder.open_sealed(recorded)[1]
+def _swap_arms(path: Path, design: Path) -> None:
+    """Swap the key's arms and make design.json commit to the swapped key, its own digest recomputed."""
     key = json.loads(path.read_text())
     key["arms"] = {"A": key["arms"]["B"], "B": key["arms"]["A"]}
     path.write_text(json.dumps(key))
@@ -159,6 +157,24 @@ def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(st
     record["blinding"]["commitment"]["digest"] = _digest(key)
     record["digest"] = design_digest(record)
     design.write_text(json.dumps(record))
+
+
+def test_a_swapped_key_with_a_recomputed_digest_fails_the_registration(study):
+    folder = StudyFolder(study)
+    recorded = hashlib.sha256((study / "preregistration.md").read_bytes()).hexdigest()
+    assert "matched the digest recorded outside the study" in folder.open_sealed(recorded)[1]
+    _swap_arms(study / "sealed" / "allocation.json", study / "design.json")
+    with pytest.raises(StudyError, match="the design and the sealed key of .* differ from what preregistration.md registered"):
+        folder.open_sealed(recorded)
+
+
+def test_a_swapped_key_with_a_recomputed_digest_fails_the_recorded_commitment(study):
+    """A study designed before pre-registrations: the key's commitment is what was recorded outside it."""
+    (study / "preregistration.md").unlink()
+    folder, path, design = StudyFolder(study), study / "sealed" / "allocation.json", study / "design.json"
+    recorded = json.loads(design.read_text())["blinding"]["commitment"]["digest"]
+    assert "recorded outside the study" in folder.open_sealed(recorded)[1]
+    _swap_arms(path, design)
     # design.json alone is fooled, and says it could be; the recorded value is not.
     assert "a key and design.json changed together would pass" in folder.open_sealed()[1]
     with pytest.raises(StudyError, match="does not match the commitment you recorded"):

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from analysis.records import SIMULATED
+from tests.support.registration import recorded_digest
 from tests.support.synthetic_study import design, run_all
 from trials.cli import main
 from trials.responses import read_responses
@@ -146,7 +147,7 @@ def test_report_refuses_broken_results(study: Path, capsys: pytest.CaptureFixtur
     outcomes.write_text(text.splitlines()[0] + "\n")
     _fails(["report"], study, capsys, "no finished runs")
     outcomes.write_text(text)
-    digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    digest = recorded_digest(study)
     _fails(["report", "--unblind"], study, capsys, "--unblind needs --commitment HEX")
     _fails(["report", "--unblind", "--commitment", digest], study, capsys, f"only {len(finished)} of 18 runs finished",
            "interim look", "--interim REASON")
@@ -160,7 +161,7 @@ def test_report_refuses_broken_results(study: Path, capsys: pytest.CaptureFixtur
 @pytest.mark.slow
 def test_an_interim_unblinding_is_recorded_with_its_reason_and_completeness(study: Path, capsys: pytest.CaptureFixture[str]) -> None:
     finished, _ = _codes(study)
-    digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    digest = recorded_digest(study)
     reason = "safety review after a collision"
     assert main(["report", "--study", str(study), "--unblind", "--commitment", digest, "--interim", reason]) == 0
     record = json.loads((study / "unblinding.json").read_text())

@@ -17,6 +17,7 @@ from markdown_it import MarkdownIt
 from scipy.stats import fisher_exact
 
 from robot_logs.figure_files import DEFAULT_DPI
+from tests.support.registration import recorded_digest
 from tests.support.scripts import load_script
 from tests.support.synthetic_study import Behaviour, design, run_all, write_run
 from tests.support.system_packages import need
@@ -49,7 +50,7 @@ def ab_study(ab_template: Path, tmp_path: Path) -> Path:
 
 def unblind(study: Path) -> list[str]:
     """`--unblind --commitment HEX` with the commitment `trials design` printed (design.json holds it too)."""
-    return ["--unblind", "--commitment", json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]]
+    return ["--unblind", "--commitment", recorded_digest(study)]
 
 
 def _report_text(root: Path) -> str:
@@ -248,13 +249,13 @@ def test_tampered_key_is_refused_and_changes_nothing(ab_study: Path, capsys: pyt
 
 
 def test_unblinding_checks_the_recorded_commitment_and_keeps_the_blinded_report(ab_study: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    recorded = json.loads((ab_study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    recorded = recorded_digest(ab_study)
     assert main(["report", "--study", str(ab_study)]) == 0
     blinded = {p.relative_to(ab_study / "report"): p.read_bytes() for p in (ab_study / "report").rglob("*") if p.is_file()}
     before = {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()}
     capsys.readouterr()
     wrong = ("0" if recorded[0] != "0" else "1") + recorded[1:]
-    for args, message in ((["--unblind", "--commitment", wrong], "does not match the commitment you recorded"),
+    for args, message in ((["--unblind", "--commitment", wrong], "preregistration.md does not match the digest you recorded"),
                           (["--unblind", "--commitment", "abc"], "expected the 64 hex digits"),
                           (["--commitment", recorded], "give it with --unblind")):
         assert main(["report", "--study", str(ab_study), *args]) == 2
@@ -263,7 +264,7 @@ def test_unblinding_checks_the_recorded_commitment_and_keeps_the_blinded_report(
         assert {p: p.read_bytes() for p in ab_study.rglob("*") if p.is_file()} == before
     assert main(["report", "--study", str(ab_study), "--unblind", "--commitment", recorded.upper()]) == 0
     out = capsys.readouterr().out
-    assert "matched the commitment recorded outside the study" in out and "The blinded report is kept in" in out
+    assert "matched the digest recorded outside the study" in out and "The blinded report is kept in" in out
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"]["controllers_named"] and "recorded outside the study" in record["blinding"]["key_check"]
     assert "matched the commitment recorded outside the study" in (ab_study / "report" / "report.md").read_text()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.registration import recorded_digest
 from tests.support.synthetic_study import design, run_all
 from trials.cli import main
 
@@ -63,7 +64,7 @@ def test_a_blinded_report_compares_arms_before_the_end_only_as_a_recorded_interi
     assert record["blinding"]["compares_arms"] is False and len(record["blinding"]["interim_looks"]) == 1
     assert f"Interim looks at the blinded arms before this report (1): {look['utc']}, 4 of 18 runs finished, for this reason: {reason}." in markdown
 
-    digest = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    digest = recorded_digest(study)
     _report(study, capsys, "--unblind", "--commitment", digest, "--interim", "the second look, unblinded")
     kept = json.loads((study / "unblinding.json").read_text())
     assert kept["interim_looks"] == [look] and len(kept["openings"]) == 1 and len(kept["unblinded_utc"]) == 1

@@ -15,6 +15,7 @@ import pytest
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.run_log import CONTROLLER_TOPICS
 from tests.support.blinding import NAMES, mcap_text
+from tests.support.registration import recorded_digest
 from tests.support.run_studies import design_small_study
 from trials.cli import main
 from trials.sealed_runs import SEALED_BLOCK
@@ -147,7 +148,7 @@ def test_a_broken_sealed_key_stops_the_run_before_it_starts(tmp_path, capsys):
 def test_log_show_unblind_adds_the_sealed_controller_and_plans(blind_run, capsys):
     study, _ = blind_run
     key = json.loads((study / "sealed" / "allocation.json").read_text())["arms"]
-    recorded = json.loads((study / "design.json").read_text())["blinding"]["commitment"]["digest"]
+    recorded = recorded_digest(study)
     row = _plan(study)[0]
     record = json.loads(gzip.decompress((study / "sealed" / "runs" / f"{row['run_code']}.json.gz").read_bytes()))
     assert main(["log", "show", row["run_code"], "--study", str(study), "--unblind", "--commitment", recorded]) == 0

@@ -88,6 +88,8 @@ REPORT_TABLES = f"{REPORT}/tables"
 #: When the sealed key of the design was opened, every time: beside the report, not in it, so that deleting or remaking
 #: report/ keeps the record. Studies unblinded before 0.3 have it in report/ (`UNBLINDING_IN_REPORT`), read still.
 UNBLINDING = "unblinding.json"
+#: The pre-registration `trials design` writes (`trials.preregistration`).
+PREREGISTRATION = "preregistration.md"
 UNBLINDING_IN_REPORT = f"{REPORT}/unblinding.json"
 SUPERSEDED = "superseded"
 #: The experimenter's record of each run on the field day: started, finished, aborted, notes (`trials.run_events`).
@@ -104,7 +106,7 @@ POWER_MARKDOWN = f"{POWER}/power.md"
 POWER_FIGURE = f"{POWER}/power.png"
 
 #: What a new design replaces: the design itself and every result of the old plan.
-PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, UNBLINDING, RUN_EVENTS, LOGS)
+PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, PREREGISTRATION, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, UNBLINDING, RUN_EVENTS, LOGS)
 #: Its sealed part: the key, the spec naming the real levels, and the sealed records of the old plan's runs.
 SEALED_STUDY_FILES = (ALLOCATION, SEALED_SPEC, SEALED_RUNS)
 
@@ -273,8 +275,9 @@ class StudyFolder:
         return self.open_sealed()[0]
 
     def open_sealed(self, recorded: str | None = None) -> tuple[SealedAllocation, str]:
-        """The sealed key, checked against design.json's commitment and the one the researcher
-        `recorded` outside the study (when given); with the sentence saying which check was made."""
+        """The sealed key, checked against design.json's commitment and what the researcher `recorded` outside the study
+        (when given): the pre-registration's digest for a study that has one (`trials.preregistration.check_recorded`),
+        else the key's commitment; with the sentence saying which check was made."""
         blinding = self.read_design().get("blinding")
         if not blinding:
             raise StudyError(f"the study in {self.root} is not blinded: it has no sealed key")
@@ -287,14 +290,19 @@ class StudyFolder:
             raise StudyError(f"the sealed key {path} is damaged: {exc}") from None
         except RecursionError:
             raise StudyError(f"the sealed key {path} is damaged: values nested too deeply to read") from None
+        registered = self.path(PREREGISTRATION).exists()
         try:
             sealed = SealedAllocation.from_dict(data, str(path))
             commitment = blinding["commitment"]
-            check = verify(data, sealed, commitment["algorithm"], commitment["digest"], recorded)
+            check = verify(data, sealed, commitment["algorithm"], commitment["digest"], None if registered else recorded)
         except DesignError as exc:
             raise StudyError(f"{exc} ({path})") from None
         except (KeyError, TypeError):
             raise StudyError(f"{self.path(DESIGN)}: blinding.commitment lacks its algorithm or digest") from None
+        if registered and recorded is not None:
+            from trials.preregistration import check_recorded  # it reads the study through this class
+
+            check = check_recorded(self, recorded)
         return sealed, check
 
     def keep_blinded_report(self) -> Path | None:

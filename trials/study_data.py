@@ -36,6 +36,7 @@ from trials.errors import StudyError
 from trials.live_checks import FILE as LIVE_CHECKS
 from trials.live_checks import read_check_log
 from trials.outcomes import outcome_cells, read_outcomes
+from trials.preregistration import registration
 from trials.responses import read_responses
 from trials.run_settings import LIVE, LOGGED, SOFTWARE_ROBOT, distinct, recorded_text
 from trials.scores import read_scores
@@ -148,6 +149,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         notes=notes,
         analysis_plan=plan_status(folder.path(SPEC), spec, design, opened_with),
         checks=read_check_log(folder),
+        registration=registration(folder),
     )
 
 

@@ -129,9 +129,10 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from trials.analysis_plan import analysis_table
     from trials.design_files import write_design
     from trials.errors import StudyError
+    from trials.preregistration import register, registered_lines
     from trials.robot.settings import robot_table
     from trials.run_settings import run_table
-    from trials.study import DESIGN, DESIGN_FIGURES, PLAN, SPEC
+    from trials.study import DESIGN, DESIGN_FIGURES, PLAN, PREREGISTRATION, SPEC
 
     folder.require_plan()
     spec = read_spec(folder.path(SPEC))
@@ -157,13 +158,15 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
               "analysis": analysis_table(folder.path(SPEC), plan.spec, plan.seed)}
     copies: list[Path] = []  # the previous design files, copied aside once the new ones are staged
     written = write_design(folder, plan, None, tables, args.dpi if args.figures else None,
-                           lambda: copies.append(folder.copy_aside((SPEC, PLAN, DESIGN, *DESIGN_FIGURES))))
+                           lambda: copies.append(folder.copy_aside((SPEC, PLAN, DESIGN, PREREGISTRATION, *DESIGN_FIGURES))))
+    registered = register(folder, None)
     if not args.figures:
         for name in DESIGN_FIGURES:  # they show the old plan; their copies are in superseded/
             folder.path(name).unlink(missing_ok=True)
     print("\n".join(summary_lines(plan)))
     print(f"Kept the {len(kept)} planned runs and their results; added {args.augment}. "
-          f"Wrote {', '.join(p.name for p in written)}; the previous design files are in {copies[0]}")
+          f"Wrote {', '.join(p.name for p in written)}, {PREREGISTRATION}; the previous design files are in {copies[0]}")
+    print(registered_lines(registered, sealed is not None))
     return 0
 
 
@@ -182,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.run_settings import run_table
     from trials.study import (
         DESIGN,
+        PREREGISTRATION,
         PUBLIC_STUDY_FILES,
         SEALED_STUDY_FILES,
         SPEC,
@@ -242,19 +246,24 @@ def run(args: argparse.Namespace) -> int:
 
         Progress("start", "design", quiet).loading("Simulating the power of the planned primary test")
         planned = planned_test_power(folder, plan.seed, args.power or SIMULATIONS, search=args.power is not None)
+    from trials.preregistration import register, registered_lines
+
+    registered = register(folder, planned)
     if args.json:
         import json
 
         print(json.dumps({"study": str(folder.root.resolve()), "files": [str(p) for p in written],
                           "planned_power": planned.record() if planned is not None else None,
                           "commitment": plan.sealed.commitment() if plan.sealed is not None else None,
+                          "preregistration": {"file": str(folder.path(PREREGISTRATION)), "sha256": registered},
                           "superseded": str(moved) if moved is not None else None,
                           "design": json.loads(folder.path(DESIGN).read_text(encoding="utf-8"))}))
         return 0
     print("\n".join(summary_lines(plan)))
     if planned is not None:
         print("\n".join(planned.lines()))
-    print(f"Wrote {', '.join(p.name for p in written)} in {folder.root.resolve()}")
+    print(f"Wrote {', '.join(p.name for p in written)}, {PREREGISTRATION} in {folder.root.resolve()}")
+    print(registered_lines(registered, plan.sealed is not None))
     if plan.sealed is not None:
         print("The allocation key is in sealed/, readable by you only (folder 0700, files 0600): keep it closed until "
               "the study is unblinded (trials report --unblind).")
