@@ -80,3 +80,12 @@ def test_derived_seeds_stay_below_2_to_the_53_and_differ_by_part():
     seeds = [derived(2**53 - 1, "campaign", 18, c) for c in range(200)]
     assert max(seeds) < 2**SEED_BITS and len(set(seeds)) == 200
     assert derived(1, "campaign", 18, 0) == derived(1, "campaign", 18, 0) != derived(2, "campaign", 18, 0)
+
+
+def test_data_sets_without_a_test_are_counted_apart_from_non_rejections():
+    """Separated judgments leave a fit that does not exist: its data set counts as not rejecting, and says so."""
+    e = estimate([math.nan, math.nan, math.nan, 0.01, 0.2, 0.03], 0.05)
+    assert (e.rejected, e.total, e.untested) == (2, 6, 3)
+    assert e.power == pytest.approx(2 / 6) and e.power_when_tested == pytest.approx(2 / 3)
+    assert e.text().endswith("[no test on 3 of 6 data sets (the fit does not exist), counted as not rejecting; 0.667 of the 3 tested rejected]")
+    assert estimate([0.01, 0.2], 0.05).text() == "0.500 (0.095-0.905)"  # every data set tested: nothing to add

@@ -49,7 +49,7 @@ class PlannedPower:
         else:
             found = f"more than {max(self.powers)}; `trials design --power {self.simulations}` tries plans up to {MULTIPLES} times as large"
         return [f"Power of the planned primary test ({self.test}), model-based with {self.simulations} simulated data sets:",
-                *(f"  {runs} runs  power {p.power:.3f} (Wilson 95 % {p.low:.3f}-{p.high:.3f})" for runs, p in self.powers.items()),
+                *(f"  {runs} runs  power {p.power:.3f} (Wilson 95 % {p.low:.3f}-{p.high:.3f}){p.untested_text()}" for runs, p in self.powers.items()),
                 f"  runs needed for power {self.target:g}: {found}",
                 f"  assumed {self.assumed}; power seed {self.seed} (`trials power --seed {self.seed} --simulations {self.simulations} "
                 f"--runs {sizes}` draws the same data sets)"]
@@ -57,7 +57,7 @@ class PlannedPower:
     def record(self) -> dict[str, object]:
         return {"test": self.test, "assumed": self.assumed, "power_seed": self.seed, "simulations": self.simulations,
                 "target": self.target, "needed_runs": self.needed, "searched": self.searched,
-                "power": {str(runs): {"power": p.power, "low": p.low, "high": p.high} for runs, p in self.powers.items()}}
+                "power": {str(runs): {"power": p.power, "low": p.low, "high": p.high, "untested": p.untested} for runs, p in self.powers.items()}}
 
 
 def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULATIONS, search: bool = True, target: float = 0.8,

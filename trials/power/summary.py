@@ -26,19 +26,39 @@ FORMAT = "navtrials.power/1"
 
 @dataclass(frozen=True)
 class PowerEstimate:
-    """`rejected` of `total` data sets rejected; the power and its Wilson 95 % interval."""
+    """`rejected` of `total` data sets rejected; the power and its Wilson 95 % interval. `untested` of them had no test
+    (the fit does not exist, e.g. separated judgments): they count as not rejecting, and are stated apart."""
 
     rejected: int
     total: int
     low: float
     high: float
+    untested: int = 0
 
     @property
     def power(self) -> float:
         return self.rejected / self.total if self.total else math.nan
 
+    @property
+    def power_when_tested(self) -> float:
+        """The share rejected among the data sets that had a test."""
+        tested = self.total - self.untested
+        return self.rejected / tested if tested else math.nan
+
     def text(self) -> str:
-        return "n/a" if not self.total else f"{self.power:.3f} ({self.low:.3f}-{self.high:.3f})"
+        return "n/a" if not self.total else f"{self.power:.3f} ({self.low:.3f}-{self.high:.3f}){self.untested_text()}"
+
+    def untested_text(self) -> str:
+        """The data sets without a test, in words after the power ("" when every one had a test)."""
+        if not self.untested:
+            return ""
+        tested = self.total - self.untested
+        among = f"{self.power_when_tested:.3f} of the {tested} tested rejected" if tested else "none had a test"
+        return f" [no test on {self.untested} of {self.total} data sets (the fit does not exist), counted as not rejecting; {among}]"
+
+
+def _estimate_record(e: PowerEstimate) -> dict[str, object]:
+    return {**asdict(e), "power": e.power, "power_when_tested": e.power_when_tested}
 
 
 def estimate(p_values: Iterable[float], alpha: float) -> PowerEstimate:
@@ -46,7 +66,7 @@ def estimate(p_values: Iterable[float], alpha: float) -> PowerEstimate:
     values = list(p_values)
     rejected = sum(1 for p in values if not math.isnan(p) and p < alpha)
     interval = wilson(rejected, len(values))
-    return PowerEstimate(rejected, len(values), interval.low, interval.high)
+    return PowerEstimate(rejected, len(values), interval.low, interval.high, sum(1 for p in values if math.isnan(p)))
 
 
 def term_power(verdicts: Sequence[Verdict], alpha: float) -> dict[str, PowerEstimate]:
@@ -143,8 +163,8 @@ def power_record(powers: Sequence[PlanPower], settings: dict[str, Any], target: 
     for p in powers:
         record = asdict(p)
         for key in ("gaussian", "judgments", "rows", "closed_terms", "closed_rows"):
-            record[key] = {str(k): {**asdict(e), "power": e.power} for k, e in getattr(p, key).items()}
-        record["planned"] = {**asdict(p.planned), "power": p.planned.power} if p.planned is not None else None
+            record[key] = {str(k): _estimate_record(e) for k, e in getattr(p, key).items()}
+        record["planned"] = _estimate_record(p.planned) if p.planned is not None else None
         plans.append(plain(record))
     has_closed = any(p.campaigns for p in powers)
     return {"format": FORMAT, **settings, "target": target, "target_terms": list(terms),
