@@ -1,13 +1,14 @@
 """The design's model fitted to results: logistic regression on judgments, least squares on metrics.
 
 Both fits use the model matrix of the plan (coded factors, effect-coded categories) and report,
-per column, the estimate, its standard error, a 95 % interval and a p-value (Wald z or t), and
-per term an effect test: a likelihood-ratio chi-square (logistic) or a partial F test (least
-squares) of the term's coefficients being zero. A column the runs cannot estimate (aliased with
-earlier columns, or too few runs) is left out with a note. When judgments are perfectly separated
-the maximum-likelihood estimates do not exist; the logistic fit then uses Firth's bias-reduced
-(penalized) likelihood, and its column tests and intervals come from the profile penalized
-likelihood (Heinze and Schemper 2002), since Wald ones misjudge penalized estimates. The penalized
+per column, the estimate, its standard error, a 95 % interval and a p-value, and per term an effect
+test of the term's coefficients being zero. Least squares: t intervals and tests, partial F tests.
+Logistic: likelihood-ratio tests of each column and term, and profile-likelihood intervals, so that
+an interval excludes 0 exactly when its column's test rejects at 0.05. A column the runs cannot
+estimate (aliased with earlier columns, or too few runs) is left out with a note. When judgments are
+perfectly separated the maximum-likelihood estimates do not exist; the logistic fit then uses Firth's
+bias-reduced (penalized) likelihood, with tests and intervals from the profile penalized likelihood
+(Heinze and Schemper 2002), since Wald ones misjudge penalized estimates. The penalized
 likelihood can have several local maxima once a column is held away from its estimate (seen when
 one arm is all yes), so each constrained maximum is the best over continuation from the neighbouring
 profile points and seeded random starts, and each interval end is where the profile deviance first
@@ -19,11 +20,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import numpy as np
 from scipy.optimize import brentq, linprog, minimize
 from scipy.special import expit
-from scipy.stats import chi2, norm
+from scipy.stats import chi2
 from scipy.stats import f as f_dist
 from scipy.stats import t as t_dist
 
@@ -236,6 +238,16 @@ _NEWTON_STEPS = 100
 _GRADIENT_TOLERANCE = 1e-8
 
 
+class Profile(Protocol):
+    """A fit's profile objective of one column: `value(held)` the maximum over the other parameters with the column
+    held at `held` (`explore`: also from fresh starts); `estimate` the unconstrained maximum, `column` its index."""
+
+    estimate: np.ndarray
+    column: int
+
+    def value(self, held: float, explore: bool = False) -> float: ...
+
+
 class _Profile:
     """The profile objective of one column: the maximum over the other columns with it held at a value. Each value
     starts from the maxima found at the nearest values held on either side (continuation along every branch found,
@@ -293,19 +305,13 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
         """The maximised objective with the given kept columns held at zero."""
         return likelihood.best({j: 0.0 for j in columns}, beta)
 
-    if firth:
-        # Wald tests understate the uncertainty of penalized estimates; the profile penalized likelihood does not.
-        statistic = np.array([_chi_square_test(objective, constrained([j]), 1)[0] for j in range(len(beta))])
-        p = chi2.sf(statistic, 1)
-        parameters = parameter_rows(dm, keep, beta, se, statistic, p)
-        intervals = [_profile_interval(_Profile(likelihood, j, beta), objective, se[j]) for j in range(len(beta))]
-        parameters = with_intervals(parameters, keep, intervals)
-        label = "penalized LR chi-square"
-    else:
-        z = beta / se
-        parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
-        parameters = with_intervals(parameters, keep, [(b - _Z95 * e, b + _Z95 * e) for b, e in zip(beta, se)])
-        label = "z"
+    # Each column's test and interval from the same (penalized) likelihood as the terms' likelihood-ratio tests: Wald
+    # ones misjudge penalized estimates, and beside a likelihood-ratio test a Wald interval can disagree with it.
+    statistic = np.array([_chi_square_test(objective, constrained([j]), 1)[0] for j in range(len(beta))])
+    parameters = parameter_rows(dm, keep, beta, se, statistic, chi2.sf(statistic, 1))
+    intervals = [profile_interval(_Profile(likelihood, j, beta), objective, se[j]) for j in range(len(beta))]
+    parameters = with_intervals(parameters, keep, intervals)
+    label = "penalized LR chi-square" if firth else "LR chi-square"
 
     def effect(remaining: np.ndarray, df: int) -> tuple[float, float]:
         dropped = [int(position[j]) for j in np.flatnonzero(keep) if j not in set(remaining.tolist())]
@@ -323,7 +329,7 @@ _CHI2_95 = _Z95**2
 _PROFILE_STEPS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.5, 8.0, 10.0, 13.0, 16.0, 20.0, 25.0, 32.0, 40.0, 50.0)
 
 
-def _profile_interval(profile: _Profile, maximum: float, std_error: float) -> tuple[float, float]:
+def profile_interval(profile: Profile, maximum: float, std_error: float) -> tuple[float, float]:
     """The 95 % profile interval: where the deviance 2 (maximum - profile) crosses the chi-square(1) quantile on each
     side of the estimate. Stepping outward brackets the crossing, brentq finds it on the profile (which continuation
     keeps continuous), and the random starts are tried at the bracket's outer end and at the root: a higher branch found

@@ -140,8 +140,8 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
         return replace(base, notes=("The plan's test compares arms; these judgments do not hold runs of two of them.",) if plan.factor else ())
     effect = None
     if len(arms) == 2:
-        effect = next((replace(e, source=SENSITIVITY_NAMES[name]) for name, fit in fits for e in [arm_effect(fit, plan.factor)] if e is not None),
-                      None)
+        effect = next((replace(e, source=_odds_source(name, int(total.sum()))) for name, fit in fits
+                       for e in [arm_effect(fit, plan.factor)] if e is not None), None)
     if plan.test == RANDOMIZATION:
         if min(arm_runs.values()) == 0:
             return replace(base, notes=("The randomization test compares two arms; these judgments do not hold runs of both.",))
@@ -153,6 +153,18 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
         return replace(base, randomization=test, p_value=test.p_value, odds_ratio=effect)
     gee = fits[0][1] if fits and fits[0][0] == "gee-small-sample" else relabel(fit_gee(dm, yes, total, JUDGED, plan.gee_options()), data.blinding)
     return replace(base, p_value=factor_p_value(gee, plan.factor), odds_ratio=effect)
+
+
+#: The sensitivity fits that treat every judgment as independent of its run's others.
+JUDGMENT_LEVEL = ("firth",)
+
+
+def _odds_source(name: str, judgments: int) -> str:
+    """Where the primary result's odds ratio comes from, saying so when that fit ignores the runs."""
+    if name in JUDGMENT_LEVEL:
+        return (f"{SENSITIVITY_NAMES[name]}; it treats the {judgments} judgments as independent, ignoring that judgments of one run "
+                "share its behaviour, so its interval and p are narrower than the runs support")
+    return SENSITIVITY_NAMES[name]
 
 
 def _arms(data: StudyData, plan: AnalysisPlan) -> tuple[str, ...]:

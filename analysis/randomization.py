@@ -11,7 +11,8 @@ holding one arm carry no weight). It needs no model, so an all-yes arm or separa
 The reference set is enumerated completely when it holds at most `max_allocations` allocations; otherwise
 `draws` allocations are drawn at random from a recorded seed and p = (1 + hits) / (1 + draws), with its
 Monte Carlo standard error. The interval for the difference inverts the test under a constant shift of every
-run's share: the shifts it does not reject at the level asked, found by bisection from the estimate.
+run's share: the shifts it does not reject at the level asked, found by bisection from the estimate and set on the
+exact shift where the p-value steps.
 """
 
 from __future__ import annotations
@@ -176,17 +177,34 @@ def randomization_test(shares: np.ndarray, first: np.ndarray, strata: np.ndarray
         # Every allocation gives the same statistic: the data say nothing about how far apart the arms could be.
         no_interval = f"every run's share of yes is {y[0]:.0%}, so no interval can be formed"
     elif level is not None:
-        low, high = (_edge(p_at, observed, 1.0 - level, side) for side in (-1.0, 1.0))
+        breaks = _breakpoints(under, indicator, observed)
+        low, high = (_edge(p_at, observed, 1.0 - level, side, breaks) for side in (-1.0, 1.0))
     return RandomizationTest(len(y), len(layout.sizes), observed, p, count, exact, 0 if exact else draws, mc_error,
                              None if exact else seed, low, high, math.nan if level is None else level, no_interval)
 
 
-def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float) -> float:
-    """The last shift from `estimate` towards `side` that the test does not reject at `alpha` (shares keep it in [-1, 1])."""
+def _breakpoints(under: np.ndarray, indicator: np.ndarray, observed: float) -> np.ndarray:
+    """Every shift at which an allocation's shifted statistic ties the shifted observed one in size, sorted: where the
+    p-value steps. |under - d indicator| = |observed - d| at d = (observed - under) / (1 - indicator) and
+    d = (observed + under) / (1 + indicator)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        found = np.r_[(observed - under) / (1.0 - indicator), (observed + under) / (1.0 + indicator)]
+    return np.sort(found[np.isfinite(found)])
+
+
+def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float, breaks: np.ndarray) -> float:
+    """The last shift from `estimate` towards `side` that the test does not reject at `alpha` (shares keep it in [-1, 1]):
+    found by bisection, then set on the step of the p-value it lies at, so the end is exact, not a tolerance off it."""
     inside, outside = estimate, side * 1.0
     if p_at(outside) > alpha:
         return outside
-    for _ in range(40):
+    for _ in range(60):
         middle = (inside + outside) / 2.0
         inside, outside = (middle, outside) if p_at(middle) > alpha else (inside, middle)
-    return inside
+    at = int(np.clip(np.searchsorted(breaks, inside), 1, len(breaks) - 1)) if len(breaks) > 1 else 0
+    step = min(breaks[max(at - 1, 0):at + 1], key=lambda b: abs(b - inside), default=inside) if len(breaks) else inside
+    return float(step) if abs(step - inside) < _SNAP and p_at(float(step)) > alpha else inside
+
+
+#: How far a bisected end may lie from the step it found (the tie tolerance widens each step by about _TIE).
+_SNAP = 1e-6

@@ -57,7 +57,9 @@ FORMAT = "navtrials.report/1"
 #: How each kind of fit's parameter intervals and tests are made, by the name of its statistic.
 INTERVALS = {
     "z": "Wald intervals and z tests.",
-    "t": "t intervals and t tests on the residual df.",
+    "t": "t intervals and t tests on the degrees of freedom the fit states (least squares: the residual df; GEE: its cluster df, "
+         "the runs with judgments less the estimable columns).",
+    "LR chi-square": "Profile-likelihood intervals and likelihood-ratio tests: an interval excludes 0 exactly when its test rejects at 0.05.",
     "penalized LR chi-square": "Profile penalized-likelihood intervals and penalized likelihood-ratio tests (Heinze and Schemper, Statistics in Medicine 2002).",
 }
 #: Why the full design model's clustered fit is exploratory, said once in the report.
@@ -613,7 +615,7 @@ def _primary_result(a: _Analysis) -> str | None:
     if r.randomization is not None:
         t = r.randomization
         interval = t.no_interval or f"{100 * (1 - r.plan.alpha):g} % CI {_points(t.low)} to {_points(t.high)}"
-        effect = f"difference {_points(t.difference)} points ({interval}), p {_equals(p_text(t.p_value))} ({t.describe()})"
+        effect = f"{_difference_name(r)} {_points(t.difference)} points ({interval}), p {_equals(p_text(t.p_value))} ({t.describe()})"
     else:
         effect = f"p {_equals(p_text(r.p_value))}"
     ratio = (f"; odds ratio {first} to {second} {_ratio(r.odds_ratio.estimate)} (95 % CI {_ratio(r.odds_ratio.low)} - "
@@ -687,9 +689,10 @@ def _primary_table(r: PrimaryResult) -> DataTable:
     if t is not None:
         level = f"{100 * (1 - r.plan.alpha):g} %"
         how = t.no_interval or f"{level} interval by inverting it"
-        rows.append([f"Difference {first} - {second} (points)", _points(t.difference), _points(t.low), _points(t.high), p_text(t.p_value),
-                     f"randomization test, {t.describe()}; {how}"])
-        data_rows.append([f"difference {first} - {second}", _value(t.difference), _value(t.low), _value(t.high), _value(t.p_value),
+        what = _difference_name(r)
+        rows.append([f"{what.capitalize()} {first} - {second} (points)", _points(t.difference), _points(t.low), _points(t.high),
+                     p_text(t.p_value), f"randomization test, {t.describe()}; {how}"])
+        data_rows.append([f"{what} {first} - {second}", _value(t.difference), _value(t.low), _value(t.high), _value(t.p_value),
                           t.describe()])
     elif not math.isnan(r.p_value):
         rows.append([f"Test of {r.plan.factor}", "", "", "", p_text(r.p_value), r.plan.describe_test()])
@@ -698,10 +701,18 @@ def _primary_table(r: PrimaryResult) -> DataTable:
         o = r.odds_ratio
         rows.append([f"Odds ratio {first} to {second}", _ratio(o.estimate), _ratio(o.low), _ratio(o.high), p_text(o.p_value), o.source])
         data_rows.append([f"odds ratio {first} to {second}", _value(o.estimate), _value(o.low), _value(o.high), _value(o.p_value), o.source])
+    weighted = (f" The {_difference_name(r)} is the difference of the arms' mean shares within each stratum of "
+                f"{', '.join(r.plan.strata)}, averaged with weights n1 n2 / n (n1, n2 the stratum's runs in each arm, n their sum), "
+                "as the test compares them; it is not the difference of the two means above." if r.plan.strata else "")
     return DataTable(["Quantity", "Estimate", "Lower", "Upper", "p", "How"], rows,
                      "The planned primary result. Shares are each run's share of yes, averaged over the arm's runs (every run weighs the "
-                     "same); the odds ratio is from the first sensitivity fit that estimates it.", {1, 2, 3, 4},
+                     f"same); the odds ratio is from the first sensitivity fit that estimates it.{weighted}", {1, 2, 3, 4},
                      ["quantity", "estimate", "lower", "upper", "p", "how"], data_rows)
+
+
+def _difference_name(r: PrimaryResult) -> str:
+    """What the primary difference is: the plain difference of mean run shares, or its stratum-weighted form."""
+    return "stratum-weighted difference" if r.plan.strata else "difference"
 
 
 def _interval_text(low: float, high: float) -> str:
@@ -922,9 +933,9 @@ def _statistics(a: _Analysis) -> list[str]:
             )
         items.append(
             "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
-            "likelihood (Newton-Raphson); Wald z tests per column, likelihood-ratio chi-square tests per term. When the judgments are "
-            "perfectly separated, Firth's penalized likelihood replaces maximum likelihood, with profile penalized-likelihood intervals "
-            "and penalized likelihood-ratio tests for columns and terms alike."
+            "likelihood (Newton-Raphson); likelihood-ratio chi-square tests per column and per term, and profile-likelihood intervals "
+            "(the random-intercept model's too). When the judgments are perfectly separated, Firth's penalized likelihood replaces "
+            "maximum likelihood, with profile penalized-likelihood intervals and penalized likelihood-ratio tests for columns and terms alike."
         )
     items += [
         "Outcome metrics: least squares on the same terms; t tests and intervals per column, partial F tests per term, R^2 and RMSE.",

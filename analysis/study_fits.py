@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -35,7 +36,8 @@ def settings(data: StudyData, runs: list[StudyRun]) -> np.ndarray:
 
 
 def relabel(fit: Fit, blinding: Blinding) -> Fit:
-    """Column labels with controller names instead of arm labels, once the report may name them."""
+    """Column labels with controller names instead of arm labels, once the report may name them: in the parameters and
+    in the notes that name columns (separation, aliasing)."""
     if not (blinding.blinded and blinding.open) or blinding.factor is None:
         return fit
     names = {f"{blinding.factor}[{arm}]": f"{blinding.factor}[{name}]" for arm, name in blinding.labels.items()}
@@ -43,7 +45,12 @@ def relabel(fit: Fit, blinding: Blinding) -> Fit:
     def rename(column: str) -> str:
         return "*".join(names.get(part, part) for part in column.split("*"))
 
-    return replace(fit, parameters=[replace(p, column=rename(p.column)) for p in fit.parameters])
+    pattern = re.compile("|".join(map(re.escape, names)))
+
+    def in_note(note: str) -> str:
+        return pattern.sub(lambda match: names[match.group()], note)
+
+    return replace(fit, parameters=[replace(p, column=rename(p.column)) for p in fit.parameters], notes=[in_note(n) for n in fit.notes])
 
 
 JUDGED = "judged socially compliant"

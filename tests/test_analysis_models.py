@@ -8,6 +8,7 @@ from functools import cache
 import numpy as np
 import pytest
 import statsmodels.api as sm
+from scipy import stats
 from scipy.optimize import approx_fprime, minimize
 from scipy.special import logit
 from scipy.stats import chi2
@@ -38,9 +39,23 @@ def test_logistic_matches_statsmodels() -> None:
     assert fit.method.endswith("maximum likelihood") and not fit.notes
     assert [p.estimate for p in fit.parameters] == pytest.approx(reference.params, abs=1e-7)
     assert [p.std_error for p in fit.parameters] == pytest.approx(reference.bse, abs=1e-7)
-    assert [p.p_value for p in fit.parameters] == pytest.approx(reference.pvalues, abs=1e-7)
+    counts = np.column_stack([successes, trials - successes])
+    for j, parameter in enumerate(fit.parameters):
+        others = [k for k in range(dm.x.shape[1]) if k != j]
+
+        def held(value: float, column: int = j, others: list[int] = others) -> float:
+            """statsmodels' log-likelihood with `column` held at `value` (an offset), the others refitted."""
+            return sm.GLM(counts, dm.x[:, others], family=sm.families.Binomial(), offset=value * dm.x[:, column]).fit().llf
+
+        # Each column's test is the likelihood ratio of dropping it, and its interval ends are where the profile deviance
+        # reaches chi-square(1, 0.95): the likelihood's own interval, which excludes 0 exactly when the test rejects.
+        assert parameter.statistic == pytest.approx(2 * (reference.llf - held(0.0)), abs=1e-6)
+        assert parameter.p_value == pytest.approx(stats.chi2.sf(parameter.statistic, 1), abs=1e-9)
+        for end in (parameter.low, parameter.high):
+            assert 2 * (reference.llf - held(end)) == pytest.approx(stats.chi2.ppf(0.95, 1), abs=1e-5)
+        assert (parameter.low > 0 or parameter.high < 0) == (parameter.p_value < 0.05)
     # The effect test of Controller drops its column: the LR statistic of the two nested fits.
-    reduced = sm.GLM(np.column_stack([successes, trials - successes]), dm.x[:, [0, 1, 3]], family=sm.families.Binomial()).fit()
+    reduced = sm.GLM(counts, dm.x[:, [0, 1, 3]], family=sm.families.Binomial()).fit()
     controller = next(e for e in fit.effects if e.term == "Controller")
     assert controller.df == 1
     assert controller.statistic == pytest.approx(2 * (reference.llf - reduced.llf), abs=1e-6)

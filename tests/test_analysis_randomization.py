@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -103,3 +104,41 @@ def test_bad_input_is_refused_with_what_was_expected():
         randomization_test(SHARES[:4], FIRST[:4])
     with pytest.raises(AnalysisError, match="one share, one arm"):
         randomization_test(SHARES, FIRST[:5])
+
+
+def _exact_interval(shares: np.ndarray, first: np.ndarray, alpha: Fraction) -> tuple[Fraction, Fraction]:
+    """The inverted interval in exact rational arithmetic: every allocation enumerated, the p-value evaluated at every
+    shift where it steps and between them, walking out from the estimate until it is rejected."""
+    y = [Fraction(v).limit_denominator(1000) for v in shares]
+    n, k = len(y), int(first.sum())
+
+    def statistic(values: list[Fraction], chosen: tuple[int, ...]) -> Fraction:
+        return sum(values[i] for i in chosen) / k - sum(values[i] for i in range(n) if i not in chosen) / (n - k)
+
+    allocations = list(itertools.combinations(range(n), k))
+    observed_z = [Fraction(int(f)) for f in first]
+    observed = statistic(y, tuple(np.flatnonzero(first)))
+    pairs = [(statistic(y, c), statistic(observed_z, c)) for c in allocations]
+
+    def p(shift: Fraction) -> Fraction:
+        return Fraction(sum(abs(s - shift * t) >= abs(observed - shift) for s, t in pairs), len(allocations))
+
+    steps = sorted({d for s, t in pairs for d in ([(observed - s) / (1 - t)] if t != 1 else []) + ([(observed + s) / (1 + t)] if t != -1 else [])})
+    ends = []
+    for side in (-1, 1):
+        candidates = sorted((d for d in steps if (d - observed) * side > 0), key=lambda d: abs(d - observed))
+        end = observed
+        for d in candidates:
+            if p(d) <= alpha:
+                break
+            end = d
+        ends.append(end)
+    return ends[0], ends[1]
+
+
+def test_interval_ends_are_the_exact_shifts_where_the_p_value_steps():
+    low, high = _exact_interval(SHARES, FIRST, Fraction(1, 5))
+    result = randomization_test(SHARES, FIRST, level=0.8)
+    assert (low, high) == (Fraction(1, 5), Fraction(3, 4))
+    # at the step itself, to the rounding of one division (a tolerance-wide bisection stopped about 1e-9 short of it)
+    assert (result.low, result.high) == (pytest.approx(float(low), abs=1e-14), pytest.approx(float(high), abs=1e-14))
