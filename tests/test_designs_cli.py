@@ -58,7 +58,7 @@ def test_qualitative_default_writes_the_study_folder(tmp_path, capsys):
     assert design(tmp_path, "--runs", "27", "--seed", "4") == 0
     out = capsys.readouterr().out
     assert "79.9157" in out and "80.2742" in out and "99.55 %" in out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["design.json", "plan.csv", "study.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["design.json", "plan.csv", "preregistration.md", "study.toml"]
     rows = read_plan(tmp_path)
     assert len(rows) == 27
     assert list(rows[0]) == ["order", "run_code", "Pedestrians", "Direction", "CrossingDistance"]
@@ -90,7 +90,7 @@ def test_figures_are_drawn_on_request_as_png_at_dpi_and_svg(tmp_path):
     assert design(low, "--runs", "27", "--seed", "4", "--figures", "--dpi", "50") == 0
     assert design(high, "--runs", "27", "--seed", "4", "--figures", "--dpi", "100") == 0
     assert sorted(p.name for p in low.iterdir()) == ["correlation_map.png", "correlation_map.svg", "design.json",
-                                                     "design_evaluation.png", "design_evaluation.svg", "plan.csv", "study.toml"]
+                                                     "design_evaluation.png", "design_evaluation.svg", "plan.csv", "preregistration.md", "study.toml"]
     for stem in ("correlation_map", "design_evaluation"):
         assert _png_width(high / f"{stem}.png") == pytest.approx(2 * _png_width(low / f"{stem}.png"), rel=0.05)
         svg = (low / f"{stem}.svg").read_text(encoding="utf-8")
