@@ -10,9 +10,16 @@ holding one arm carry no weight). It needs no model, so an all-yes arm or separa
 
 The reference set is enumerated completely when it holds at most `max_allocations` allocations; otherwise
 `draws` allocations are drawn at random from a recorded seed and p = (1 + hits) / (1 + draws), with its
-Monte Carlo standard error. The interval for the difference inverts the test under a constant shift of every
-run's share: the shifts it does not reject at the level asked, found by bisection from the estimate and set on the
-exact shift where the p-value steps.
+Monte Carlo standard error.
+
+The interval is for the average difference over the study's runs (the estimand: the stratified difference of mean run
+shares the arms would give if every run were driven by each). It inverts the studentized randomization test (the
+difference over its Neyman standard error, sum of w^2 (s1^2 / n1 + s2^2 / n2) over strata): a difference d is kept
+when the test, on the shares with d taken off the first arm's runs, does not reject. Studentized, the test is exact
+for a constant effect and keeps its level for the average effect when runs differ in their effect (Wu and Ding,
+JASA 2021), so the interval needs no model of how the arm moves each run's share, which a bounded share could not
+follow. It needs two runs of each arm in each stratum compared. The p-value above tests that the arm changes no run's
+share; the interval's own test at 0 (`p_studentized`) can fall on the other side of alpha when p is near it.
 """
 
 from __future__ import annotations
@@ -36,6 +43,9 @@ DRAWS = 20_000
 _CHUNK = 100_000
 #: Statistics closer than this count as equal (sums of the same shares in another order).
 _TIE = 1e-9
+#: Studentized statistics within this fraction of the observed one count as equal: far above the rounding of the sums,
+#: far below any real difference, so an interval end lies within about this much of the exact one.
+_RELATIVE_TIE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -54,12 +64,19 @@ class RandomizationTest:
     draws: int
     mc_error: float
     seed: int | None
-    #: Interval for the difference by test inversion, at `level` (NaN when not asked for, or when none can be formed).
+    #: Interval for the average difference by inverting the studentized test, at `level` (NaN when not asked for, or when
+    #: none can be formed), and that test's p-value at a difference of 0.
     low: float = math.nan
     high: float = math.nan
     level: float = math.nan
     #: Why no interval could be formed, in words ("" when one was, or none was asked for).
     no_interval: str = ""
+    p_studentized: float = math.nan
+
+    @property
+    def agrees(self) -> bool:
+        """Whether the interval excludes 0 exactly when the p-value is below 1 - level."""
+        return math.isnan(self.low) or ((self.low > 0.0 or self.high < 0.0) == (self.p_value < 1.0 - self.level))
 
     def describe(self) -> str:
         """How the p-value was found, in one phrase."""
@@ -162,49 +179,77 @@ def randomization_test(shares: np.ndarray, first: np.ndarray, strata: np.ndarray
 
     observed = float(np.where(z, a, 0.0) @ y - np.where(z, 0.0, b) @ y)
     under = statistics(y)
-    # the statistic of the observed allocation's indicator under each allocation: how a shift of the shares moves it
-    indicator = statistics(z.astype(float)) if level is not None else np.zeros_like(under)
-
-    def p_at(shift: float) -> float:
-        hits = int(np.count_nonzero(np.abs(under - shift * indicator) >= abs(observed - shift) - _TIE))
-        return hits / len(allocations) if exact else (1 + hits) / (1 + len(allocations))
-
-    p = p_at(0.0)
+    hits = int(np.count_nonzero(np.abs(under) >= abs(observed) - _TIE))
+    p = hits / len(allocations) if exact else (1 + hits) / (1 + len(allocations))
     mc_error = 0.0 if exact else math.sqrt(p * (1.0 - p) / draws)
-    low = high = math.nan
+    low = high = p_studentized = math.nan
     no_interval = ""
     if level is not None and np.ptp(y) == 0.0:
         # Every allocation gives the same statistic: the data say nothing about how far apart the arms could be.
         no_interval = f"every run's share of yes is {y[0]:.0%}, so no interval can be formed"
     elif level is not None:
-        breaks = _breakpoints(under, indicator, observed)
-        low, high = (_edge(p_at, observed, 1.0 - level, side, breaks) for side in (-1.0, 1.0))
+        studentized = _Studentized(y, z, layout, allocations, exact)
+        no_interval = studentized.cannot
+        if not no_interval:
+            p_studentized = studentized.p(0.0)
+            low, high = (_edge(studentized.p, observed, 1.0 - level, side) for side in (-1.0, 1.0))
     return RandomizationTest(len(y), len(layout.sizes), observed, p, count, exact, 0 if exact else draws, mc_error,
-                             None if exact else seed, low, high, math.nan if level is None else level, no_interval)
+                             None if exact else seed, low, high, math.nan if level is None else level, no_interval, p_studentized)
 
 
-def _breakpoints(under: np.ndarray, indicator: np.ndarray, observed: float) -> np.ndarray:
-    """Every shift at which an allocation's shifted statistic ties the shifted observed one in size, sorted: where the
-    p-value steps. |under - d indicator| = |observed - d| at d = (observed - under) / (1 - indicator) and
-    d = (observed + under) / (1 + indicator)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        found = np.r_[(observed - under) / (1.0 - indicator), (observed + under) / (1.0 + indicator)]
-    return np.sort(found[np.isfinite(found)])
+class _Studentized:
+    """The studentized randomization test of an average difference d: the stratified difference over its Neyman
+    standard error, on the shares with d taken off the first arm's runs, under every allocation of the reference set."""
+
+    def __init__(self, y: np.ndarray, z: np.ndarray, layout: _Layout, allocations: np.ndarray, exact: bool) -> None:
+        n, k = np.array(layout.sizes), np.array(layout.firsts)
+        compared = (k > 0) & (k < n)
+        self.cannot = ("a stratum holds fewer than two runs of an arm, so the interval's standard error cannot be estimated"
+                       if np.any(compared & ((k < 2) | (n - k < 2))) else "")
+        weights = np.where(compared, k * (n - k) / n, 0.0)
+        self.strata = [(np.flatnonzero(layout.stratum == s), int(k[s]), int(n[s]), weights[s] / weights.sum())
+                       for s in range(len(n)) if compared[s]]
+        self.y, self.z, self.allocations, self.exact = y, z.astype(float), allocations, exact
+        if not self.cannot:
+            self.observed = self._difference_and_error(y, z[np.newaxis, :].astype(float))
+
+    def _difference_and_error(self, values: np.ndarray, allocations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The stratified difference and its Neyman standard error under each allocation (rows of 0/1)."""
+        difference = np.zeros(len(allocations))
+        variance = np.zeros(len(allocations))
+        for runs, k, n, w in self.strata:
+            v, chosen = values[runs], allocations[:, runs]
+            first_sum, first_squares = chosen @ v, chosen @ (v * v)
+            second_sum, second_squares = v.sum() - first_sum, float(v @ v) - first_squares
+            first_mean, second_mean = first_sum / k, second_sum / (n - k)
+            first_var = np.maximum(first_squares - k * first_mean**2, 0.0) / (k - 1)
+            second_var = np.maximum(second_squares - (n - k) * second_mean**2, 0.0) / (n - k - 1)
+            difference += w * (first_mean - second_mean)
+            variance += w * w * (first_var / k + second_var / (n - k))
+        return difference, np.sqrt(variance)
+
+    def p(self, shift: float) -> float:
+        """The p-value of an average difference of `shift`."""
+        statistic = _ratio(*self._difference_and_error(self.y - shift * self.z, self.allocations))
+        observed = abs(float(_ratio(self.observed[0] - shift, self.observed[1])[0]))
+        hits = int(np.count_nonzero(np.abs(statistic) >= observed * (1.0 - _RELATIVE_TIE)))
+        return hits / len(statistic) if self.exact else (1 + hits) / (1 + len(statistic))
 
 
-def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float, breaks: np.ndarray) -> float:
-    """The last shift from `estimate` towards `side` that the test does not reject at `alpha` (shares keep it in [-1, 1]):
-    found by bisection, then set on the step of the p-value it lies at, so the end is exact, not a tolerance off it."""
+def _ratio(difference: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """difference / error; where the error is 0, infinite with the difference's sign, or 0 when the difference is 0 too."""
+    safe = np.where(error > 0.0, error, 1.0)
+    apart = np.where(difference == 0.0, 0.0, np.copysign(np.inf, difference))
+    return np.where(error > 0.0, difference / safe, apart)
+
+
+def _edge(p_at: Callable[[float], float], estimate: float, alpha: float, side: float) -> float:
+    """The last difference from `estimate` towards `side` that the test does not reject at `alpha`, by bisection to the
+    precision of a float (an average of shares stays in [-1, 1])."""
     inside, outside = estimate, side * 1.0
     if p_at(outside) > alpha:
         return outside
     for _ in range(60):
         middle = (inside + outside) / 2.0
         inside, outside = (middle, outside) if p_at(middle) > alpha else (inside, middle)
-    at = int(np.clip(np.searchsorted(breaks, inside), 1, len(breaks) - 1)) if len(breaks) > 1 else 0
-    step = min(breaks[max(at - 1, 0):at + 1], key=lambda b: abs(b - inside), default=inside) if len(breaks) else inside
-    return float(step) if abs(step - inside) < _SNAP and p_at(float(step)) > alpha else inside
-
-
-#: How far a bisected end may lie from the step it found (the tie tolerance widens each step by about _TIE).
-_SNAP = 1e-6
+    return inside

@@ -614,7 +614,7 @@ def _primary_result(a: _Analysis) -> str | None:
     shares = f"mean run share of yes {percent(r.mean_shares[first])} for {first} against {percent(r.mean_shares[second])} for {second}"
     if r.randomization is not None:
         t = r.randomization
-        interval = t.no_interval or f"{100 * (1 - r.plan.alpha):g} % CI {_points(t.low)} to {_points(t.high)}"
+        interval = t.no_interval or f"{100 * (1 - r.plan.alpha):g} % CI for the average difference {_points(t.low)} to {_points(t.high)}"
         effect = f"{_difference_name(r)} {_points(t.difference)} points ({interval}), p {_equals(p_text(t.p_value))} ({t.describe()})"
     else:
         effect = f"p {_equals(p_text(r.p_value))}"
@@ -655,6 +655,12 @@ def _primary_section(a: _Analysis) -> list[Block]:
         blocks.append(Paragraph(line))
     if len(r.arms) == 2:
         blocks.append(_primary_table(r))
+    t = r.randomization
+    if t is not None and not t.agrees:
+        blocks.append(Paragraph(
+            f"**The interval and the p-value fall on different sides of alpha here.** The p-value ({p_text(t.p_value)}) is the planned "
+            "test that the arm changes no run's share; the interval is for the average difference and comes from the studentized "
+            f"test, whose p at a difference of 0 is {p_text(t.p_studentized)}. Near alpha the two can disagree; the planned test decides."))
     rows, data_rows = [], []
     for name, fit in r.sensitivity:
         effect = next((e for e in fit.effects if e.term == plan.factor), None)
@@ -688,7 +694,8 @@ def _primary_table(r: PrimaryResult) -> DataTable:
     t = r.randomization
     if t is not None:
         level = f"{100 * (1 - r.plan.alpha):g} %"
-        how = t.no_interval or f"{level} interval by inverting it"
+        how = t.no_interval or (f"{level} interval for the average difference over the runs, by inverting the studentized test "
+                                f"(its p at 0: {p_text(t.p_studentized)})")
         what = _difference_name(r)
         rows.append([f"{what.capitalize()} {first} - {second} (points)", _points(t.difference), _points(t.low), _points(t.high),
                      p_text(t.p_value), f"randomization test, {t.describe()}; {how}"])
@@ -1026,7 +1033,9 @@ def _primary_record(r: PrimaryResult | None) -> dict[str, Any] | None:
         "randomization": None if t is None else {
             "difference": _json_number(t.difference), "low": _json_number(t.low), "high": _json_number(t.high), "level": t.level,
             "p": t.p_value, "allocations": t.allocations, "exact": t.exact, "draws": t.draws, "mc_standard_error": t.mc_error,
-            "seed": t.seed, "strata": t.strata, "no_interval": t.no_interval or None},
+            "seed": t.seed, "strata": t.strata, "no_interval": t.no_interval or None,
+            "interval": "the average difference over the runs, by inverting the studentized randomization test",
+            "p_studentized": _json_number(t.p_studentized), "interval_agrees_with_p": t.agrees},
         "odds_ratio": None if r.odds_ratio is None else {"estimate": _json_number(r.odds_ratio.estimate), "low": _json_number(r.odds_ratio.low),
                                                           "high": _json_number(r.odds_ratio.high), "p": _json_number(r.odds_ratio.p_value),
                                                           "source": r.odds_ratio.source},
