@@ -109,6 +109,7 @@ def verify(key: dict[str, object], sealed: SealedAllocation, algorithm: str, dig
         raise DesignError(f"--commitment: expected the 64 hex digits `trials design` printed, got {recorded!r}")
     if not secrets.compare_digest(actual, value):
         raise DesignError(f"the sealed key does not match the commitment you recorded ({value[:16]}...): the key or design.json "
-                          "was changed after the design was made, or the recorded value belongs to another study")
+                          "was changed after the design was made, the study's preregistration.md was removed, or the recorded "
+                          "value belongs to another study")
     return (f"The sealed key matched the commitment recorded outside the study (--commitment {actual[:16]}...) and "
             f"design.json's, which cover {covers}.")

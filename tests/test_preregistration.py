@@ -107,6 +107,10 @@ def test_a_plan_swapped_by_hand_is_refused_and_reported(finished: Path, tmp_path
     (study / "preregistration.md").write_text(text)
     code, _, err = _report(study, capsys, "--unblind", "--commitment", recorded)
     assert code == 2 and "preregistration.md does not match the digest you recorded" in err, err
+    # Removing it leaves the study looking older than pre-registrations: the digest recorded outside still fails.
+    (study / "preregistration.md").unlink()
+    code, _, err = _report(study, capsys, "--unblind", "--commitment", recorded)
+    assert code == 2 and "preregistration.md was removed" in err, err
     assert not (study / "unblinding.json").exists()
 
 
