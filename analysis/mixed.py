@@ -209,7 +209,8 @@ class _HeldProfile:
 
     def value(self, held: float, explore: bool = False) -> float:
         beta, sd = self.found[min(self.found, key=lambda v: abs(v - held))]
-        plain, plain_value = _maximise(self._held(_plain(self.x, self.successes, self.trials, self.nodes), held), np.delete(beta, self.column))
+        plain_objective, others = self._held(_plain(self.x, self.successes, self.trials, self.nodes), held), np.delete(beta, self.column)
+        plain, plain_value = _maximise(plain_objective, others) if others.size else (others, plain_objective(others)[0])
         best = (np.insert(plain, self.column, held), 0.0, plain_value)
         for start_sd in {max(sd, 0.5), *((0.5, 2.0) if explore else ())}:
             start = np.r_[np.delete(beta, self.column), math.log(start_sd)]

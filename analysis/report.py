@@ -421,8 +421,9 @@ def _deviations_section(a: _Analysis) -> list[Block]:
                         sum(c.decision == "stands" for c in mine), sum(c.decision == "rerun" for c in mine), sum(c.undecided for c in mine)])
     flagged = [c for c in checks if c.flag]
     undecided = [c.run_code for c in flagged if c.undecided]
-    items = [f"Run {c.run_code} ({word.lower()} {arm_of.get(c.run_code, '?')}): {c.flag}; "
-             + (f"**{c.decision}**: {c.reason}" if c.decision else "**undecided**") for c in flagged]
+    which = {c.run_code: "" if a.pooled else f" ({word.lower()} {arm_of.get(c.run_code, '?')})" for c in flagged}
+    items = [f"Run {c.run_code}{which[c.run_code]}: {c.flag}; " + (f"**{c.decision}**: {c.reason}" if c.decision else "**undecided**")
+             for c in flagged]
     blocks: list[Block] = [
         Heading("Live runs: manipulation checks and deviations"),
         Paragraph("Each live run's check: how many people were tracked near the robot at once against its row's Pedestrians, "

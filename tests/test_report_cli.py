@@ -267,13 +267,13 @@ def test_unblinding_checks_the_recorded_commitment_and_keeps_the_blinded_report(
     assert "matched the digest recorded outside the study" in out and "The blinded report is kept in" in out
     record = json.loads((ab_study / "report" / "report.json").read_text())
     assert record["blinding"]["controllers_named"] and "recorded outside the study" in record["blinding"]["key_check"]
-    assert "matched the commitment recorded outside the study" in (ab_study / "report" / "report.md").read_text()
+    assert "matched the digest recorded outside the study" in (ab_study / "report" / "report.md").read_text()
     assert "The key was opened with 18 of 18 runs finished." in (ab_study / "report" / "report.md").read_text()
     kept = {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()}
     assert kept == blinded
     # Unblinding again replaces the unblinded report only; the blinded one stays as it was.
     assert main(["report", "--study", str(ab_study), *unblind(ab_study)]) == 0
-    assert "matched the commitment recorded outside the study" in capsys.readouterr().out
+    assert "matched the digest recorded outside the study" in capsys.readouterr().out
     assert {p.relative_to(ab_study / "report" / "blinded"): p.read_bytes() for p in (ab_study / "report" / "blinded").rglob("*") if p.is_file()} == kept
     assert not (ab_study / "superseded").exists()
 
