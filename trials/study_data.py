@@ -256,8 +256,9 @@ def unblinding_opening(folder: StudyFolder, commitment: str | None, interim: str
     if not blinding:
         return None
     if commitment is None:
-        raise StudyError("--unblind needs --commitment HEX, the commitment `trials design` printed and you recorded outside "
-                         "the study folder: the key is opened only against it")
+        raise StudyError("--unblind needs --commitment HEX, the pre-registration digest `trials design` printed and you recorded "
+                         "outside the study folder (the key's commitment for a study designed before pre-registrations): the key is "
+                         "opened only against it")
     completeness, complete = _completeness(folder)
     reason = _reason(interim)
     if not complete and reason is None:

@@ -22,7 +22,7 @@ def register(group: argparse._SubParsersAction) -> None:
                         help="blinded study: open the sealed key (checked against design.json's commitment) and show "
                         "the run's controller and its plans from sealed/runs/")
     parser.add_argument("--commitment", metavar="HEX",
-                        help="with --unblind (required): the commitment recorded when the study was designed")
+                        help="with --unblind (required): the pre-registration digest recorded when the study was designed")
     parser.add_argument("--interim", metavar="REASON",
                         help="with --unblind: open the key although runs are pending or failed, for this reason (recorded)")
     types.add_dpi(parser)

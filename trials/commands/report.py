@@ -32,8 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--commitment",
         metavar="HEX",
-        help="with --unblind (required to unblind a blinded study): the commitment `trials design` printed, as recorded "
-        "outside the study folder; a key that does not match it is refused",
+        help="with --unblind (required to unblind a blinded study): the pre-registration digest `trials design` printed, as recorded "
+        "outside the study folder; a study or key that does not match it is refused",
     )
     parser.add_argument(
         "--interim",
