@@ -82,7 +82,7 @@ def _modes(eta: np.ndarray, successes: np.ndarray, trials: np.ndarray, sd: float
     low, high = sd * (successes - trials), sd * successes
     u = np.clip(np.zeros_like(eta), low, high)
     for _ in range(200):
-        p = 1.0 / (1.0 + np.exp(-(eta + sd * u)))
+        p = expit(eta + sd * u)
         slope = sd * (successes - trials * p) - u
         curvature = sd**2 * trials * p * (1.0 - p) + 1.0
         low, high = np.where(slope > 0.0, u, low), np.where(slope < 0.0, u, high)

@@ -53,7 +53,9 @@ def test_likelihood_tests_sit_beside_likelihood_intervals(study: Path) -> None:
     for name in ("random-intercept", "firth"):
         for column in fits[name]["parameters"]:  # on the log-odds scale: the interval excludes 0 exactly when p < 0.05
             assert (column["low"] > 0.0 or column["high"] < 0.0) == (column["p"] < 0.05), (name, column)
-    assert "likelihood-ratio chi-square tests per column and per term, and profile-likelihood intervals" in report.markdown()
+    markdown = report.markdown()
+    assert "likelihood-ratio chi-square tests per column and per term, and profile-likelihood intervals" in markdown
+    assert "t intervals and t tests on the degrees of freedom the fit states (least squares: the residual df; GEE: its cluster df" in markdown
 
 
 def test_a_separated_study_names_controllers_and_says_where_its_odds_ratio_comes_from(study: Path) -> None:
