@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.refusing_disk import refuse_changes
-from tests.support.synthetic_study import design, run_all
+from tests.support.synthetic_study import judged_ab_study
 from trials.cli import main
 
 pytestmark = pytest.mark.slow
@@ -21,10 +21,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def template(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The blinded A/B plan with its first 4 runs finished and judged."""
-    root = tmp_path_factory.mktemp("disk") / "study"
-    run_all(design(root), limit=4)
-    assert main(["respond", "--simulate", "--seed", "3", "--study", str(root)]) == 0
-    return root
+    return judged_ab_study(tmp_path_factory.mktemp("disk") / "study", limit=4, seed=3)
 
 
 def _snapshot(root: Path) -> dict[str, str]:

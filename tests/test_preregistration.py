@@ -15,7 +15,7 @@ import tomli_w
 
 from analysis.plan import table_digest
 from tests.support.registration import recorded_digest
-from tests.support.synthetic_study import design, run_all
+from tests.support.synthetic_study import judged_ab_study
 from trials.cli import main
 from trials.study import design_digest
 
@@ -25,10 +25,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The blinded A/B plan, every run finished and judged by simulated participants."""
-    root = tmp_path_factory.mktemp("registered") / "study"
-    run_all(design(root))
-    assert main(["respond", "--simulate", "--seed", "5", "--study", str(root)]) == 0
-    return root
+    return judged_ab_study(tmp_path_factory.mktemp("registered") / "study")
 
 
 def _copy(study: Path, tmp_path: Path) -> Path:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.registration import recorded_digest
-from tests.support.synthetic_study import design, run_all
+from tests.support.synthetic_study import design, judged_ab_study, run_all
 from trials.cli import main
 
 pytestmark = pytest.mark.slow
@@ -18,10 +18,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The blinded A/B plan with 4 of its 18 runs finished and judged by simulated participants."""
-    root = tmp_path_factory.mktemp("interim") / "study"
-    run_all(design(root), limit=4)
-    assert main(["respond", "--simulate", "--seed", "5", "--study", str(root)]) == 0
-    return root
+    return judged_ab_study(tmp_path_factory.mktemp("interim") / "study", limit=4)
 
 
 def _report(root: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> tuple[str, dict, str]:

@@ -14,8 +14,7 @@ from analysis.plan import PlanStatus
 from analysis.report import build_report
 from analysis.scoring import Rubric
 from tests.support.registration import recorded_digest
-from tests.support.synthetic_study import design, run_all
-from trials.cli import main
+from tests.support.synthetic_study import judged_ab_study
 from trials.study import StudyFolder
 from trials.study_data import load_study
 
@@ -25,10 +24,7 @@ NOW = "2026-12-06T00:00:00+00:00"
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("wording") / "study"
-    run_all(design(root))
-    assert main(["respond", "--simulate", "--seed", "5", "--study", str(root)]) == 0
-    return root
+    return judged_ab_study(tmp_path_factory.mktemp("wording") / "study")
 
 
 def _unblinded(root: Path):

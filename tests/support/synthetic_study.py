@@ -181,3 +181,11 @@ def run_all(folder: StudyFolder, limit: int | None = None, blind: bool = True) -
         controller = by_code[row["run_code"]]
         outcomes.append(write_run(folder, row, behaviour_for(controller, int(row["order"])), 100 + int(row["order"]), None if blind else controller))
     return outcomes
+
+
+def judged_ab_study(root: Path, limit: int | None = None, seed: int = 5) -> Path:
+    """The blinded A/B plan in `root` with its first `limit` runs (all by default) synthesised and judged by simulated
+    participants (`seed`)."""
+    run_all(design(root), limit=limit)
+    assert main(["respond", "--simulate", "--seed", str(seed), "--study", str(root)]) == 0
+    return root
