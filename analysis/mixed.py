@@ -212,7 +212,7 @@ class _HeldProfile:
         plain_objective, others = self._held(_plain(self.x, self.successes, self.trials, self.nodes), held), np.delete(beta, self.column)
         plain, plain_value = _maximise(plain_objective, others) if others.size else (others, plain_objective(others)[0])
         best = (np.insert(plain, self.column, held), 0.0, plain_value)
-        for start_sd in {max(sd, 0.5), *((0.5, 2.0) if explore else ())}:
+        for start_sd in sorted({max(sd, 0.5), *((0.5, 2.0) if explore else ())}):
             start = np.r_[np.delete(beta, self.column), math.log(start_sd)]
             theta, random_value = _maximise(self._held(_random(self.x, self.successes, self.trials, self.nodes), held), start)
             if random_value - best[2] >= _BOUNDARY_GAIN:
