@@ -927,7 +927,8 @@ def _statistics(a: _Analysis) -> list[str]:
             "Primary analysis of the judgments: the analysis plan's test (study.toml [analysis]). The randomization test compares the "
             "arms' mean run shares of yes, re-drawing the arm labels as the design allocated them (the same number of runs per arm, "
             "within strata when the plan names them) over every allocation, or a seeded Monte Carlo sample of them with its standard "
-            "error; its interval inverts the test under a constant shift of the shares."
+            "error. The interval is for the average difference over the runs: it inverts the studentized randomization test (the "
+            "difference over its Neyman standard error; Wu and Ding, JASA 2021), which needs no model of how the arm moves each share."
         )
         items.append(
             "Exploratory: the design's full logistic model by GEE with each run a cluster (statsmodels; exchangeable working "
