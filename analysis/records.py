@@ -201,6 +201,8 @@ class Registration:
     file: str
     digest: str
     differs: tuple[str, ...]
+    #: Whether the digest matches the one recorded outside the study (`--commitment`); None when none was given.
+    recorded: bool | None = None
 
 
 @dataclass(frozen=True)

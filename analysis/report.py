@@ -402,8 +402,12 @@ def _registration_line(registration: Registration | None) -> str:
     changed = [name for name in registration.differs if name != PLAN_BINDING]
     line += (f"**Changed since it was written: the {' and the '.join(changed)}** (the study is not the one registered). " if changed
              else "The design and sealed key are those it registered. ")
-    return line + ("**The analysis run is not the registered one**: study.toml's [analysis] table changed after the pre-registration."
-                   if PLAN_BINDING in registration.differs else "The analysis run is the registered one.")
+    line += ("**The analysis run is not the registered one**: study.toml's [analysis] table changed after the pre-registration."
+             if PLAN_BINDING in registration.differs else "The analysis run is the registered one.")
+    return line + {None: " `--commitment HEX` checks it against the digest recorded outside the study.",
+                   True: " It matches the digest recorded outside the study (`--commitment`).",
+                   False: " **It does not match the digest recorded outside the study** (`--commitment`): it, or the study it binds, "
+                          "was changed after `trials design` printed the digest."}[registration.recorded]
 
 
 def _deviations_section(a: _Analysis) -> list[Block]:
@@ -1013,6 +1017,7 @@ def _record(a: _Analysis, generated_utc: str, rubric_source: str) -> dict[str, A
         "score_shares": {str(score): dict(zip(("share", "low", "high"), map(_json_number, _share_interval(count, sum(total)))))
                          for score, count in zip(SCORES, total)} if sum(total) else {},
         "preregistration": {"sha256": data.registration.digest, "differs": list(data.registration.differs),
+                            "matches_recorded": data.registration.recorded,
                             "analysis_registered": PLAN_BINDING not in data.registration.differs} if data.registration else None,
         "analysis_plan": {"table": a.plan.plan.table(), "sha256": a.plan.plan.digest(), "declared": a.plan.declared,
                           "committed_sha256": a.plan.committed, "matches_commitment": a.plan.matches,

@@ -78,7 +78,8 @@ def test_the_registered_study_unblinds_against_its_digest(finished: Path, tmp_pa
     code, out, _ = _report(study, capsys, "--unblind", "--commitment", recorded_digest(study))
     assert code == 0 and "matched the digest recorded outside the study" in out
     record = json.loads((study / "report" / "report.json").read_text())
-    assert record["preregistration"] == {"sha256": recorded_digest(study), "differs": [], "analysis_registered": True}
+    assert record["preregistration"] == {"sha256": recorded_digest(study), "differs": [], "matches_recorded": True,
+                                         "analysis_registered": True}
     assert "The design and sealed key are those it registered. The analysis run is the registered one." in (study / "report" / "report.md").read_text()
 
 
@@ -90,7 +91,7 @@ def test_a_plan_swapped_by_hand_is_refused_and_reported(finished: Path, tmp_path
     code, _, err = _report(study, capsys, "--unblind", "--commitment", recorded)
     assert code == 2 and "the design of" in err and "differ from what preregistration.md registered" in err, err
     assert not (study / "unblinding.json").exists()
-    code, _, _ = _report(study, capsys)
+    code, _, _ = _report(study, capsys, "--commitment", recorded)
     markdown = (study / "report" / "report.md").read_text()
     assert code == 0 and "**Changed since it was written: the design**" in markdown
     assert "**The analysis run is not the registered one**" in markdown
@@ -102,6 +103,11 @@ def test_a_plan_swapped_by_hand_is_refused_and_reported(finished: Path, tmp_path
     text = re.sub(r"^- design: `[0-9a-f]{64}`", f"- design: `{record['digest']['sha256']}`", text, flags=re.MULTILINE)
     text = re.sub(r"^- analysis plan: `[0-9a-f]{64}`", f"- analysis plan: `{record['analysis_plan']['sha256']}`", text, flags=re.MULTILINE)
     (study / "preregistration.md").write_text(text)
+    code, _, _ = _report(study, capsys)  # without the recorded digest, the rewritten file looks sound
+    assert code == 0 and "The design and sealed key are those it registered" in (study / "report" / "report.md").read_text()
+    code, _, _ = _report(study, capsys, "--commitment", recorded)  # with it, a plain report says what happened
+    assert code == 0 and "**It does not match the digest recorded outside the study**" in (study / "report" / "report.md").read_text()
+    assert json.loads((study / "report" / "report.json").read_text())["preregistration"]["matches_recorded"] is False
     code, _, err = _report(study, capsys, "--unblind", "--commitment", recorded)
     assert code == 2 and "preregistration.md does not match the digest you recorded" in err, err
     # Removing it leaves the study looking older than pre-registrations: the digest recorded outside still fails.

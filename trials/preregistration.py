@@ -50,9 +50,9 @@ def registered_lines(digest: str, blinded: bool) -> str:
             f"an e-mail): it binds the analysis plan, the design and the sealed key, and every report checks them against it.{opened}")
 
 
-def registration(folder: StudyFolder) -> Registration | None:
-    """The study's pre-registration and how its files stand against it; None for a study designed by an earlier release
-    (no preregistration.md)."""
+def registration(folder: StudyFolder, recorded: str | None = None) -> Registration | None:
+    """The study's pre-registration and how its files stand against it, and against the digest `recorded` outside it
+    when given; None for a study designed by an earlier release (no preregistration.md)."""
     path = folder.path(PREREGISTRATION)
     try:
         text = path.read_bytes()
@@ -61,7 +61,8 @@ def registration(folder: StudyFolder) -> Registration | None:
     bound = dict(_BINDING_LINE.findall(text.decode("utf-8", errors="replace")))
     now = _bindings(folder)
     differs = tuple(name for name in (DESIGN_BINDING, PLAN_BINDING, KEY_BINDING) if bound.get(name) != now.get(name))
-    return Registration(PREREGISTRATION, hashlib.sha256(text).hexdigest(), differs)
+    digest = hashlib.sha256(text).hexdigest()
+    return Registration(PREREGISTRATION, digest, differs, None if recorded is None else secrets.compare_digest(digest, recorded.strip().lower()))
 
 
 def check_recorded(folder: StudyFolder, recorded: str) -> str:

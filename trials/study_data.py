@@ -149,7 +149,7 @@ def load_study(folder: StudyFolder, unblind: bool, now: str, commitment: str | N
         notes=notes,
         analysis_plan=plan_status(folder.path(SPEC), spec, design, opened_with),
         checks=read_check_log(folder),
-        registration=registration(folder),
+        registration=registration(folder, commitment),
     )
 
 

@@ -32,8 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--commitment",
         metavar="HEX",
-        help="with --unblind (required to unblind a blinded study): the pre-registration digest `trials design` printed, as recorded "
-        "outside the study folder; a study or key that does not match it is refused",
+        help="the pre-registration digest `trials design` printed, as recorded outside the study folder: with --unblind (required "
+        "to unblind a blinded study) a study or key that does not match it is refused; without, the report says whether it matches",
     )
     parser.add_argument(
         "--interim",
@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from trials.progress import Progress
     from trials.study import (
         OUTCOMES,
+        PREREGISTRATION,
         REPORT,
         REPORT_FIGURES,
         REPORT_HTML,
@@ -74,8 +75,9 @@ def run(args: argparse.Namespace) -> int:
     from trials.study_data import INPUTS_KEY, RUBRIC_KEY, interim_look, load_study, report_inputs, unblinding_opening, unblinding_record
 
     folder = StudyFolder(args.study)
-    if args.commitment is not None and not args.unblind:
-        raise StudyError("--commitment checks the key when it is opened: give it with --unblind")
+    if args.commitment is not None and not args.unblind and not folder.path(PREREGISTRATION).exists():
+        raise StudyError("--commitment checks the key when it is opened: give it with --unblind (this study has no pre-registration "
+                         "to check it against)")
     opening = unblinding_opening(folder, args.commitment, args.interim) if args.unblind else interim_look(folder, args.interim)
     now = utc_now()
     Progress("figure", "report", args.quiet or args.json).loading(
