@@ -11,8 +11,7 @@ the model is written out here.
 
 The run SD can be estimated at 0 (the random intercept adds nothing to the plain logistic fit); it is then
 reported as 0 with a note, as lme4 reports a singular fit, and the fit is the ordinary logistic regression.
-Each column gets a likelihood-ratio test and a profile-likelihood interval (the log-likelihood maximised over the
-other columns and the run SD with the column held), each term a likelihood-ratio chi-square test of dropping it.
+Parameters get Wald z tests and intervals; each term a likelihood-ratio chi-square test of dropping it.
 """
 
 from __future__ import annotations
@@ -24,26 +23,17 @@ import numpy as np
 from numpy.polynomial.hermite import hermgauss
 from scipy.optimize import minimize
 from scipy.special import expit, gammaln, logsumexp
-from scipy.stats import chi2
+from scipy.stats import chi2, norm
 from statsmodels.tools.numdiff import approx_fprime
 
-from analysis.models import (
-    DesignMatrix,
-    Fit,
-    effect_tests,
-    estimability_notes,
-    estimable_columns,
-    parameter_rows,
-    profile_interval,
-    separation,
-    with_intervals,
-)
+from analysis.models import DesignMatrix, Fit, effect_tests, estimability_notes, estimable_columns, parameter_rows, separation, with_intervals
 
 #: Quadrature nodes per run. With a run SD of 1.6 (tests/test_analysis_mixed.py) the log-likelihood with 10 nodes is
 #: 2e-4 from its limit, with 20 2e-7, with 30 1.3e-9.
 NODES = 30
 #: A random intercept that raises the log-likelihood by less than this over the plain logistic fit is reported as 0.
 _BOUNDARY_GAIN = 1e-6
+_Z95 = float(norm.ppf(0.975))
 
 
 def log_likelihood(x: np.ndarray, successes: np.ndarray, trials: np.ndarray, beta: np.ndarray, sd: float, nodes: int = NODES) -> float:
@@ -160,8 +150,7 @@ def fit_mixed(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respo
     method = f"logistic mixed model, random intercept per run (maximum likelihood, adaptive Gauss-Hermite quadrature with {nodes} nodes)"
     test = "likelihood-ratio chi-square"
     missing = np.full(x.shape[1], math.nan)
-    empty = Fit(response, method, len(trials), int(trials.sum()), "LR chi-square", test,
-                parameter_rows(dm, keep, missing, missing, missing, missing), [], notes)
+    empty = Fit(response, method, len(trials), int(trials.sum()), "z", test, parameter_rows(dm, keep, missing, missing, missing, missing), [], notes)
     if len(k) == 0:
         notes.append("No run has judgments: nothing to fit.")
         return empty
@@ -179,12 +168,9 @@ def fit_mixed(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respo
     else:
         hessian = _hessian(_random(x, k, n, nodes), np.r_[beta, math.log(sd)])
     se = np.sqrt(np.diag(np.linalg.inv(-hessian)))[:p]
-    # Each column's test and interval from the likelihood, as the terms' tests are: the interval excludes 0 exactly
-    # when the column's likelihood-ratio test rejects at 0.05.
-    profiles = [_HeldProfile(x, k, n, nodes, beta, sd, j) for j in range(p)]
-    statistic = np.array([max(0.0, 2.0 * (value - profile.value(0.0))) for profile in profiles])
-    parameters = parameter_rows(dm, keep, beta, se, statistic, chi2.sf(statistic, 1))
-    parameters = with_intervals(parameters, keep, [profile_interval(profile, value, se[j]) for j, profile in enumerate(profiles)])
+    z = beta / se
+    parameters = parameter_rows(dm, keep, beta, se, z, 2.0 * norm.sf(np.abs(z)))
+    parameters = with_intervals(parameters, keep, list(zip(beta - _Z95 * se, beta + _Z95 * se)))
     position = np.cumsum(keep) - 1  # column of dm -> its index among the kept columns
 
     def likelihood_ratio(remaining: np.ndarray, df: int) -> tuple[float, float]:
@@ -194,35 +180,4 @@ def fit_mixed(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, respo
 
     effects = effect_tests(dm, keep, likelihood_ratio)
     summary = {"run SD": sd, "log-likelihood": value}
-    return Fit(response, method, len(trials), int(trials.sum()), "LR chi-square", test, parameters, effects, notes, summary)
-
-
-class _HeldProfile:
-    """The log-likelihood with one fixed-effect column held at a value, maximised over the others and the run SD (both
-    the random-intercept fit and the plain one, SD 0, the larger kept), continued from the nearest value held before."""
-
-    def __init__(self, x: np.ndarray, successes: np.ndarray, trials: np.ndarray, nodes: int, beta: np.ndarray, sd: float,
-                 column: int) -> None:
-        self.x, self.successes, self.trials, self.nodes, self.column = x, successes, trials, nodes, column
-        self.estimate = beta
-        self.found: dict[float, tuple[np.ndarray, float]] = {float(beta[column]): (beta, sd)}
-
-    def value(self, held: float, explore: bool = False) -> float:
-        beta, sd = self.found[min(self.found, key=lambda v: abs(v - held))]
-        plain_objective, others = self._held(_plain(self.x, self.successes, self.trials, self.nodes), held), np.delete(beta, self.column)
-        plain, plain_value = _maximise(plain_objective, others) if others.size else (others, plain_objective(others)[0])
-        best = (np.insert(plain, self.column, held), 0.0, plain_value)
-        for start_sd in sorted({max(sd, 0.5), *((0.5, 2.0) if explore else ())}):
-            start = np.r_[np.delete(beta, self.column), math.log(start_sd)]
-            theta, random_value = _maximise(self._held(_random(self.x, self.successes, self.trials, self.nodes), held), start)
-            if random_value - best[2] >= _BOUNDARY_GAIN:
-                best = (np.insert(theta[:-1], self.column, held), math.exp(theta[-1]), random_value)
-        self.found[held] = best[:2]
-        return best[2]
-
-    def _held(self, objective: Callable[[np.ndarray], tuple[float, np.ndarray]], held: float) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
-        """`objective` of the other parameters, the column inserted at `held`."""
-        def constrained(rest: np.ndarray) -> tuple[float, np.ndarray]:
-            value, gradient = objective(np.insert(rest, self.column, held))
-            return value, np.delete(gradient, self.column)
-        return constrained
+    return Fit(response, method, len(trials), int(trials.sum()), "z", test, parameters, effects, notes, summary)

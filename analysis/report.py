@@ -670,16 +670,20 @@ def _primary_section(a: _Analysis) -> list[Block]:
     for name, fit in r.sensitivity:
         effect = next((e for e in fit.effects if e.term == plan.factor), None)
         ratio = _arm_ratio(fit, plan.factor)
+        # The column's own test, made as its interval is (Wald beside Wald, likelihood ratio beside profile likelihood).
+        p = ratio.p_value if ratio else effect.p_value if effect else math.nan
         rows.append([SENSITIVITY_NAMES[name], _ratio(ratio.estimate) if ratio else NOT_AVAILABLE,
                      f"{_ratio(ratio.low)} - {_ratio(ratio.high)}" if ratio else NOT_AVAILABLE,
-                     p_text(effect.p_value) if effect else NOT_AVAILABLE, fit.method + "".join(f" {note}" for note in fit.notes)])
+                     NOT_AVAILABLE if math.isnan(p) else p_text(p), fit.method + "".join(f" {note}" for note in fit.notes)])
         data_rows.append([name, *((_value(ratio.estimate), _value(ratio.low), _value(ratio.high)) if ratio else (None, None, None)),
-                          _value(effect.p_value) if effect else None, fit.method])
+                          _value(p), fit.method])
     if rows:
         first = f" of {r.arms[0]} to {r.arms[1]}" if len(r.arms) == 2 else ""
         blocks += [Heading("Sensitivity analyses", 3), DataTable(
             ["Analysis", f"Odds ratio{first}", "95 % CI", f"p ({plan.factor or 'term'})", "Method and notes"], rows,
-            f"The primary model `{plan.model}` fitted to every judgment in other ways: the same question under other assumptions. "
+            f"The primary model `{plan.model}` fitted to every judgment in other ways: the same question under other assumptions. Each "
+            "row's p is the arm column's own test, made as its interval is (Wald z with a Wald interval, a likelihood ratio with a "
+            "profile-likelihood one), so the interval excludes 1 exactly when p < 0.05. "
             "An analysis that cannot be fitted on these judgments (separation, too few runs) says why; the primary test above stands.",
             {1, 2, 3}, ["analysis", "odds_ratio", "odds_ratio_low", "odds_ratio_high", "p", "method"], data_rows)]
     return blocks
@@ -947,7 +951,7 @@ def _statistics(a: _Analysis) -> list[str]:
         items.append(
             "Judgments, descriptive: binomial logistic regression of each run's yes / judged counts on the plan's model terms, by maximum "
             "likelihood (Newton-Raphson); likelihood-ratio chi-square tests per column and per term, and profile-likelihood intervals "
-            "(the random-intercept model's too). When the judgments are perfectly separated, Firth's penalized likelihood replaces "
+            "(the random-intercept model: Wald z tests and intervals per column). When the judgments are perfectly separated, Firth's penalized likelihood replaces "
             "maximum likelihood, with profile penalized-likelihood intervals and penalized likelihood-ratio tests for columns and terms alike."
         )
     items += [

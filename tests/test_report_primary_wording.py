@@ -51,6 +51,7 @@ def test_likelihood_tests_sit_beside_likelihood_intervals(study: Path) -> None:
             assert (column["low"] > 0.0 or column["high"] < 0.0) == (column["p"] < 0.05), (name, column)
     markdown = report.markdown()
     assert "likelihood-ratio chi-square tests per column and per term, and profile-likelihood intervals" in markdown
+    assert "Each row's p is the arm column's own test, made as its interval is" in markdown
     assert "t intervals and t tests on the degrees of freedom the fit states (least squares: the residual df; GEE: its cluster df" in markdown
 
 
