@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Protocol
 
 import numpy as np
 from scipy.optimize import brentq, linprog, minimize
@@ -238,16 +237,6 @@ _NEWTON_STEPS = 100
 _GRADIENT_TOLERANCE = 1e-8
 
 
-class Profile(Protocol):
-    """A fit's profile objective of one column: `value(held)` the maximum over the other parameters with the column
-    held at `held` (`explore`: also from fresh starts); `estimate` the unconstrained maximum, `column` its index."""
-
-    estimate: np.ndarray
-    column: int
-
-    def value(self, held: float, explore: bool = False) -> float: ...
-
-
 class _Profile:
     """The profile objective of one column: the maximum over the other columns with it held at a value. Each value
     starts from the maxima found at the nearest values held on either side (continuation along every branch found,
@@ -309,7 +298,7 @@ def fit_logistic(dm: DesignMatrix, successes: np.ndarray, trials: np.ndarray, re
     # ones misjudge penalized estimates, and beside a likelihood-ratio test a Wald interval can disagree with it.
     statistic = np.array([_chi_square_test(objective, constrained([j]), 1)[0] for j in range(len(beta))])
     parameters = parameter_rows(dm, keep, beta, se, statistic, chi2.sf(statistic, 1))
-    intervals = [profile_interval(_Profile(likelihood, j, beta), objective, se[j]) for j in range(len(beta))]
+    intervals = [_profile_interval(_Profile(likelihood, j, beta), objective, se[j]) for j in range(len(beta))]
     parameters = with_intervals(parameters, keep, intervals)
     label = "penalized LR chi-square" if firth else "LR chi-square"
 
@@ -329,7 +318,7 @@ _CHI2_95 = _Z95**2
 _PROFILE_STEPS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.5, 8.0, 10.0, 13.0, 16.0, 20.0, 25.0, 32.0, 40.0, 50.0)
 
 
-def profile_interval(profile: Profile, maximum: float, std_error: float) -> tuple[float, float]:
+def _profile_interval(profile: _Profile, maximum: float, std_error: float) -> tuple[float, float]:
     """The 95 % profile interval: where the deviance 2 (maximum - profile) crosses the chi-square(1) quantile on each
     side of the estimate. Stepping outward brackets the crossing, brentq finds it on the profile (which continuation
     keeps continuous), and the random starts are tried at the bracket's outer end and at the root: a higher branch found
