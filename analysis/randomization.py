@@ -98,14 +98,20 @@ class _Layout:
     def count(self) -> int:
         return math.prod(math.comb(n, k) for n, k in zip(self.sizes, self.firsts))
 
-    def weights(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per run, the coefficient of its share when in the first arm and when in the second."""
+    def stratum_weights(self) -> np.ndarray:
+        """Each stratum's weight n1 n2 / n, normalised to sum to 1 (0 for a stratum holding one arm only)."""
         n = np.array(self.sizes, dtype=float)
         k = np.array(self.firsts, dtype=float)
         w = np.where((k > 0) & (k < n), k * (n - k) / n, 0.0)
         if w.sum() == 0.0:
             raise AnalysisError("no stratum holds runs of both arms: the arms cannot be compared")
-        w /= w.sum()
+        return w / w.sum()
+
+    def weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per run, the coefficient of its share when in the first arm and when in the second."""
+        n = np.array(self.sizes, dtype=float)
+        k = np.array(self.firsts, dtype=float)
+        w = self.stratum_weights()
         first = np.divide(w, k, out=np.zeros_like(w), where=k > 0)
         second = np.divide(w, n - k, out=np.zeros_like(w), where=n > k)
         return first[self.stratum], second[self.stratum]
@@ -206,9 +212,8 @@ class _Studentized:
         compared = (k > 0) & (k < n)
         self.cannot = ("a stratum holds fewer than two runs of an arm, so the interval's standard error cannot be estimated"
                        if np.any(compared & ((k < 2) | (n - k < 2))) else "")
-        weights = np.where(compared, k * (n - k) / n, 0.0)
-        self.strata = [(np.flatnonzero(layout.stratum == s), int(k[s]), int(n[s]), weights[s] / weights.sum())
-                       for s in range(len(n)) if compared[s]]
+        weights = layout.stratum_weights()
+        self.strata = [(np.flatnonzero(layout.stratum == s), int(k[s]), int(n[s]), weights[s]) for s in range(len(n)) if compared[s]]
         self.y, self.z, self.allocations, self.exact = y, z.astype(float), allocations, exact
         if not self.cannot:
             self.observed = self._difference_and_error(y, z[np.newaxis, :].astype(float))
