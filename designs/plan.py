@@ -72,7 +72,9 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
     `progress(done, starts)` follows the exchange's starts, searched on `threads` threads. With `kept`
     (augmenting; `spec` is the study's public spec, `spec.runs` the new total) the kept runs stay first and
     unchanged, the new ones are searched around them and randomized after them, and the sealed key stays as it is;
-    a blinded study's new runs are split evenly between its arms first (`balanced_arms`), as its plan splits them.
+    a blinded study's new runs are split evenly between its arms first (`balanced_arms`), as its plan splits them. A new
+    blinded plan keeps its arms balanced within each block (no two arms' counts more than one apart): when the search's
+    best design is not, it searches again with the arms split so.
 
     The public seed (drawn when the spec has none) drives the exchange starts, the run order, the run codes
     and an augmentation's arm labels (public already in plan.csv); the blind allocation uses its own secret seed.
@@ -98,10 +100,22 @@ def build_plan(spec: StudySpec, allocation_seed: int | None = None,
         new_arms = balanced_arms(np.array([run.settings[arm] for run in old]), spec.runs - len(old), len(blind.levels),
                                  np.random.default_rng(arm_seed))
         per_run[arm] = np.concatenate([np.zeros(len(old)), new_arms])
-    design = optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
-                            criterion=spec.criterion, restrictions=restrictions, progress=progress,
-                            kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
-                            per_run=per_run, threads=threads)
+    def search(fixed: dict[int, np.ndarray]) -> ExactDesign:
+        return optimal_design(model, spec.runs, seed=int(design_seed.generate_state(1)[0]), starts=spec.starts,
+                              criterion=spec.criterion, restrictions=restrictions, progress=progress,
+                              kept=np.array([run.settings for run in old]).reshape(len(old), len(model.factors)),
+                              per_run=fixed, threads=threads)
+
+    design = search(per_run)
+    if blind is not None and not old:
+        arm = [f.name for f in model.factors].index(blind.name)
+        size = spec.runs // spec.blocks
+        blocks = design.settings[:, arm].reshape(spec.blocks, size)
+        if any(np.ptp(np.bincount(b.astype(int), minlength=len(blind.levels))) > 1 for b in blocks):
+            # The best design found favours an arm within a block: search again with the arms split evenly in each.
+            rng = np.random.default_rng(arm_seed)
+            per_run[arm] = np.concatenate([balanced_arms(np.zeros(0), size, len(blind.levels), rng) for _ in range(spec.blocks)])
+            design = search(per_run)
     diagnostics = diagnose(model, design.settings, alpha=spec.alpha, snr=spec.snr, anticipated=spec.anticipated)
     order = len(old) + _run_order(spec, spec.runs - len(old), np.random.default_rng(order_seed))
     codes = run_codes(spec.runs - len(old), np.random.default_rng(code_seed), taken={run.code for run in old})

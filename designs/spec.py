@@ -173,10 +173,10 @@ def spec_from_dict(data: dict[str, Any], source: str, folder: Path | None = None
     study = _table(data, "study", source)
     # [run] and [robot] hold how the runs are made, [analysis] how the results are analysed, not the design:
     # trials.run_settings, trials.robot.settings and trials.analysis_plan read them.
-    unknown = set(data) - {"study", "factors", "anticipated", "questionnaire", "run", "robot", "analysis"}
+    unknown = set(data) - {"study", "factors", "anticipated", "questionnaire", "run", "robot", "analysis", "controllers"}
     if unknown:
         raise DesignError(f"{source}: unknown table {sorted(unknown)[0]!r} (expected [study], [[factors]] and optionally "
-                          "[anticipated], [[questionnaire]], [run], [robot] and [analysis])")
+                          "[anticipated], [[questionnaire]], [run], [robot], [analysis] and [controllers])")
     raw_factors = data.get("factors")
     if not isinstance(raw_factors, list) or not raw_factors:
         raise DesignError(f"{source}: no [[factors]] given; a study needs at least one factor")

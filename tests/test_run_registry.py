@@ -15,8 +15,9 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_the_names_are_those_study_files_hold():
-    # plan.csv levels, sealed arms and outcomes.csv's controller column of existing studies
-    assert registry.NAMES == ("NaviGAN-R", "Lattice") and registry.DEFAULT in registry.NAMES
+    # plan.csv levels, sealed arms and outcomes.csv's controller column of existing studies; the paper's A/B pair
+    assert registry.NAMES == ("NaviGAN-R", "Lattice", "SocialForce", "ORCA") and registry.DEFAULT in registry.NAMES
+    assert registry.AB_PRESET == ("NaviGAN-R", "Lattice")
 
 
 @pytest.mark.parametrize("name", registry.NAMES)
@@ -35,4 +36,4 @@ def test_every_name_builds_its_controller(name):
 def test_an_unknown_name_is_one_line_listing_the_known_ones(name):
     with pytest.raises(USER_ERRORS) as caught:
         registry.build(name)
-    assert str(caught.value) == f"no controller is called {name!r} (known: NaviGAN-R, Lattice)"
+    assert str(caught.value) == f"no controller is called {name!r} (known: NaviGAN-R, Lattice, SocialForce, ORCA)"

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 from trials.errors import USER_ERRORS
 
 #: Subcommand modules under `trials.commands`, in the order `trials --help` lists them.
-COMMANDS: tuple[str, ...] = ("design", "run", "deviation", "robot_sim", "status", "log", "lattice", "train", "evaluate", "playback", "score", "respond",
-                             "report", "serve", "power")
+COMMANDS: tuple[str, ...] = ("design", "run", "controllers", "deviation", "robot_sim", "status", "log", "lattice", "train", "evaluate",
+                             "playback", "score", "respond", "report", "serve", "power")
 
 EXIT_USAGE = 2
 #: Threads numpy's OpenBLAS starts with unless the user sets OPENBLAS_NUM_THREADS: the matrices the commands

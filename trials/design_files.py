@@ -17,6 +17,7 @@ from trials.analysis_plan import COMMITMENT as PLAN_COMMITMENT
 from trials.analysis_plan import TABLE as ANALYSIS_TABLE
 from trials.analysis_plan import commitment
 from trials.atomic import write_files
+from trials.controllers.plugins import TABLE as CONTROLLERS_TABLE
 from trials.errors import StudyError
 from trials.study import (
     ALLOCATION,
@@ -25,6 +26,7 @@ from trials.study import (
     DESIGN_FIGURES,
     PLAN,
     SEALED,
+    SEALED_CONTROLLERS,
     SEALED_SPEC,
     SPEC,
     StudyFolder,
@@ -52,9 +54,9 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
 
     `sealed_spec_text` is the researcher's own spec when it names a blinded factor's levels;
     it is kept under sealed/. `tables` are the study's own tables beside the design (`[run]`:
-    `trials.run_settings`; `[robot]`: `trials.robot.settings`; `[analysis]`: `trials.analysis_plan`, committed to in design.json),
-    written after the design's. `before_commit` runs once every file is staged (`trials.atomic.write_files`). Returns the
-    public files written.
+    `trials.run_settings`; `[robot]`: `trials.robot.settings`; `[analysis]`: `trials.analysis_plan`, committed to in
+    design.json; `[controllers]`: `trials.controllers.plugins`, under sealed/ when blinded), written after the design's.
+    `before_commit` runs once every file is staged (`trials.atomic.write_files`). Returns the public files written.
     """
     created = utc_now()
     table = plan_table(plan)
@@ -62,7 +64,10 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
     if tables and tables.get(ANALYSIS_TABLE):
         record[PLAN_COMMITMENT] = commitment(dict(tables[ANALYSIS_TABLE]))
     record[DESIGN_DIGEST] = design_digest(record)
-    own_tables = "".join(f"\n{tomli_w.dumps({name: dict(table)})}" for name, table in (tables or {}).items() if table)
+    own = {name: dict(table) for name, table in (tables or {}).items() if table}
+    # A blinded study's own controllers would name its arms' levels: they are kept under sealed/ instead.
+    controllers = own.pop(CONTROLLERS_TABLE, None) if plan.sealed is not None else None
+    own_tables = "".join(f"\n{tomli_w.dumps({name: table})}" for name, table in own.items())
     public = {
         folder.path(SPEC): (spec_to_toml(plan.spec) + own_tables).encode(),
         folder.path(PLAN): plan_content(*table),
@@ -76,6 +81,8 @@ def write_design(folder: StudyFolder, plan: StudyPlan, sealed_spec_text: str | N
         secret[folder.path(ALLOCATION)] = json_content(plan.sealed.to_dict())
     if sealed_spec_text is not None:
         secret[folder.path(SEALED_SPEC)] = sealed_spec_text.encode()
+    if controllers:
+        secret[folder.path(SEALED_CONTROLLERS)] = tomli_w.dumps({CONTROLLERS_TABLE: controllers}).encode()
     if secret:
         private_folder(folder, folder.path(SEALED))
     write_files({**public, **secret}, private=set(secret), before_commit=before_commit)

@@ -11,6 +11,7 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 #: Seeds are recorded in JSON and CSV files and fed to numpy's SeedSequence: whole numbers 0 .. 2^53 - 1, which
 #: a spreadsheet, R or JMP (reading every number as a double) keeps exact.
@@ -36,6 +37,18 @@ def whole(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
 
 
 seed = whole(0, SEED_MAX)
+
+
+def listed(item: Callable[[str], Any], what: str) -> Callable[[str], list[Any]]:
+    """A comma-separated list of items, each checked by `item`."""
+
+    def parse(text: str) -> list[Any]:
+        parts = [p.strip() for p in text.split(",")]
+        if not all(parts):
+            raise argparse.ArgumentTypeError(f"expected a comma-separated list of {what}, got {text!r}")
+        return [item(p) for p in parts]
+
+    return parse
 
 
 def add_dpi(parser: argparse.ArgumentParser) -> None:

@@ -45,6 +45,8 @@ from analysis.records import Outcome, RunMetrics
 from trials.atomic import no_space, open_lock, write_files, write_text, writing
 from trials.controllers import registry
 from trials.controllers.base import Controller
+from trials.controllers.checked import OFFLINE_PLAN_LIMIT_S
+from trials.controllers.plugins import study_controllers
 from trials.errors import USER_ERRORS, DiskFullError, EStopped, RunAborted, StudyError
 from trials.field_study import refuse_simulation
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
@@ -198,7 +200,7 @@ class StudyRun:
         if blind_flag and not blinding:
             raise StudyError(f"--blind: the study in {folder.root} is not blinded (design.json has no sealed allocation); run it without --blind")
         plan = folder.read_plan()
-        arms = tuple(blinding["arms"]) if blinding else registry.NAMES
+        arms = tuple(blinding["arms"]) if blinding else registry.names(study_controllers(folder, blind=False))
         for line, row in enumerate(plan, start=2):
             where = f"{folder.path(PLAN)} line {line} (run {row.get('run_code', '?')})"
             if not (from_log or (row.get(LOG_COLUMN) or "").strip()):
@@ -540,7 +542,9 @@ class TrialWorker:
         self.folder, self.name, self.blind, self.options = folder, name, blind, options
         self._arms: dict[str, str] = folder.read_sealed().arms if blind else {}
         wanted = tuple(dict.fromkeys(self._arms.values())) if blind else levels
-        built = registry.ControllerOptions(weights=options.settings.weights)
+        # A live run times each plan itself: there a late plan stops the robot while the controller is still planning.
+        built = registry.ControllerOptions(weights=options.settings.weights, study=tuple(study_controllers(folder, blind).items()),
+                                           folder=str(folder.root), plan_limit_s=None if options.robot is not None else OFFLINE_PLAN_LIMIT_S)
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
         self._driver = None
         if options.robot is not None:
@@ -578,6 +582,17 @@ class TrialWorker:
         controller = self._controllers[level]
         seeds = row_seeds(task.seed)
         controller.reset(seeds[3])
+        try:
+            status, done = self._drive(task, level, arm, controller, seeds)
+        except BaseException:
+            with suppress(Exception):  # the run's own failure is the one reported
+                controller.end("failed")
+            raise
+        controller.end(status)
+        return done
+
+    def _drive(self, task: RunTask, level: str, arm: str | None, controller: Controller, seeds: list[int]) -> tuple[str, RunDone]:
+        """Run row `task` with its reset controller; returns how it ended and what the parent records."""
         path = self.folder.run_log(task.code)
         replay: dict[str, str] = {}
         settings = self.options.settings
@@ -602,7 +617,7 @@ class TrialWorker:
         outcome = Outcome(run_code=task.code, status=status, seed=task.seed, **recorded, **asdict(metrics),
                           controller=None if self.blind else level, finished_utc=utc_stamp(self.blind),
                           weights=settings.recorded()["weights"])
-        return RunDone(task.code, outcome, task.scene is not None, replay, live=self.options.robot is not None)
+        return status, RunDone(task.code, outcome, task.scene is not None, replay, live=self.options.robot is not None)
 
     def _start_ns(self, scene: LoggedScene | None = None) -> int:
         """The log time of a run's start: a played log's own header stamp there (when it was recorded) when its stamps

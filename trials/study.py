@@ -57,6 +57,8 @@ SEALED = "sealed"
 ALLOCATION = f"{SEALED}/allocation.json"
 #: A blinded study's spec as the researcher wrote it, naming the real levels.
 SEALED_SPEC = f"{SEALED}/spec.toml"
+#: A blinded study's own controllers (study.toml's `[controllers]` table), kept out of the public study.toml.
+SEALED_CONTROLLERS = f"{SEALED}/controllers.toml"
 #: A blinded study's controller records per run (`sealed_run`), kept out of the public logs.
 SEALED_RUNS = f"{SEALED}/runs"
 RUNS = "runs"
@@ -108,7 +110,7 @@ POWER_FIGURE = f"{POWER}/power.png"
 #: What a new design replaces: the design itself and every result of the old plan.
 PUBLIC_STUDY_FILES = (SPEC, PLAN, DESIGN, PREREGISTRATION, *DESIGN_FIGURES, RUNS, OUTCOMES, SCORES, RESPONSES, REPORT, UNBLINDING, RUN_EVENTS, LOGS)
 #: Its sealed part: the key, the spec naming the real levels, and the sealed records of the old plan's runs.
-SEALED_STUDY_FILES = (ALLOCATION, SEALED_SPEC, SEALED_RUNS)
+SEALED_STUDY_FILES = (ALLOCATION, SEALED_SPEC, SEALED_CONTROLLERS, SEALED_RUNS)
 
 
 def private_folder(folder: StudyFolder, path: Path) -> None:

@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--ab", action="store_true", help="the paper's blinded A/B plan (NaviGAN-R vs the lattice planner)")
+    source.add_argument("--arms", type=types.listed(str, "controller names"), metavar="NAME,NAME,...",
+                        help="the A/B plan's design with these controllers as its blinded arms, two or more (`trials controllers` "
+                             "lists them; 18 runs for 2 or 3 arms, 6 a controller beyond)")
     source.add_argument("--spec", type=types.input_file, metavar="FILE",
                         help="a study.toml to build (default: the study folder's own, else the qualitative plan)")
     check = parser.add_mutually_exclusive_group()
@@ -117,6 +120,21 @@ def _evaluate(spec: StudySpec, paths: list[Path], folder: StudyFolder, args: arg
     return 0
 
 
+def _arms(asked: tuple[str, ...], known: tuple[str, ...]) -> tuple[str, ...]:
+    """`--arms`' controllers: two or more, each known, none twice."""
+    from trials.errors import StudyError
+
+    if len(asked) < 2:
+        raise StudyError(f"--arms: name two or more controllers, got {len(asked)}")
+    twice = next((name for i, name in enumerate(asked) if name in asked[:i]), None)
+    if twice is not None:
+        raise StudyError(f"--arms: {twice!r} is named twice")
+    unknown = next((name for name in asked if name not in known), None)
+    if unknown is not None:
+        raise StudyError(f"--arms: no controller is called {unknown!r} (known: {', '.join(known)})")
+    return asked
+
+
 def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     """Add runs to a study's plan around the runs it has; its results and sealed key stay as they are."""
     from dataclasses import replace
@@ -127,6 +145,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     from designs.plan import KeptRuns, build_plan
     from designs.spec import MAX_RUNS, read_spec
     from trials.analysis_plan import analysis_table
+    from trials.controllers.plugins import read_table
     from trials.design_files import write_design
     from trials.errors import StudyError
     from trials.preregistration import register, registered_lines
@@ -155,7 +174,7 @@ def _augment(folder: StudyFolder, args: argparse.Namespace) -> int:
     plan = build_plan(spec, kept=KeptRuns(kept, sealed), progress=_progress if sys.stderr.isatty() and not args.quiet else None,
                       threads=_threads(args))
     tables = {"run": run_table(folder.path(SPEC)), "robot": robot_table(folder.path(SPEC), args.robot),  # they stay with the study
-              "analysis": analysis_table(folder.path(SPEC), plan.spec, plan.seed)}
+              "controllers": read_table(folder.path(SPEC)), "analysis": analysis_table(folder.path(SPEC), plan.spec, plan.seed)}
     copies: list[Path] = []  # the previous design files, copied aside once the new ones are staged
     written = write_design(folder, plan, None, tables, args.dpi if args.figures else None,
                            lambda: copies.append(folder.copy_aside((SPEC, PLAN, DESIGN, PREREGISTRATION, *DESIGN_FIGURES))))
@@ -179,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
     from designs.spec import read_spec
     from trials.analysis_plan import analysis_table
     from trials.controllers import registry
+    from trials.controllers.plugins import read_table
     from trials.errors import StudyError
     from trials.progress import Progress
     from trials.robot.settings import robot_table
@@ -190,17 +210,24 @@ def run(args: argparse.Namespace) -> int:
         SEALED_STUDY_FILES,
         SPEC,
         StudyFolder,
+        study_table,
     )
 
     folder = StudyFolder(args.study)
     if args.augment:
         return _augment(folder, args)
     own_spec = folder.path(SPEC)
-    spec_path = args.spec or (own_spec if own_spec.exists() and not args.ab else None)
+    # A study.toml of the study's own tables only ([controllers], [run], [robot], [analysis]) is read for them, not replaced.
+    tables_only = own_spec.exists() and study_table(own_spec, "study") is None
+    spec_path = args.spec or (own_spec if own_spec.exists() and not (args.ab or args.arms or tables_only) else None)
+    tables_from = spec_path or (own_spec if tables_only else None)
+    controllers = read_table(tables_from) if tables_from is not None else {}
     if spec_path is not None:
         spec = read_spec(spec_path)
+    elif args.arms:
+        spec = presets.ab(_arms(tuple(args.arms), registry.names(controllers)), runs=max(18, 6 * len(args.arms)))
     else:
-        spec = presets.ab(registry.NAMES) if args.ab else presets.qualitative()
+        spec = presets.ab(registry.AB_PRESET) if args.ab else presets.qualitative()
     overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr,
                  "criterion": args.criterion}
     spec = replace(spec, **{k: v for k, v in overrides.items() if v is not None})
@@ -208,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
     if args.evaluate or args.compare:
         return _evaluate(spec, args.compare or [args.evaluate], folder, args)
 
-    replaces_own_spec = own_spec.exists() and (spec_path is None or spec_path.resolve() != own_spec.resolve())
+    replaces_own_spec = own_spec.exists() and not tables_only and (spec_path is None or spec_path.resolve() != own_spec.resolve())
     if (folder.has_plan() or replaces_own_spec) and not args.force:
         what = "a plan" if folder.has_plan() else f"a different {SPEC}"
         raise StudyError(f"{folder.root.resolve()} already has {what}; pass --force to replace it (the old files move to superseded/)")
@@ -218,8 +245,9 @@ def run(args: argparse.Namespace) -> int:
         assert blind is not None
         spec = spec.with_factor(replace(blind, levels=tuple(sealed.arms[arm] for arm in blind.levels)))
 
-    tables = {"run": run_table(spec_path) if spec_path is not None else {}, "robot": robot_table(spec_path, args.robot)}
-    analysis_table(spec_path, spec, 0)  # a bad [analysis] table fails before the search; its default seed is the design's
+    tables = {"run": run_table(tables_from) if tables_from is not None else {}, "robot": robot_table(tables_from, args.robot),
+              "controllers": controllers}
+    analysis_table(tables_from, spec, 0)  # a bad [analysis] table fails before the search; its default seed is the design's
     quiet = args.quiet or args.json
     Progress("start", "design", quiet).loading(f"Searching for a {spec.criterion}-optimal design of {spec.runs} runs ({spec.starts} exchange starts)")
     follow = sys.stderr.isatty() and not quiet
@@ -227,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
     plan = build_plan(spec, allocation_seed=args.allocation_seed, progress=_progress if follow else None, threads=_threads(args))
     if follow:
         print(file=sys.stderr)
-    tables["analysis"] = analysis_table(spec_path, plan.spec, plan.seed)
+    tables["analysis"] = analysis_table(tables_from, plan.spec, plan.seed)
     from trials.design_files import write_design
 
     names_real_levels = spec_path == own_spec and spec.blind_factor is not None and not read_spec(own_spec).arms_sealed

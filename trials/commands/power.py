@@ -4,9 +4,7 @@ model-based simulation and by whole closed-loop campaigns, in local processes or
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from robot_logs.physical import STEP_S
 from trials import option_types as types
@@ -17,18 +15,6 @@ MAX_SIMULATIONS = 100_000
 MAX_CAMPAIGNS = 100_000
 MAX_WORKERS = 256
 MAX_BATCH = 1000
-
-
-def _list(item: Callable[[str], Any], what: str) -> Callable[[str], list[Any]]:
-    """A comma-separated list of items, each checked by `item`."""
-
-    def parse(text: str) -> list[Any]:
-        parts = [p.strip() for p in text.split(",")]
-        if not all(parts):
-            raise argparse.ArgumentTypeError(f"expected a comma-separated list of {what}, got {text!r}")
-        return [item(p) for p in parts]
-
-    return parse
 
 
 def _shares(text: str) -> tuple[float, float]:
@@ -63,19 +49,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--simulations", type=types.whole(1, MAX_SIMULATIONS), default=400, metavar="N",
                         help="model-based data sets per plan (default 400)")
     parser.add_argument("--campaigns", type=types.whole(1, MAX_CAMPAIGNS), metavar="K", help="closed-loop campaigns per plan (default: none)")
-    parser.add_argument("--runs", type=_list(types.whole(1, 1000), "run counts"), metavar="LIST",
+    parser.add_argument("--runs", type=types.listed(types.whole(1, 1000), "run counts"), metavar="LIST",
                         help="plan sizes to compare, e.g. 18,36,54,72: the D-optimal plan of each from the study's spec (default: the study's own plan)")
     parser.add_argument("--target", type=types.number(0.0, 1.0, above=True, below=True), default=0.8, metavar="P",
                         help="the power a plan should reach on the Controller term (else every term; default 0.8)")
     parser.add_argument("--shares", type=_shares, default=(0.5, 0.8), metavar="LOW,HIGH",
                         help="model-based: the shares of yes whose logits span each anticipated effect, as skpr does (default 0.5,0.8)")
-    parser.add_argument("--terms", type=_list(str, "model terms"), metavar="LIST", help="model-based: only these terms have an effect (default: every term)")
+    parser.add_argument("--terms", type=types.listed(str, "model terms"), metavar="LIST",
+                        help="model-based: only these terms have an effect (default: every term)")
     parser.add_argument("--run-sd", type=types.number(0.0, 10.0), default=0.5, metavar="SD",
                         help="model-based: between-run standard deviation on the logit scale (default 0.5)")
     parser.add_argument("--participants", type=types.whole(1, MAX_PARTICIPANTS), metavar="N",
                         help="judgments per run (default: one per pedestrian of the run)")
-    parser.add_argument("--controllers", type=_list(str, "controller names"), metavar="LIST",
-                        help="closed-loop, blinded study: the controllers behind the arms (default: all known ones); the sealed key is never opened")
+    parser.add_argument("--controllers", type=types.listed(str, "controller names"), metavar="LIST",
+                        help="closed-loop, blinded study: the controllers behind the arms (default for two arms: NaviGAN-R,Lattice); "
+                             "the sealed key is never opened")
     parser.add_argument("--workers", type=types.whole(1, MAX_WORKERS), metavar="N", help="local worker processes (default 1; with --ray local, its CPUs)")
     parser.add_argument("--ray", metavar="ADDRESS", help="run the campaigns on the Ray cluster at HOST:PORT (or `local`); needs the ray extra")
     parser.add_argument("--batch", type=types.whole(1, MAX_BATCH), default=1, metavar="N", help="campaigns per worker task (default 1)")

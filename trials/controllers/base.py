@@ -1,7 +1,12 @@
-"""The interface between perception (simulator or log playback) and the controllers.
+"""The interface between perception (simulator, log playback or the live robot) and the controllers: the one a
+plug-in implements (docs/writing_a_controller.md).
 
-Everything is in the world frame `map` (metres, seconds, radians), x forward along the
-robot's nominal path. Histories are sampled at NaviGAN's step of 0.4 s, oldest first.
+Everything is in the world frame `map` (metres, seconds, radians), x forward along the robot's nominal path.
+Histories are sampled at NaviGAN's step of 0.4 s, oldest first. Each run: `reset(seed)` once before it, `plan` every
+0.4 s of the run's time with an `Observation`, `end(status)` once after it however it ended (`goal`, `collision`,
+`timeout`, `aborted`, or `failed` when it raised). A plan must come back well within a step: live, one that has not come
+within the robot's `plan_timeout` stops the robot and aborts the run; in the simulator and on logs one that takes
+longer than 10 s fails the run (`trials.controllers.checked`).
 """
 
 from __future__ import annotations
@@ -55,8 +60,9 @@ class Plan:
 
 
 class Controller(Protocol):
-    """A planner the runner can drive; `reset` starts a new run with its seed, `details` is what a
-    run's metadata records about it besides its name (`trials.controllers.registry`)."""
+    """A planner the runner drives: `reset` starts a run with its seed, `plan` answers each observation, `end` closes
+    the run with its status, `details` is what a run's metadata records about it besides its name. A plug-in needs
+    only `plan`; the registry (`trials.controllers.registry`) supplies the name and the missing methods."""
 
     name: str
 
@@ -65,3 +71,5 @@ class Controller(Protocol):
     def reset(self, seed: int) -> None: ...
 
     def plan(self, observation: Observation) -> Plan: ...
+
+    def end(self, status: str) -> None: ...

@@ -83,26 +83,27 @@ def power_seed(out: Path, given: int | None) -> int:
 
 
 def controllers_for(plans: list[PowerPlan], asked: tuple[str, ...] | None) -> tuple[str, ...]:
-    """The controllers the campaigns drive: behind a blinded plan's arms the ones asked (default every known
-    one; as many as arms), else the plan's own Controller levels, else the default controller.
+    """The controllers the campaigns drive: behind a blinded plan's arms the ones asked (default the paper's two for
+    two arms; as many as arms), else the plan's own Controller levels, else the default controller.
 
     Raises:
         StudyError: an unknown controller, or a count that does not match the arms.
     """
     plan = plans[0]
+    known = registry.names()
     for name in asked or ():
-        if name not in registry.NAMES:
-            raise StudyError(f"--controllers: no controller is called {name!r} (known: {', '.join(registry.NAMES)})")
+        if name not in known:
+            raise StudyError(f"--controllers: no controller is called {name!r} (known: {', '.join(known)})")
     if plan.blinded:
-        names = asked or registry.NAMES
+        names = asked or registry.AB_PRESET
         if len(names) != len(plan.arms):
             raise StudyError(f"--controllers: the study has {len(plan.arms)} arms ({', '.join(plan.arms)}), got {len(names)} controllers ({', '.join(names)})")
         return tuple(names)
     if asked:
         raise StudyError("--controllers goes with a blinded study; this plan names its controllers itself")
-    unknown = [a for a in plan.arms if a not in registry.NAMES]
+    unknown = [a for a in plan.arms if a not in known]
     if unknown:
-        raise StudyError(f"the plan's Controller level {unknown[0]!r} is not a known controller ({', '.join(registry.NAMES)})")
+        raise StudyError(f"the plan's Controller level {unknown[0]!r} is not a known controller ({', '.join(known)})")
     return plan.arms or (registry.DEFAULT,)
 
 

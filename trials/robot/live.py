@@ -18,8 +18,9 @@ compare the people a scan saw with the robot where it stood at that scan's stamp
 
 The robot stops (a zero velocity is the last command sent) on the goal, a collision, the timeout, an
 e-stop (the console's stop file or `true` on the e-stop topic), SIGINT or SIGTERM (`StopRequest`),
-the middleware lost, stale sensors, a protective stop held too long, a stall or a base that does not respond, and
-any exception; a run never starts before scans, odometry and the laser's transform to the base have all been seen.
+the middleware lost, stale sensors, a protective stop held too long, a stall or a base that does not respond, a
+controller that has not answered within `plan_timeout`, and any exception; a run never starts before scans, odometry
+and the laser's transform to the base have all been seen.
 A killed worker sends nothing itself: its parent's `trials.robot.guard.Guard` stops the robot (docs/live_runs.md).
 """
 
@@ -541,7 +542,7 @@ class LiveRun:
         ending_rule = SimConfig(timeout_s=s.timeout, limits=limits)
         planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
         pending: Future[tuple[float, np.ndarray, Plan, float]] | None = None
-        next_plan, planned = 0.0, False
+        next_plan, planned, asked_at = 0.0, False, 0.0
         latencies: list[float] = []
         plan_seconds: list[float] = []
         late = 0
@@ -607,6 +608,9 @@ class LiveRun:
                     sink.planned(plan_t, plan)
                     follower.follow(plan_t, position, plan)
                     planned = True
+                elif pending is not None and time.monotonic() - asked_at > s.plan_timeout:
+                    ending = (ABORTED, f"no plan within {s.plan_timeout:g} s")
+                    break
                 if t >= next_plan - 1e-9:
                     # The observation is logged every 0.4 s whether or not the controller is free to take it, so
                     # the public log's messages never count a slow controller's plans.
@@ -615,7 +619,7 @@ class LiveRun:
                     sink.perceived(t, observation.pedestrian_ids, observation.pedestrian_history)
                     next_plan = max(next_plan + STEP_S, t)
                     if pending is None:
-                        pending = planner.submit(_timed_plan, controller, observation)
+                        pending, asked_at = planner.submit(_timed_plan, controller, observation), time.monotonic()
                     else:
                         late += 1
                 command = follower.command(t, robot) if planned else (0.0, 0.0)

@@ -28,6 +28,7 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     protective_hold = 3.0           # s: a protective stop held this long ends the run
     stall_time = 2.0                # s of commanded motion without motion in odometry that end the run (a stall, a deaf base)
     watchdog = 0.5                  # s: valid scans or odometry older than this stop the robot
+    plan_timeout = 1.0              # s: a plan the controller has not answered within this stops the robot and ends the run
     min_valid_share = 0.05          # share of a scan's beams that must return a range; a scan with fewer counts as missing
     sensor_wait = 20.0              # s to wait for scans, odometry, the laser's transform and the robot at its start
     people_radius = 8.0             # m: people tracked this near the robot count for the run's manipulation check
@@ -91,6 +92,7 @@ class RobotSettings:
     protective_hold: float = 3.0
     stall_time: float = 2.0
     watchdog: float = 0.5
+    plan_timeout: float = 1.0
     min_valid_share: float = 0.05
     sensor_wait: float = 20.0
     people_radius: float = 8.0
@@ -125,7 +127,8 @@ class RobotSettings:
 RANGES: dict[str, tuple[float, float]] = {
     "max_speed": (0.01, 5.0), "max_turn_rate": (0.01, 10.0), "max_acceleration": (0.01, 20.0),
     "max_angular_acceleration": (0.01, 50.0), "protective_margin": (0.0, 2.0), "reaction_time": (0.0, 2.0),
-    "protective_hold": (0.5, 600.0), "stall_time": (0.5, 60.0), "watchdog": (0.05, 5.0), "min_valid_share": (0.0, 1.0),
+    "protective_hold": (0.5, 600.0), "stall_time": (0.5, 60.0), "watchdog": (0.05, 5.0), "plan_timeout": (0.1, 10.0),
+    "min_valid_share": (0.0, 1.0),
     "sensor_wait": (0.5, 600.0), "people_radius": (0.5, 50.0), "min_people_share": (0.0, 1.0), "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
 }
 TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "cmd_vel_type", "cmd_vel_frame", "estop_topic", "odometry_frame",
