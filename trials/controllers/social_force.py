@@ -8,7 +8,8 @@ Each plan integrates, over the prediction horizon, the robot's acceleration
                                                   the person walking on at its tracked velocity
       + sum_w (U0 / R) exp(-(d_w - r) / R) n_w    each near wall point's exponential repulsion
 
-with the people's repulsion measured from the robot's surface (its circumscribed disc and the person's) and the
+with the people's repulsion the gradient of their potential taken from the robot's surface (its circumscribed disc and
+the person's, so the ellipse's semi-minor axis b is of the gap between the two) and the
 pedestrian constants the simulator's crowd uses, so the robot keeps the room people keep from each other; the walls'
 U0 = 10 m^2/s^2 and R = 0.2 m are Helbing & Molnar's. The way-points are where the robot is every 0.4 s.
 """
@@ -78,8 +79,14 @@ class SocialForceController:
         if len(people):
             r = position - people
             centres = np.maximum(np.hypot(*r.T), 1e-9)
-            surface = r * (np.maximum(centres - ROBOT_RADIUS_M - PERSON_RADIUS_M, MIN_GAP_M) / centres)[:, None]
-            pushes = ellipse_repulsion(surface, now.people_velocity * p.lookahead_s, p.strength, p.range_m)
+            gaps = centres - ROBOT_RADIUS_M - PERSON_RADIUS_M
+            scale = np.maximum(gaps, MIN_GAP_M) / centres
+            pushes = ellipse_repulsion(r * scale[:, None], now.people_velocity * p.lookahead_s, p.strength, p.range_m)
+            # minus the gradient with respect to the robot's position: the surface vector r (|r| - radii) / |r| keeps
+            # the radial part of a change of r and scales its tangential part by (|r| - radii) / |r|
+            radial = r / centres[:, None]
+            along = np.where(gaps > MIN_GAP_M, 1.0, scale)[:, None] * (pushes * radial).sum(axis=1, keepdims=True) * radial
+            pushes = along + scale[:, None] * (pushes - (pushes * radial).sum(axis=1, keepdims=True) * radial)
             pushes *= view_weight(np.broadcast_to(desired, pushes.shape), pushes, p)[:, None]
             pushes += evasion(pushes, np.broadcast_to(desired, pushes.shape), r, p)
             social = pushes.sum(axis=0)
