@@ -18,7 +18,8 @@ from trials.controllers.social_force import SocialForceController
 from trials.sim.social_force import SocialForceParams
 
 
-def observe(people: np.ndarray = np.zeros((0, T_OBS, 2)), velocity: float = 0.0, goal=(10.0, 0.0), walls=None) -> Observation:
+def observe(people: np.ndarray | None = None, velocity: float = 0.0, goal=(10.0, 0.0), walls=None) -> Observation:
+    people = np.zeros((0, T_OBS, 2)) if people is None else people
     return Observation(0.0, np.zeros(3), np.array([velocity, 0.0]), np.array(goal, dtype=float), np.zeros((T_OBS, 2)),
                        tuple(range(len(people))), people, np.zeros((0, 2)) if walls is None else np.asarray(walls, dtype=float))
 
