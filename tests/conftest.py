@@ -10,8 +10,9 @@ from navigan.data import SHIPPED_DATA
 
 DATA = Path(__file__).resolve().parent / "data"
 
-#: Fixtures shared by several test files: the lattice controller in its trial scene (`controller`, `fresh`).
-pytest_plugins = ["tests.support.lattice_scene", "tests.support.ros1_master"]
+#: Fixtures shared by several test files: the lattice controller in its trial scene (`controller`, `fresh`), a ROS 1
+#: master (`master`), a robot over either middleware (`middleware`).
+pytest_plugins = ["tests.support.lattice_scene", "tests.support.ros1_master", "tests.support.live_rig"]
 
 
 @pytest.fixture(scope="session")

@@ -5,16 +5,14 @@ run` on the same robot stop the robot with a reason naming the cause, and the ru
 from __future__ import annotations
 
 import os
-import random
 import signal
 import subprocess
 import time
 
 import pytest
 
-from tests.support.live_rig import TRIALS, assert_stopped_and_kept, design, first_code, live_rig, repository_env, ros1_env
+from tests.support.live_rig import TRIALS, assert_stopped_and_kept, design, first_code, live_rig, ros1_env
 from trials.outcomes import read_outcomes
-from trials.robot.ros2 import LOOPBACK_ENV
 from trials.study import OUTCOMES
 
 pytestmark = pytest.mark.slow
@@ -45,21 +43,8 @@ def test_a_robot_sending_bad_data_is_stopped_with_the_cause(tmp_path, master, fa
         assert_stopped_and_kept(rig, study, code, FAULTS[fault])
 
 
-def ros2_uri() -> str:
-    return f"ros2://{random.Random(f'{os.getpid()}-{time.time_ns()}').randrange(1, 200)}"
-
-
-@pytest.fixture(params=["ros1", "ros2"])
-def robot(request, tmp_path) -> tuple[str, dict[str, str]]:
-    """A robot URI and the environment of its rig's processes, over each middleware."""
-    if request.param == "ros2":
-        return ros2_uri(), {**repository_env(), LOOPBACK_ENV: "1"}
-    uri, _ = request.getfixturevalue("master")
-    return str(uri), ros1_env(tmp_path)
-
-
-def test_a_second_node_publishing_scans_stops_the_run(tmp_path, robot):
-    uri, env = robot
+def test_a_second_node_publishing_scans_stops_the_run(tmp_path, middleware):
+    uri, env = middleware
     study = design(tmp_path / "study", uri)
     code = first_code(study)
     with live_rig(uri, study.root, env) as rig:
@@ -71,8 +56,8 @@ def test_a_second_node_publishing_scans_stops_the_run(tmp_path, robot):
         assert_stopped_and_kept(rig, study, code, "2 nodes publish on /scan")
 
 
-def test_a_second_trials_run_on_the_same_robot_is_refused_and_never_disturbs_the_first(tmp_path, robot):
-    uri, env = robot
+def test_a_second_trials_run_on_the_same_robot_is_refused_and_never_disturbs_the_first(tmp_path, middleware):
+    uri, env = middleware
     first = design(tmp_path / "first" / "study", uri)
     second = design(tmp_path / "second" / "study", uri)
     with live_rig(uri, first.root, env) as rig:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import re
 import subprocess
 import sys
@@ -18,11 +19,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from robot_logs import run_log as fmt
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.physical import PEDESTRIAN_RADIUS_M
 from trials.outcomes import read_outcomes
+from trials.robot.ros2 import LOOPBACK_ENV
 from trials.sealed_runs import read_sealed_run
 from trials.sim.robot import RobotLimits, footprint_gaps
 from trials.study import LIVE_STATE, OUTCOMES, StudyFolder
@@ -143,6 +146,20 @@ def live_rig(uri: str, study: Path, env: dict[str, str], robot: Sequence[str] = 
             if process.poll() is None:
                 process.kill()
             process.wait()
+
+
+def ros2_uri() -> str:
+    """A ROS 2 domain of its own for one test (tests run side by side)."""
+    return f"ros2://{random.Random(f'{os.getpid()}-{time.time_ns()}').randrange(1, 200)}"
+
+
+@pytest.fixture(params=["ros1", "ros2"])
+def middleware(request, tmp_path) -> tuple[str, dict[str, str]]:
+    """A robot URI and the environment of its rig's processes, over each middleware: a real ROS 1 master, and DDS."""
+    if request.param == "ros2":
+        return ros2_uri(), {**repository_env(), LOOPBACK_ENV: "1"}
+    uri, _ = request.getfixturevalue("master")
+    return str(uri), ros1_env(tmp_path)
 
 
 def repository_env() -> dict[str, str]:
