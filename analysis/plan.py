@@ -1,9 +1,10 @@
 """The analysis plan a study declares before its first run (study.toml's `[analysis]` table): the outcome, the
 compared factor, the primary test and model, alpha, the sensitivity analyses; its defaults for a spec, and its digest.
 
-A randomized comparison of two arms defaults to the run-level randomization test (`analysis.randomization`)
-with the primary model holding only the arm factor and the design's blocks, since 18 runs cannot carry the
-plan's full model as a confirmatory fit; the full design model stays as an exploratory fit.
+A randomized comparison of arms defaults to the run-level randomization test (`analysis.randomization`; of more than two
+arms, its global form and then every pair, Holm-adjusted: `analysis.k_arm`) with the primary model holding only the arm
+factor and the design's blocks, since 18 runs cannot carry the plan's full model as a confirmatory fit; the full design
+model stays as an exploratory fit.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from designs.spec import StudySpec
 
 #: The outcome analysed: each judgment's answer to "socially compliant?" (responses.csv's `compliant`).
 OUTCOMES = ("compliant",)
-#: Primary tests: the run-level randomization test of two arms, or the small-sample GEE's test of the factor's term.
+#: Primary tests: the run-level randomization test of the arms, or the small-sample GEE's test of the factor's term.
 RANDOMIZATION = "randomization"
 GEE = "gee"
 TESTS = (RANDOMIZATION, GEE)
@@ -85,15 +86,14 @@ def arm_factor(spec: StudySpec) -> CategoricalFactor | None:
 
 
 def default_plan(spec: StudySpec, seed: int) -> AnalysisPlan:
-    """The plan `trials design` writes for `spec`: a two-arm study's randomization test on the arm factor plus blocks,
+    """The plan `trials design` writes for `spec`: an arm study's randomization test on the arm factor plus blocks,
     else the small-sample GEE of the design's model; every sensitivity analysis; alpha from the spec."""
     factor = arm_factor(spec)
     blocks = [f.name for f in spec.design_factors if isinstance(f, BlockFactor)]
     full = spec.full_model
     if factor is None:
         return AnalysisPlan("compliant", "", GEE, full, (), "", spec.alpha, SENSITIVITY, DRAWS, seed)
-    test = RANDOMIZATION if len(factor.levels) == 2 else GEE
-    return AnalysisPlan("compliant", factor.name, test, " + ".join([factor.name, *blocks]), tuple(blocks), full, spec.alpha,
+    return AnalysisPlan("compliant", factor.name, RANDOMIZATION, " + ".join([factor.name, *blocks]), tuple(blocks), full, spec.alpha,
                         SENSITIVITY, DRAWS, seed)
 
 

@@ -1,5 +1,6 @@
 """The planned primary test of a study's judgments (`analysis.plan`), one way for the report and for power:
-the run-level randomization test of the arms, or the small-sample GEE's test of the factor's term in the primary model.
+the run-level randomization test of two arms (of more: the global test, then Holm-adjusted pairs, `analysis.k_arm`), or
+the small-sample GEE's test of the factor's term in the primary model.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 from analysis.ab_table import RunJudgments
 from analysis.clustered import fit_gee
 from analysis.errors import AnalysisError
+from analysis.k_arm import KArmResult, global_test, k_arm_analysis
 from analysis.mixed import fit_mixed
 from analysis.models import DesignMatrix, Fit, fit_logistic
 from analysis.plan import RANDOMIZATION, AnalysisPlan
@@ -48,6 +50,12 @@ def primary_p_value(plan: AnalysisPlan, factors: tuple[DesignFactor, ...], setti
     """The planned primary test's p-value (NaN when it gives none); `draws` overrides the plan's Monte Carlo draws."""
     if plan.test == RANDOMIZATION:
         use = plan if draws is None else replace(plan, draws=draws)
+        if len(set(arms)) > 2:
+            judged = np.asarray(total) > 0
+            shares = np.asarray(yes, dtype=float)[judged] / np.asarray(total, dtype=float)[judged]
+            kept = [arm for arm, j in zip(arms, judged) if j]
+            labels = np.array(["\x1f".join(s) for s in strata])[judged] if plan.strata else None
+            return global_test(shares, kept, tuple(dict.fromkeys(arms)), labels, draws=use.draws, seed=use.seed).p_value
         return run_randomization(use, arms, first_arm, strata, yes, total, None).p_value
     judged = np.asarray(total) > 0
     dm = DesignMatrix.from_model(primary_model(plan, factors), np.asarray(settings)[judged])
@@ -84,7 +92,7 @@ class PrimaryResult:
     """The planned primary analysis of a study's judgments: the test, the effect estimates and the sensitivity fits."""
 
     plan: AnalysisPlan
-    #: The two arms compared, first arm first (empty when the plan compares none).
+    #: The arms compared, in the factor's order (empty when the plan compares none).
     arms: tuple[str, ...]
     runs: int
     judgments: int
@@ -98,6 +106,8 @@ class PrimaryResult:
     #: (plan name, fit) of each sensitivity analysis, on the primary model.
     sensitivity: tuple[tuple[str, Fit], ...]
     notes: tuple[str, ...] = ()
+    #: With more than two arms, the randomization plan's global test and Holm-adjusted pairs.
+    k_arms: KArmResult | None = None
 
 
 def arm_effect(fit: Fit, factor: str) -> OddsRatio | None:
@@ -144,8 +154,15 @@ def primary_analysis(data: StudyData, judged: list[RunJudgments], plan: Analysis
                        for e in [arm_effect(fit, plan.factor)] if e is not None), None)
     if plan.test == RANDOMIZATION:
         if min(arm_runs.values()) == 0:
-            return replace(base, notes=("The randomization test compares two arms; these judgments do not hold runs of both.",))
+            return replace(base, notes=("The randomization test compares every arm; these judgments do not hold runs of each.",))
         strata = [tuple(str(run.values[name]) for name in plan.strata) for run in runs]
+        if len(arms) > 2:
+            labels = np.array(["\x1f".join(s) for s in strata]) if plan.strata else None
+            try:
+                result = k_arm_analysis(shares, arm_of, arms, labels, plan.alpha, plan.draws, plan.seed)
+            except AnalysisError as exc:
+                return replace(base, notes=(f"The randomization test cannot be made on these judgments: {exc}.",))
+            return replace(base, k_arms=result, p_value=result.global_test.p_value)
         try:
             test = run_randomization(plan, arm_of, arms[0], strata, yes, total, 1.0 - plan.alpha)
         except AnalysisError as exc:  # e.g. no stratum judged in both arms yet (an interim report)

@@ -27,6 +27,7 @@ from analysis.figures import (
     trajectories_figure,
 )
 from analysis.intervals import Interval, wilson
+from analysis.k_arm import CORRECTION, KArmResult
 from analysis.models import Fit
 from analysis.participants import ParticipantModel
 from analysis.plan import PlanStatus, default_plan
@@ -611,6 +612,8 @@ def _ab_section(a: _Analysis) -> list[Block]:
 def _primary_result(a: _Analysis) -> str | None:
     """The planned primary result in one sentence, when the plan compares two arms: never missing when an arm is all yes."""
     r = a.primary
+    if r is not None and r.k_arms is not None:
+        return _k_arm_result(r, r.k_arms)
     if r is None or len(r.arms) != 2:
         return None
     first, second = r.arms
@@ -626,6 +629,37 @@ def _primary_result(a: _Analysis) -> str | None:
     ratio = (f"; odds ratio {first} to {second} {_ratio(r.odds_ratio.estimate)} (95 % CI {_ratio(r.odds_ratio.low)} - "
              f"{_ratio(r.odds_ratio.high)}, {r.odds_ratio.source})" if r.odds_ratio is not None else "")
     return (f"**Primary result** ({r.plan.describe_test()}; {r.runs} runs, {r.judgments} judgments): {shares}; {effect}{ratio}.")
+
+
+def _k_arm_result(r: PrimaryResult, k: KArmResult) -> str:
+    """The planned result of more than two arms in one sentence: the global test, then the pairs that differ."""
+    g = k.global_test
+    shares = ", ".join(f"{percent(r.mean_shares[arm])} for {arm}" for arm in r.arms)
+    differ = [f"{p.first} - {p.second} {_points(p.test.difference)} points (Holm p {p_text(p.holm_p)})" for p in k.pairs if p.holm_p < r.plan.alpha]
+    pairs = ("pairs that differ at alpha " + f"{r.plan.alpha:g}: " + "; ".join(differ)) if differ else f"no pair differs at alpha {r.plan.alpha:g} after {CORRECTION}'s correction"
+    return (f"**Primary result** ({r.plan.describe_test()}; {len(r.arms)} arms: the global test, then every pair with {CORRECTION}'s "
+            f"correction; {r.runs} runs, {r.judgments} judgments): mean run share of yes {shares}; global p {_equals(p_text(g.p_value))} ({g.describe()}); {pairs}.")
+
+
+def _pairwise_table(r: PrimaryResult, k: KArmResult) -> DataTable:
+    """Every pair of arms: the difference of mean run shares, its interval at the pairwise level, p and Holm's p."""
+    level = f"{100 * k.interval_level:.4g} %"
+    rows, data_rows = [], []
+    for pair in k.pairs:
+        t = pair.test
+        interval = t.no_interval or f"{_points(t.low)} to {_points(t.high)}"
+        rows.append([f"{pair.first} - {pair.second}", f"{t.runs}", _points(t.difference), interval, p_text(t.p_value), p_text(pair.holm_p),
+                     t.describe()])
+        data_rows.append([pair.first, pair.second, t.runs, _value(t.difference), _value(t.low), _value(t.high), _value(t.p_value),
+                          _value(pair.holm_p), t.describe()])
+    g = k.global_test
+    return DataTable(
+        ["Pair", "Runs", "Difference (points)", f"{level} CI", "p", f"{CORRECTION} p", "Randomization"], rows,
+        f"The planned pairwise comparisons after the global test (p {p_text(g.p_value)}): each pair's runs re-randomized between its two "
+        f"arms{' within the strata' if r.plan.strata else ''}; the difference of mean run shares of yes, first minus second, with the "
+        f"interval inverting the studentized test at {level} (1 - alpha / {len(k.pairs)}, so the {len(k.pairs)} intervals hold together "
+        f"at {100 * (1 - r.plan.alpha):g} %); p-values adjusted by {CORRECTION}'s method over the {len(k.pairs)} pairs.",
+        {1, 2, 3, 4, 5}, ["first", "second", "runs", "difference", "low", "high", "p", "holm_p", "randomization"], data_rows)
 
 
 def _ratio(value: float) -> str:
@@ -650,6 +684,9 @@ def _primary_section(a: _Analysis) -> list[Block]:
     ]
     if plan.test == "randomization":
         items.append(f"Randomization test: exact when at most {MAX_ALLOCATIONS:,} allocations, else {plan.draws:,} Monte Carlo draws from seed {plan.seed}.")
+        if len(a.arms) > 2:
+            items.append(f"{len(a.arms)} arms: first the global test of the between-arm sum of squares of run shares, then every pair of "
+                         f"arms by the two-arm test on its own runs, p-values adjusted by {CORRECTION}'s method.")
     blocks.append(Bullets(items))
     if a.pooled:
         return blocks + [Paragraph("Not tested yet: the arms are pooled until every run has finished (see the study's overview).")]
@@ -660,6 +697,8 @@ def _primary_section(a: _Analysis) -> list[Block]:
         blocks.append(Paragraph(line))
     if len(r.arms) == 2:
         blocks.append(_primary_table(r))
+    if r.k_arms is not None:
+        blocks.append(_pairwise_table(r, r.k_arms))
     t = r.randomization
     if t is not None and not t.agrees:
         blocks.append(Paragraph(
@@ -1052,6 +1091,20 @@ def _primary_record(r: PrimaryResult | None) -> dict[str, Any] | None:
                                                           "source": r.odds_ratio.source},
         "sensitivity": [{"analysis": name, **_fit_record(fit)} for name, fit in r.sensitivity],
         "notes": list(r.notes),
+        "k_arms": None if r.k_arms is None else _k_arm_record(r.k_arms),
+    }
+
+
+def _k_arm_record(k: KArmResult) -> dict[str, Any]:
+    g = k.global_test
+    return {
+        "global": {"statistic": g.statistic, "statistic_is": "between-arm sum of squares of run shares within strata", "p": g.p_value,
+                   "allocations": g.allocations, "exact": g.exact, "draws": g.draws, "mc_standard_error": g.mc_error, "seed": g.seed,
+                   "strata": g.strata},
+        "correction": CORRECTION, "interval_level": k.interval_level,
+        "pairs": [{"first": p.first, "second": p.second, "runs": p.test.runs, "difference": _json_number(p.test.difference),
+                   "low": _json_number(p.test.low), "high": _json_number(p.test.high), "p": p.test.p_value, "holm_p": p.holm_p,
+                   "exact": p.test.exact, "no_interval": p.test.no_interval or None} for p in k.pairs],
     }
 
 

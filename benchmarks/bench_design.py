@@ -42,7 +42,7 @@ from designs.model import parse_model
 from designs.plan import build_plan
 from designs.presets import ab, qualitative
 from trials.commands.design import usable_cpus
-from trials.controllers.registry import NAMES as CONTROLLERS
+from trials.controllers.registry import AB_PRESET as CONTROLLERS
 
 PRESETS = {"qualitative (--runs 27)": (qualitative(), ["--runs", "27"]), "A/B (--runs 18 --ab)": (ab(CONTROLLERS), ["--runs", "18", "--ab"])}
 REPEATS = 5

@@ -106,7 +106,7 @@ def latency(kind: str, repeats: int, home: Path, loaded: int) -> None:
         settings = RobotSettings(uri=uri, sensor_wait=60.0)
         link = RobotLink.open(settings, new_session())
         with software_robot(uri, study.root, 40.0), load(loaded):
-            for name in registry.NAMES:
+            for name in registry.AB_PRESET:
                 controller = registry.build(name)
                 warm_up([controller])
                 latencies, plans, ends = [], [], []

@@ -72,11 +72,11 @@ def designs() -> str:
     """The preset plans' efficiencies for a few design seeds (the D-optimum is the same for every seed)."""
     from designs.plan import build_plan
     from designs.presets import ab, qualitative
-    from trials.controllers.registry import NAMES
+    from trials.controllers.registry import AB_PRESET
 
     rows = []
     for name, preset, command in (("qualitative, 27 runs", qualitative(), "trials design --runs 27"),
-                                  ("A/B, 18 runs", ab(NAMES), "trials design --ab")):
+                                  ("A/B, 18 runs", ab(AB_PRESET), "trials design --ab")):
         per_seed = []
         for seed in DESIGN_SEEDS:
             plan = build_plan(replace(preset, seed=seed), allocation_seed=0)

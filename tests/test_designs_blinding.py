@@ -13,7 +13,7 @@ import pytest
 from designs.blinding import FACTOR_AND_ARMS, WHOLE_KEY, SealedAllocation, seal, verify
 from designs.errors import DesignError
 from trials.cli import main
-from trials.controllers.registry import NAMES as CONTROLLERS
+from trials.controllers.registry import AB_PRESET as CONTROLLERS
 from trials.errors import StudyError
 from trials.study import StudyFolder, design_digest
 

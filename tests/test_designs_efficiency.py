@@ -17,7 +17,7 @@ from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor
 from designs.model import parse_model
 from designs.plan import build_plan
 from designs.presets import ab, qualitative
-from trials.controllers.registry import NAMES as CONTROLLERS
+from trials.controllers.registry import AB_PRESET as CONTROLLERS
 
 
 def _model(spec):

@@ -99,9 +99,9 @@ def plan_from_table(table: dict[str, Any], spec: StudySpec, seed: int, where: st
         categorical = [f.name for f in spec.design_factors if isinstance(f, CategoricalFactor)]
         raise StudyError(f"{where}: factor must be \"\" or a categorical factor of the study ({', '.join(categorical)}), got {factor!r}")
     test = text("test", TESTS)
-    if test == RANDOMIZATION and (arm is None or len(arm.levels) != 2):
-        raise StudyError(f"{where}: test \"{RANDOMIZATION}\" compares two arms; factor {factor!r} has "
-                         f"{len(arm.levels) if isinstance(arm, CategoricalFactor) else 'no'} levels (use test = \"gee\")")
+    if test == RANDOMIZATION and arm is None:
+        raise StudyError(f"{where}: test \"{RANDOMIZATION}\" compares the arms of a factor; name one (factor = \"Controller\") "
+                         "or use test = \"gee\"")
     terms = model("model")
     if factor and factor not in terms:
         raise StudyError(f"{where}: model {values['model']!r} must hold the compared factor {factor!r}")
