@@ -169,7 +169,8 @@ CASES = [
          "spec.toml: every factor is fixed; a design needs at least one varying factor",
          spec(SPEC_HEAD + '[[factors]]\nname = "A"\ntype = "fixed"\nvalue = 1\n')),
     Case("unknown table", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
-         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run], [robot] and [analysis])",
+         "spec.toml: unknown table 'extra' (expected [study], [[factors]] and optionally [anticipated], [[questionnaire]], [run], [robot], "
+         "[analysis] and [controllers])",
          spec(SPEC_HEAD + "[extra]\n" + SPEED)),
     Case("arms without blind", ("design", "--spec", "{tmp}/spec.toml", "--study", "{tmp}/new"),
          "factors[0] (A): arms are only for a blind factor; use levels",

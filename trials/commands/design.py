@@ -120,6 +120,17 @@ def _evaluate(spec: StudySpec, paths: list[Path], folder: StudyFolder, args: arg
     return 0
 
 
+def _tables_only(spec: Path) -> bool:
+    """Whether a study.toml holds no [study] table (a damaged one is left to the spec reader to report)."""
+    from trials.errors import StudyError
+    from trials.study import study_table
+
+    try:
+        return study_table(spec, "study") is None
+    except StudyError:
+        return False
+
+
 def _arms(asked: tuple[str, ...], known: tuple[str, ...]) -> tuple[str, ...]:
     """`--arms`' controllers: two or more, each known, none twice."""
     from trials.errors import StudyError
@@ -210,7 +221,6 @@ def run(args: argparse.Namespace) -> int:
         SEALED_STUDY_FILES,
         SPEC,
         StudyFolder,
-        study_table,
     )
 
     folder = StudyFolder(args.study)
@@ -218,15 +228,14 @@ def run(args: argparse.Namespace) -> int:
         return _augment(folder, args)
     own_spec = folder.path(SPEC)
     # A study.toml of the study's own tables only ([controllers], [run], [robot], [analysis]) is read for them, not replaced.
-    tables_only = own_spec.exists() and study_table(own_spec, "study") is None
+    tables_only = own_spec.exists() and _tables_only(own_spec)
     spec_path = args.spec or (own_spec if own_spec.exists() and not (args.ab or args.arms or tables_only) else None)
     tables_from = spec_path or (own_spec if tables_only else None)
+    spec = read_spec(spec_path) if spec_path is not None else None  # its errors first: they name the line
     controllers = read_table(tables_from) if tables_from is not None else {}
-    if spec_path is not None:
-        spec = read_spec(spec_path)
-    elif args.arms:
+    if spec is None and args.arms:
         spec = presets.ab(_arms(tuple(args.arms), registry.names(controllers)), runs=max(18, 6 * len(args.arms)))
-    else:
+    elif spec is None:
         spec = presets.ab(registry.AB_PRESET) if args.ab else presets.qualitative()
     overrides = {"runs": args.runs, "model": args.model, "seed": args.seed, "starts": args.starts, "snr": args.snr,
                  "criterion": args.criterion}
