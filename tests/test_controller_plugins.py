@@ -14,6 +14,7 @@ import pytest
 
 from robot_logs.physical import T_OBS
 from robot_logs.run_log import read_run
+from tests.support.example_plugin import EXAMPLE, NAME, SOURCE, install_example
 from trials.cli import main
 from trials.controllers import registry
 from trials.controllers.base import Observation, Plan
@@ -21,8 +22,6 @@ from trials.controllers.checked import CheckedController, ControllerFault
 from trials.controllers.plugins import STUDY_TABLE, PluginError, Source, read_table
 from trials.outcomes import read_outcomes
 from trials.study import OUTCOMES, StudyFolder
-
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "lab_planner"
 
 #: A lab's planner kept in the study folder: straight to the goal at 0.8 m/s; `make_raising` raises on its 5th plan,
 #: `make_malformed` answers one way-point too few coordinates, `make_nothing` builds an object with no plan method.
@@ -230,22 +229,12 @@ def test_trials_controllers_lists_and_checks_every_source(tmp_path, capsys):
     assert all("plans (" in checked[name] for name in ("NaviGAN-R", "Lattice", "SocialForce", "ORCA", "Mine"))
 
 
-def install_example(target: Path) -> dict[str, str]:
-    """pip-install the example plug-in package into `target` (offline, with this interpreter's setuptools); the
-    environment that puts it on the path."""
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target),
-                    str(EXAMPLE)], check=True, capture_output=True)
-    import os
-
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (str(target), os.environ.get("PYTHONPATH"))))}
-
-
 def test_an_installed_package_is_found_by_its_entry_point_and_passes_its_own_tests(tmp_path):
     env = install_example(tmp_path / "site")
     listed = subprocess.run([sys.executable, "-m", "trials.cli", "controllers", "--check"], env=env, capture_output=True, text=True)
     assert listed.returncode == 0, listed.stderr
-    gap_keeper = next(line for line in listed.stdout.splitlines() if line.startswith("GapKeeper "))
-    assert "entry point navtrials-lab-planner 0.1.0 (lab_planner:make_controller)  plans (" in gap_keeper
+    gap_keeper = next(line for line in listed.stdout.splitlines() if line.startswith(f"{NAME} "))
+    assert f"{SOURCE}  plans (" in gap_keeper
     own = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-o", "addopts=", str(EXAMPLE / "tests")],
                          env=env, capture_output=True, text=True, cwd=tmp_path)
     assert own.returncode == 0 and "4 passed" in own.stdout, own.stdout + own.stderr
