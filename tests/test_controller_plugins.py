@@ -26,6 +26,7 @@ from trials.study import OUTCOMES, StudyFolder
 #: A lab's planner kept in the study folder: straight to the goal at 0.8 m/s; `make_raising` raises on its 5th plan,
 #: `make_malformed` answers one way-point too few coordinates, `make_nothing` builds an object with no plan method.
 PLANNER = '''
+import os
 import numpy as np
 from trials.controllers.base import Plan
 
@@ -38,6 +39,8 @@ class Straight:
 
     def reset(self, seed):
         self.plans = 0
+        print("lab_straight starts a run", flush=True)  # a blinded study must not show this
+        os.write(2, b"lab_straight writes to stderr\\n")
 
     def end(self, status):
         self.ended.append(status)
@@ -144,6 +147,23 @@ def test_a_malformed_plan_fails_the_run_naming_what_is_wrong(tmp_path):
     assert main(["run", "--study", str(study.root)]) == 1
     reasons = {p.read_text() for p in study.root.glob("runs/*.failed.txt")}
     assert reasons == {"the controller's plan has way-points of shape (12, 1), not (K, 2) numbers with K >= 1\n"}
+
+
+@pytest.mark.slow
+def test_what_a_plug_in_prints_never_reaches_the_console_of_a_blinded_study(tmp_path):
+    folder = tmp_path / "study"
+    folder.mkdir()
+    (folder / "lab_straight.py").write_text(PLANNER, encoding="utf-8")
+    (folder / "study.toml").write_text('[controllers]\nMine = "lab_straight:make"\n', encoding="utf-8")
+    trials = [sys.executable, "-m", "trials.cli"]
+    subprocess.run([*trials, "design", "--arms", "Lattice,Mine", "--runs", "8", "--model", "Pedestrians + Controller", "--power", "0",
+                    "--study", str(folder)], check=True, capture_output=True)
+    assert not (folder / "lab_straight.py").read_text().count("Mine")  # the module names itself, not its arm
+    run = subprocess.run([*trials, "run", "--blind", "--study", str(folder)], capture_output=True, text=True)
+    assert run.returncode == 0 and "8 runs finished" in run.stdout, run.stdout + run.stderr
+    assert "lab_straight" not in run.stdout + run.stderr
+    assert "Mine" not in StudyFolder(folder).path("study.toml").read_text()  # its [controllers] table went under sealed/
+    assert "Mine" in StudyFolder(folder).path("sealed/controllers.toml").read_text()
 
 
 @pytest.mark.slow

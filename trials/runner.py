@@ -32,6 +32,7 @@ import fcntl
 import hashlib
 import json
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
@@ -532,7 +533,18 @@ def setup_worker(root: str, name: str, blind: bool, levels: tuple[str, ...], opt
     torch.set_num_threads(1)
     if blind:
         warnings.simplefilter("ignore")  # a warning naming a module would name the controller
+        _silence()  # and so would whatever a controller prints; the worker reports through its pool only
     return TrialWorker(StudyFolder(Path(root)), name, blind, levels, options)
+
+
+def _silence() -> None:
+    """Point this process's standard output and error (the file descriptors, so C libraries' writes too) at /dev/null."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    null = os.open(os.devnull, os.O_WRONLY)
+    for descriptor in (1, 2):
+        os.dup2(null, descriptor)
+    os.close(null)
 
 
 class TrialWorker:
