@@ -101,4 +101,4 @@ def test_the_footprint_and_safety_keys_reach_the_limits_and_design_writes_every_
     table = tomllib.loads((study / "study.toml").read_text(encoding="utf-8"))["robot"]
     defaults = {name: list(v) if isinstance(v := getattr(RobotSettings(), name), tuple) else v
                 for name in RobotSettings.__dataclass_fields__ if name != "goals"}
-    assert table == {**defaults, "uri": "ros1://10.0.0.2:11311"} and len(table) == 30
+    assert table == {**defaults, "uri": "ros1://10.0.0.2:11311"} and len(table) == 33

@@ -47,6 +47,7 @@ from trials.atomic import no_space, open_lock, write_files, write_text, writing
 from trials.controllers import registry
 from trials.controllers.base import Controller
 from trials.controllers.checked import OFFLINE_PLAN_LIMIT_S
+from trials.controllers.nav_stack import is_nav_stack
 from trials.controllers.plugins import study_controllers
 from trials.errors import USER_ERRORS, DiskFullError, EStopped, RunAborted, StudyError
 from trials.field_study import refuse_simulation
@@ -558,13 +559,17 @@ class TrialWorker:
         built = registry.ControllerOptions(weights=options.settings.weights, study=tuple(study_controllers(folder, blind).items()),
                                            folder=str(folder.root), plan_limit_s=None if options.robot is not None else OFFLINE_PLAN_LIMIT_S)
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
+        nav_stack = any(is_nav_stack(controller) for controller in self._controllers.values())
+        if nav_stack and options.robot is None:
+            raise StudyError("one of this study's controllers is the robot's own navigation stack, which plans on "
+                             "the robot: run it live (trials run --robot URI)")
         self._driver = None
         if options.robot is not None:
             from trials.robot.live import warm_up
             from trials.robot.live_trial import LiveDriver
 
             warm_up(self._controllers.values())
-            self._driver = LiveDriver(folder, options.robot, options.robot_session)
+            self._driver = LiveDriver(folder, options.robot, options.robot_session, nav_stack)
 
     def _level(self, row: dict[str, str]) -> tuple[str, str | None]:
         label = row.get(CONTROLLER)

@@ -24,6 +24,7 @@ import pytest
 from robot_logs import run_log as fmt
 from robot_logs.foxglove_log import FoxgloveReader
 from robot_logs.physical import PEDESTRIAN_RADIUS_M
+from tests.support.example_plugin import install_example
 from trials.outcomes import read_outcomes
 from trials.robot.ros2 import LOOPBACK_ENV
 from trials.sealed_runs import read_sealed_run
@@ -259,3 +260,11 @@ def check_blinded_run(study: StudyFolder, uri: str, env: dict[str, str]) -> None
     markdown = (study.root / "report" / "report.md").read_text(encoding="utf-8")
     assert "How the finished runs were made: 1 driven live on the software robot (`trials robot-sim`, a rehearsal" in markdown
     assert json.loads((study.root / "report" / "report.json").read_text(encoding="utf-8"))["runs"]["made"]["software robot"] == 1
+
+
+@pytest.fixture
+def plugin_env(tmp_path, middleware) -> tuple[str, dict[str, str]]:
+    """The robot's URI and its rig's environment with the example plug-in installed."""
+    uri, env = middleware
+    installed = install_example(tmp_path / "site")
+    return uri, {**env, "PYTHONPATH": installed["PYTHONPATH"] + (":" + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")}

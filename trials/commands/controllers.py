@@ -43,7 +43,9 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for name, source in sources.items():
         line = f"{name:<{width}}  {source.describe()}"
-        if args.check:
+        if args.check and name == registry.NAV_STACK:
+            line += "  live only: the robot's stack plans (trials run --robot URI)"
+        elif args.check:
             try:
                 line += f"  plans ({_check(registry.build(name, options)):.3f} s)"
             except USER_ERRORS as exc:

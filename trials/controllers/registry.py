@@ -21,6 +21,7 @@ NAVIGAN_R = "NaviGAN-R"
 LATTICE = "Lattice"
 SOCIAL_FORCE = "SocialForce"
 ORCA = "ORCA"
+NAV_STACK = "NavStack"
 #: The controller of a run whose study has no Controller factor.
 DEFAULT = NAVIGAN_R
 #: The paper's A/B study: NaviGAN-R against the lattice planner (`trials design --ab`).
@@ -46,6 +47,7 @@ BUILT_INS: dict[str, str] = {
     LATTICE: "trials.controllers.lattice:LatticeController",
     SOCIAL_FORCE: "trials.controllers.social_force:SocialForceController",
     ORCA: "trials.controllers.orca:OrcaController",
+    NAV_STACK: "trials.controllers.nav_stack:NavStackController",
 }
 #: The built-in controllers' names.
 NAMES: tuple[str, ...] = tuple(BUILT_INS)

@@ -21,6 +21,11 @@ e-stop (the console's stop file or `true` on the e-stop topic), SIGINT or SIGTER
 the middleware lost, stale sensors, a protective stop held too long, a stall or a base that does not respond, a
 controller that has not answered within `plan_timeout`, and any exception; a run never starts before scans, odometry
 and the laser's transform to the base have all been seen.
+
+The robot's own navigation stack as the controller (`trials.controllers.nav_stack`) is sent the goal when the run starts;
+its velocity commands take the follower's place, relayed through the same limits and protective field; a stack silent
+for `plan_timeout` is a controller that has not answered; every stop cancels its goal before the zero velocity
+(`trials.robot.navigation`).
 A killed worker sends nothing itself: its parent's `trials.robot.guard.Guard` stops the robot (docs/live_runs.md).
 """
 
@@ -47,9 +52,11 @@ from robot_logs.pipeline import PersonTracker
 from robot_logs.records import Odometry, Scan, Transform
 from robot_logs.tracks import TrackRow, TrackTable, history_at
 from trials.controllers.base import Controller, Observation, Plan
+from trials.controllers.nav_stack import is_nav_stack
 from trials.controllers.obstacles import OBSTACLE_RANGE_M, thinned
 from trials.log_trial import People
 from trials.metrics import measure
+from trials.robot.navigation import NavigationClient, StackCommands, arrival_pose, open_navigation, rollout
 from trials.robot.one_driver import PublisherWatch, node_name, wait_for_discovery
 from trials.robot.people_check import PeopleCounter
 from trials.robot.protective_field import OPEN, FieldReading, ProtectiveField, returns_in, valid_returns
@@ -382,24 +389,29 @@ class LiveSink:
 
 class RobotLink:
     """A process's lasting hold on the robot: the sensors' subscriptions and the command and announcement publishers, made
-    once (a middleware keeps a subscription until its node closes) and shared by every run driven through them."""
+    once (a middleware keeps a subscription until its node closes) and shared by every run driven through them; with
+    `nav_stack`, also the robot's navigation stack's action client and its commands, for every run alike (blinding)."""
 
-    def __init__(self, transport: Transport, settings: RobotSettings, session: str) -> None:
+    def __init__(self, transport: Transport, settings: RobotSettings, session: str, nav_stack: bool = False) -> None:
         self.transport, self.settings = transport, settings
         self.sensors = Sensors(settings)
         self.sensors.attach(transport)
         self.twist = velocity_publisher(transport, settings)
         self.announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
+        self.navigation: NavigationClient | None = None
+        self.stack_commands = StackCommands()
+        if nav_stack:
+            self.navigation, self.stack_commands = open_navigation(transport, settings)
         wait_for_discovery(transport)
         self.publishers = PublisherWatch(transport, settings, session)
 
     @classmethod
-    def open(cls, settings: RobotSettings, session: str) -> RobotLink:
+    def open(cls, settings: RobotSettings, session: str, nav_stack: bool = False) -> RobotLink:
         """The worker's node of `trials run --robot` session `session` (`trials.robot.one_driver.new_session`).
 
         Raises:
             LinkError: the robot cannot be reached."""
-        return cls(open_transport(settings.robot_uri, node_name(session, "run")), settings, session)
+        return cls(open_transport(settings.robot_uri, node_name(session, "run")), settings, session, nav_stack)
 
     def close(self) -> None:
         self.publishers.close()
@@ -425,6 +437,8 @@ class LiveRun:
         self.command = (0.0, 0.0)
         self.laser_frame: str | None = None
         self.stage: Stage | None = None
+        #: Whether the navigation stack holds this run's goal: every stop cancels it.
+        self.stack_goal = False
 
     # --- safety --------------------------------------------------------------------------------------
 
@@ -433,7 +447,12 @@ class LiveRun:
         self.link.twist(linear, angular)
 
     def halt(self) -> None:
-        """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop."""
+        """Cancel the navigation stack's goal, if it has one, then zero velocity, sent `STOP_REPEATS` times: whatever
+        happened, the last command is a stop."""
+        if self.stack_goal and self.link.navigation is not None:
+            self.stack_goal = False
+            with suppress(Exception):  # a lost middleware must not keep the zero velocity from being sent
+                self.link.navigation.cancel()
         stop_robot(self.send)
 
     def _why_stop(self, now: float, check_sensors: bool) -> str | None:
@@ -463,7 +482,7 @@ class LiveRun:
             now = time.monotonic()
             if self.laser_frame is None and not self.sensors.scans.empty():
                 self.laser_frame = self.sensors.scans.queue[0][0].frame_id
-            missing = self.sensors.missing(self.laser_frame, frame)
+            missing = self.sensors.missing(self.laser_frame, frame) + self._stack_missing()
             stale = self.sensors.staleness(now)
             settled = min(self.sensors.scan_seen or 0.0, self.sensors.odometry_seen or 0.0) >= announced + SETTLE_S
             away = self._off_start() if not missing and stale is None and settled else None
@@ -480,6 +499,11 @@ class LiveRun:
                 self.halt()
                 return reason
             time.sleep(0.02)
+
+    def _stack_missing(self) -> list[str]:
+        """The navigation stack's action server, while a link that has a stack does not see it (asked before every run)."""
+        navigation = self.link.navigation
+        return [] if navigation is None or navigation.ready() else [f"the navigation stack's action server {navigation.action}"]
 
     def _off_start(self) -> str | None:
         """Why the robot does not stand at its stage's start now, else None (always None for an unstaged run)."""
@@ -555,7 +579,14 @@ class LiveRun:
         sink.event(0.0, START, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in frame {s.odometry_frame}")
         self.on_state(DRIVING, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in {s.odometry_frame}")
         ending: tuple[str, str] | None = None
+        # The robot's own navigation stack: its newest command (after the goal), and when it came.
+        stack = self.link.navigation if is_nav_stack(controller) else None
+        stack_command, answered_at = (0.0, 0.0), 0.0
         try:
+            if stack is not None:
+                stack.send(arrival_pose(np.array([odometry.pose.x, odometry.pose.y]), goal), s.odometry_frame, start_ns)
+                self.stack_goal = True
+                asked_at = answered_at = time.monotonic()
             while ending is None:
                 now = time.monotonic()
                 reason = self._why_stop(now, check_sensors=True) or self._command_gap(now - sent_at, scans)
@@ -600,8 +631,16 @@ class LiveRun:
                 robot_poses.append((t, robot.position))
                 while robot_poses and robot_poses[0][0] < t - STEP_S * (T_OBS + 1):
                     robot_poses.popleft()
-                # A finished plan replaces the one followed; a new one is asked for every 0.4 s of robot time.
-                if pending is not None and pending.done():
+                # A finished plan replaces the one followed; a new one is asked for every 0.4 s of robot time. The stack
+                # answers with velocity commands instead, as often as it likes.
+                if stack is not None:
+                    heard = self.link.stack_commands.newest()
+                    if heard is not None and heard[1] >= asked_at:
+                        stack_command, answered_at = (heard[0].linear, heard[0].angular), heard[1]
+                    if time.monotonic() - answered_at > s.plan_timeout:
+                        ending = (ABORTED, f"no plan within {s.plan_timeout:g} s")
+                        break
+                elif pending is not None and pending.done():
                     plan_t, position, plan, took = pending.result()
                     pending = None
                     plan_seconds.append(took)
@@ -618,11 +657,17 @@ class LiveRun:
                     observation = self._observation(t, robot, goal, robot_poses, rows, start_ns, thinned(world) if world is not None else None)
                     sink.perceived(t, observation.pedestrian_ids, observation.pedestrian_history)
                     next_plan = max(next_plan + STEP_S, t)
-                    if pending is None:
+                    if stack is not None:
+                        sink.planned(t, Plan(rollout(robot.pose, stack_command),
+                                             record={"controller": controller.name, "navigation_stack": stack.status(), "command": list(stack_command)}))
+                    elif pending is None:
                         pending, asked_at = planner.submit(_timed_plan, controller, observation), time.monotonic()
                     else:
                         late += 1
-                command = follower.command(t, robot) if planned else (0.0, 0.0)
+                if stack is not None:  # a command older than the watchdog is not relayed: a base would not obey it either
+                    command = stack_command if time.monotonic() - answered_at <= s.watchdog else (0.0, 0.0)
+                else:
+                    command = follower.command(t, robot) if planned else (0.0, 0.0)
                 wanted = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))
                 command = reading.limit(*wanted)
                 at_scan = robot if seen is None else RobotState(seen[1].x, seen[1].y, seen[1].yaw, robot.v, robot.w)
@@ -782,7 +827,7 @@ def warm_up(controllers: Iterable[Controller]) -> None:
     scan = LidarSimulator(seed=0).scan(0.0, Pose2D(), np.array([[2.0, 0.0]]), np.array([[0.0, 1.0]]))
     PersonTracker.learned().process(scan)
     still = np.zeros((T_OBS, 2))
-    for controller in controllers:
+    for controller in (c for c in controllers if not is_nav_stack(c)):  # the robot's own stack plans on the robot
         controller.plan(Observation(time=0.0, robot_pose=np.zeros(3), robot_velocity=np.zeros(2), goal=np.array(GOAL_AHEAD),
                                     robot_history=still, pedestrian_ids=(), pedestrian_history=np.zeros((0, T_OBS, 2))))
 

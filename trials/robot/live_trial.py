@@ -28,15 +28,16 @@ from trials.study import LIVE_ESTOP, StudyFolder, utc_now
 
 
 class LiveDriver:
-    """One worker's node on the robot's middleware (of `trials run` session `session`), reused for every run it drives.
+    """One worker's node on the robot's middleware (of `trials run` session `session`), reused for every run it drives;
+    `nav_stack`: one of its controllers is the robot's own navigation stack.
 
     Raises (on creation):
         StudyError: the robot cannot be reached (LinkError) or its middleware is not installed.
     """
 
-    def __init__(self, folder: StudyFolder, settings: RobotSettings, session: str) -> None:
+    def __init__(self, folder: StudyFolder, settings: RobotSettings, session: str, nav_stack: bool = False) -> None:
         self.folder, self.settings = folder, settings
-        self.link = RobotLink.open(settings, session)
+        self.link = RobotLink.open(settings, session, nav_stack)
         self.stop: StopRequest | None = None
         self.terminated = False
         self._working = False

@@ -270,6 +270,12 @@ class Ros2Transport:
         self._thread = threading.Thread(target=self._receive, name=f"ros2 {node}", daemon=True)
         self._thread.start()
 
+    @property
+    def participant(self) -> DomainParticipant:
+        """This node's DDS participant, for the entities a ROS 2 action needs (`trials.robot.ros2_navigation`)."""
+        self._check_open()
+        return self._participant
+
     def publisher(self, topic: str, kind: str, latched: bool = False) -> Callable[[Any], None]:
         """A function publishing one value of `kind` on `topic` (see the module docstring for QoS)."""
         how = _kind(kind)

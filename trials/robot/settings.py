@@ -35,6 +35,11 @@ Every key is optional; the defaults fit a Husky- or TurtleBot-class base running
     min_people_share = 0.5          # the row's condition is met when this share of its Pedestrians was tracked at once
     timeout = 60.0                  # s of driving before the run ends as a timeout
     command_rate = 20.0             # Hz of velocity commands
+    nav_stack_action = ""           # the robot's own navigation stack, for a NavStack arm: its action ("" = move_base on
+                                    # ROS 1, navigate_to_pose on ROS 2)
+    nav_stack_cmd_vel_topic = "/cmd_vel_nav"  # where the stack's velocity commands go (remapped from the base's): the run
+                                    # relays them to cmd_vel_topic through the same limits and protective field
+    nav_stack_cmd_vel_type = "Twist"  # Twist or TwistStamped
 
     [robot.goals]                   # a goal per level of the plan's Direction factor, in goal_frame
     Crossing = [10.0, 0.0]
@@ -52,7 +57,7 @@ from typing import Any
 
 from robot_logs.physical import STEP_S
 from trials.errors import StudyError
-from trials.robot.transport import TWIST_TYPES, RobotUri
+from trials.robot.transport import ROS1, TWIST_TYPES, RobotUri
 from trials.scenario import DIRECTION, GOAL
 from trials.sim.robot import RobotLimits
 from trials.study import study_table
@@ -99,6 +104,14 @@ class RobotSettings:
     min_people_share: float = 0.5
     timeout: float = 60.0
     command_rate: float = 20.0
+    nav_stack_action: str = ""
+    nav_stack_cmd_vel_topic: str = "/cmd_vel_nav"
+    nav_stack_cmd_vel_type: str = TWIST_TYPES[0]
+
+    @property
+    def navigation_action(self) -> str:
+        """The navigation stack's action: `nav_stack_action`, by default move_base's (ROS 1) or Nav2's (ROS 2)."""
+        return self.nav_stack_action or ("move_base" if self.robot_uri.scheme == ROS1 else "navigate_to_pose")
 
     @property
     def robot_uri(self) -> RobotUri:
@@ -132,7 +145,9 @@ RANGES: dict[str, tuple[float, float]] = {
     "sensor_wait": (0.5, 600.0), "people_radius": (0.5, 50.0), "min_people_share": (0.0, 1.0), "timeout": (STEP_S, 3600.0), "command_rate": (5.0, 200.0),
 }
 TEXTS = ("uri", "scan_topic", "odometry_topic", "cmd_vel_topic", "cmd_vel_type", "cmd_vel_frame", "estop_topic", "odometry_frame",
-         "base_frame", "goal_frame")
+         "base_frame", "goal_frame", "nav_stack_action", "nav_stack_cmd_vel_topic", "nav_stack_cmd_vel_type")
+#: The text keys that may be empty.
+MAY_BE_EMPTY = ("odometry_topic", "nav_stack_action")
 KEYS = (*TEXTS, "footprint", *RANGES, "start", "start_tolerance", "goal", "goals")
 #: The footprint's closed range of length and width (m).
 FOOTPRINT_M = (0.05, 10.0)
@@ -179,9 +194,10 @@ def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
     values: dict[str, Any] = {}
     for key in TEXTS:
         if key in table:
-            values[key] = _text(table[key], key, where, empty=key == "odometry_topic")
-    if values.get("cmd_vel_type", TWIST_TYPES[0]) not in TWIST_TYPES:
-        raise StudyError(f"{where}: cmd_vel_type must be one of {', '.join(TWIST_TYPES)}, got {values['cmd_vel_type']!r}")
+            values[key] = _text(table[key], key, where, empty=key in MAY_BE_EMPTY)
+    for key in ("cmd_vel_type", "nav_stack_cmd_vel_type"):
+        if values.get(key, TWIST_TYPES[0]) not in TWIST_TYPES:
+            raise StudyError(f"{where}: {key} must be one of {', '.join(TWIST_TYPES)}, got {values[key]!r}")
     if "footprint" in table:
         size = table["footprint"]
         low, high = FOOTPRINT_M
