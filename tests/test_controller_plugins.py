@@ -167,6 +167,19 @@ def test_what_a_plug_in_prints_never_reaches_the_console_of_a_blinded_study(tmp_
 
 
 @pytest.mark.slow
+def test_a_study_with_the_robots_navigation_stack_runs_live_only(tmp_path):
+    folder = tmp_path / "study"
+    trials = [sys.executable, "-m", "trials.cli"]
+    subprocess.run([*trials, "design", "--arms", "NavStack,Lattice", "--runs", "8", "--model", "Pedestrians + Controller", "--power", "0",
+                    "--study", str(folder)], check=True, capture_output=True)
+    run = subprocess.run([*trials, "run", "--blind", "--study", str(folder)], capture_output=True, text=True)
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert run.stderr.strip().splitlines()[-1].endswith("one of this study's controllers is the robot's own navigation stack, "
+                                                        "which plans on the robot: run it live (trials run --robot URI)")
+    assert "Traceback" not in run.stderr and not list(folder.glob("runs/*.mcap"))
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize(("reference", "expected"), [
     ("absent_module:make", "cannot import 'absent_module': ModuleNotFoundError: No module named 'absent_module'"),
     ("lab_straight:missing", "module 'lab_straight' has no 'missing'"),
@@ -238,8 +251,9 @@ def test_trials_controllers_lists_and_checks_every_source(tmp_path, capsys):
     capsys.readouterr()
     assert main(["controllers", "--study", str(study.root)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in lines] == ["NaviGAN-R", "Lattice", "SocialForce", "ORCA", "Mine", "Raising", "Malformed"]
-    assert lines[4].split(None, 1)[1] == f"{STUDY_TABLE} (lab_straight:make)"
+    assert [line.split()[0] for line in lines] == ["NaviGAN-R", "Lattice", "SocialForce", "ORCA", "NavStack", "Mine", "Raising",
+                                                         "Malformed"]
+    assert lines[5].split(None, 1)[1] == f"{STUDY_TABLE} (lab_straight:make)"
     assert main(["controllers", "--study", str(study.root), "--check"]) == 2
     out = capsys.readouterr().out
     assert "Traceback" not in out
@@ -247,6 +261,7 @@ def test_trials_controllers_lists_and_checks_every_source(tmp_path, capsys):
     assert checked["Raising"].endswith(" plans" + checked["Raising"].split(" plans", 1)[1])  # its first plan is sound
     assert checked["Malformed"].endswith("FAILS: the controller's plan has way-points of shape (12, 1), not (K, 2) numbers with K >= 1")
     assert all("plans (" in checked[name] for name in ("NaviGAN-R", "Lattice", "SocialForce", "ORCA", "Mine"))
+    assert checked["NavStack"].endswith("live only: the robot's stack plans (trials run --robot URI)")
 
 
 def test_an_installed_package_is_found_by_its_entry_point_and_passes_its_own_tests(tmp_path):

@@ -19,7 +19,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from tests.support.blinding import assert_names_nothing, assert_the_key_unblinds_to_what_drove, trials
 from tests.support.example_plugin import NAME
 from tests.support.live_rig import TRIALS, Rig, assert_stopped_and_kept, design, live_rig, set_robot_keys, wait_for
+from tests.support.system_packages import need
 from trials.outcomes import read_outcomes
+from trials.robot.ros1 import DIST_PACKAGES
+from trials.robot.ros1_navigation import INSTALL
 from trials.study import OUTCOMES, StudyFolder
 
 pytestmark = pytest.mark.slow
@@ -47,6 +50,9 @@ float32 distance_remaining
 
 def start_stack(rig: Rig, heard: Path, *options: str) -> None:
     """The stand-in navigation stack in the rig, recording what it hears in `heard`."""
+    if rig.uri.startswith("ros1://"):
+        need(all(Path(DIST_PACKAGES, package).is_dir() for package in ("actionlib", "move_base_msgs")),
+             "ROS 1's actionlib and move_base_msgs (Debian 12)", INSTALL)
     rig.start([TRIALS[0], "-m", "tests.support.nav_stack_server", rig.uri, str(heard), *options], "stack.log")
     wait_for(Path(f"{heard}.ready"), "the stand-in navigation stack", rig.processes)
 
