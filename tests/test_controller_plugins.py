@@ -35,7 +35,7 @@ class Straight:
         self.fail_at, self.malformed, self.plans, self.ended = fail_at, malformed, 0, []
 
     def details(self):
-        return {"speed": 0.8}
+        return {"speed": 0.8, "controller": "a name of its own", "seed": "its own seed"}  # never replace the run's
 
     def reset(self, seed):
         self.plans = 0
@@ -124,7 +124,7 @@ def test_a_study_tables_controller_is_run_and_recorded_as_a_built_in_one(tmp_pat
     assert sorted(row.run_code for row in mine) == sorted(planned) and all(row.status == "goal" for row in mine)
     # the run log names the controller, its details and where it came from
     metadata = read_run(study.run_log(mine[0].run_code)).metadata
-    assert metadata["controller"] == "Mine" and metadata["speed"] == "0.8"
+    assert metadata["controller"] == "Mine" and metadata["speed"] == "0.8" and metadata["seed"] == str(mine[0].seed)
     assert metadata["source"] == f"{STUDY_TABLE} (lab_straight:make)"
 
 

@@ -76,35 +76,41 @@ def decoded_goal(request_hex: str) -> object:
 def test_a_blinded_three_arm_study_with_the_robots_navigation_stack(tmp_path, plugin_env):
     uri, env = plugin_env
     study = StudyFolder(tmp_path / "study")
-    design_run = trials(env, "design", "--arms", ",".join(ARMS), "--robot", uri, "--seed", "5", "--power", "0", "--study", str(study.root))
+    # Six runs, two per arm, the controller the model's one factor: the whole study is driven, then reported.
+    design_run = trials(env, "design", "--arms", ",".join(ARMS), "--runs", "6", "--model", "Controller", "--robot", uri, "--seed", "5",
+                        "--power", "0", "--study", str(study.root))
     set_robot_keys(study.root, goal_frame='"odom"')
-    one_each = list({row["Controller"]: row["run_code"] for row in study.read_plan()}.values())
-    consoles, heard = [design_run], {}
-    for code in one_each:
-        with live_rig(uri, study.root, env) as rig:  # the same processes for every arm: the stack is there for each
-            heard[code] = tmp_path / f"stack-{code}.jsonl"
-            start_stack(rig, heard[code])
-            run = rig.trials_run("--only", code, "--blind")
-            assert run.wait(timeout=300) == 0, rig.output()
-            time.sleep(0.5)
-            assert rig.last_heard() == (0.0, 0.0) and rig.moving_commands() > 20
-            consoles.append(subprocess.CompletedProcess([], 0, rig.output().encode(), b""))
+    codes = [row["run_code"] for row in study.read_plan()]
+    heard = tmp_path / "stack.jsonl"
+    with live_rig(uri, study.root, env) as rig:  # the stand-in stack is there for every run, whichever arm drives
+        start_stack(rig, heard)
+        run = rig.trials_run("--blind", operator=True)
+        out, _ = run.communicate(b"\n" * (len(codes) - 1), timeout=900)  # the operator goes on after each row
+        assert run.returncode == 0, rig.output()
+        time.sleep(0.5)
+        assert rig.last_heard() == (0.0, 0.0) and rig.moving_commands() > 100
+        consoles = [design_run, subprocess.CompletedProcess([], 0, rig.output().encode(), b"")]
     finished = {row.run_code: row for row in read_outcomes(study.path(OUTCOMES), True)}
-    assert set(finished) == set(one_each) and all(row.status in ("goal", "collision") for row in finished.values())
+    assert set(finished) == set(codes) and all(row.status in ("goal", "collision") for row in finished.values())
+    assert all(row.perception == "software-robot" for row in finished.values())
+    consoles += [trials(env, "respond", "--simulate", "--allow-simulated", "--study", str(study.root)),
+                 trials(env, "report", "--study", str(study.root))]
+    primary = json.loads(study.path("report/report.json").read_text(encoding="utf-8"))["primary"]
+    assert primary["arms"] == ["A", "B", "C"] and primary["k_arms"]["correction"] == "Holm"
+    assert [(p["first"], p["second"]) for p in primary["k_arms"]["pairs"]] == [("A", "B"), ("A", "C"), ("B", "C")]
     assert_names_nothing(study, consoles, NAMED)
-    assert_the_key_unblinds_to_what_drove(study, one_each, OWN_RECORD)
+    assert_the_key_unblinds_to_what_drove(study, codes, OWN_RECORD)
+    # The stack heard one goal per row of its arm, each the row's goal: (10, 0) in the odometry frame, facing away from
+    # the start (0, 0); and after each a cancel, the run's end.
     arms = study.read_sealed().arms
-    labels = {row["run_code"]: row["Controller"] for row in study.read_plan()}
-    for code in one_each:
-        entries = heard_by_stack(heard[code])
-        if arms[labels[code]] != "NavStack":
-            assert not [e for e in entries if "goal" in e], entries  # the other arms never wake the stack
-            continue
-        (goal,) = [e for e in entries if "goal" in e]
-        # The row's goal, (10, 0) in the odometry frame, facing away from the start (0, 0).
+    stack_rows = [row["run_code"] for row in study.read_plan() if arms[row["Controller"]] == "NavStack"]
+    entries = heard_by_stack(heard)
+    goals = [e for e in entries if "goal" in e]
+    assert len(goals) == len(stack_rows) == 2
+    for goal in goals:
         assert goal["goal"]["frame"] == "odom" and math.hypot(goal["goal"]["x"] - 10.0, goal["goal"]["y"]) < 0.05
         assert abs(goal["goal"]["yaw"]) < 0.05
-        assert any("cancel" in e and e["wall_ns"] > goal["wall_ns"] for e in entries)  # the run's end cancels it too
+        assert any("cancel" in e and e["wall_ns"] > goal["wall_ns"] for e in entries)
         if uri.startswith("ros2://"):
             request = decoded_goal(goal["request"])
             assert request.goal.pose.header.frame_id == "odom" and request.goal.behavior_tree == ""

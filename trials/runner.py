@@ -51,6 +51,7 @@ from trials.controllers.nav_stack import is_nav_stack
 from trials.controllers.plugins import study_controllers
 from trials.errors import USER_ERRORS, DiskFullError, EStopped, RunAborted, StudyError
 from trials.field_study import refuse_simulation
+from trials.live_checks import ABORTED as RUN_ABORTED
 from trials.log_trial import LOG_COLUMN, LoggedScene, ReplayOptions, log_of, play, prepare
 from trials.metrics import measure
 from trials.outcomes import Outcomes, outcome_cells, outcomes_text, read_outcomes
@@ -601,9 +602,9 @@ class TrialWorker:
         controller.reset(seeds[3])
         try:
             status, done = self._drive(task, level, arm, controller, seeds)
-        except BaseException:
+        except BaseException as exc:
             with suppress(Exception):  # the run's own failure is the one reported
-                controller.end("failed")
+                controller.end(RUN_ABORTED if isinstance(exc, RunAborted) else "failed")
             raise
         controller.end(status)
         return done
@@ -724,8 +725,8 @@ class TrialWorker:
         """Blinded studies: what the controller computed goes to sealed/runs/<code>.json.gz (before
         its log is renamed): its plans and own records by topic, a logged trial's plans against the log."""
         if self.blind:
-            record = {"format": SEALED_RUN_FORMAT, "run_code": task.code, "arm": arm, "controller": level, "seed": task.seed,
-                      **self._controllers[level].details(), "topics": log.withheld, "metadata": log.withheld_metadata,
+            record = {**self._controllers[level].details(), "format": SEALED_RUN_FORMAT, "run_code": task.code, "arm": arm,
+                      "controller": level, "seed": task.seed, "topics": log.withheld, "metadata": log.withheld_metadata,
                       "commands": log.withheld_commands}
             write_sealed(self.folder, path or self.folder.sealed_run(task.code), (json.dumps(jsonable(record)) + "\n").encode())
 
@@ -737,6 +738,5 @@ class TrialWorker:
     def _metadata(self, task: RunTask, level: str, entries: dict[str, str]) -> dict[str, str]:
         """The `run` metadata record: code, study and seed, the run's own entries, and (when open) the controller."""
         meta = {"run_code": task.code, "study": self.name, "seed": str(task.seed), **entries}
-        if not self.blind:
-            meta.update(controller=level, **self._controllers[level].details())
-        return meta
+        # A controller's details never replace the run's own entries (a plug-in may call a detail anything).
+        return meta if self.blind else {**self._controllers[level].details(), **meta, "controller": level}

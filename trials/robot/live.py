@@ -823,7 +823,7 @@ def _arrivals(scans: queue.Queue[tuple[Scan, float]], wait: float) -> list[tuple
 def warm_up(controllers: Iterable[Controller]) -> None:
     """Track a simulated scan of one person and plan once with each controller for a robot standing alone: the first
     of each loads or compiles what it needs (the leg classifier's tree walk, PyTorch's kernels, the lattice's search),
-    which would stall the loop for a moment during a run. Reset the controllers afterwards."""
+    which would stall the loop for a moment during a run (every run resets its controller before it starts)."""
     scan = LidarSimulator(seed=0).scan(0.0, Pose2D(), np.array([[2.0, 0.0]]), np.array([[0.0, 1.0]]))
     PersonTracker.learned().process(scan)
     still = np.zeros((T_OBS, 2))
