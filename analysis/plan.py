@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import asdict, dataclass
 
-from analysis.clustered import GeeOptions
+from analysis.gee_options import GeeOptions
 from designs.blinding import canonical_bytes
 from designs.factors import BlockFactor, CategoricalFactor
 from designs.spec import StudySpec

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 
 from analysis.ab_table import RunJudgments
-from analysis.clustered import DEFAULT, GeeOptions, fit_gee
+from analysis.clustered import DEFAULT, fit_gee
+from analysis.gee_options import GeeOptions
 from analysis.models import DesignMatrix, Fit, fit_least_squares, fit_logistic
 from analysis.records import Blinding, StudyData, StudyRun
 from designs.factors import CategoricalFactor

@@ -13,8 +13,9 @@ from scipy.stats import f as f_dist
 from scipy.stats import norm
 from scipy.stats import t as t_dist
 
-from analysis.clustered import GeeOptions, adjusted_sandwich, fit_gee, judgment_rows
+from analysis.clustered import adjusted_sandwich, fit_gee, judgment_rows
 from analysis.errors import AnalysisError
+from analysis.gee_options import GeeOptions
 from analysis.models import DesignMatrix, fit_logistic
 
 ARM = DesignMatrix(np.zeros((0, 2)), ["Intercept", "Arm[A]"], [("Intercept", [0]), ("Arm", [1])])

@@ -25,7 +25,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from analysis.clustered import ALPHA_ESTIMATORS, COVARIANCES
+from analysis.gee_options import ALPHA_ESTIMATORS, COVARIANCES
 from analysis.plan import OUTCOMES, RANDOMIZATION, SENSITIVITY, TESTS, AnalysisPlan, PlanStatus, default_plan, table_digest
 from designs.errors import DesignError
 from designs.factors import CategoricalFactor, DiscreteFactor

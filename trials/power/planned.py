@@ -5,13 +5,16 @@ asked, at multiples of it until the target is reached."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from designs.spec import MAX_RUNS
 from trials.analysis_plan import plan_in_force
-from trials.power.model_based import Anticipated, planned_power
 from trials.power.plans import designed_plan, own_plan, study_spec
-from trials.power.summary import PowerEstimate
 from trials.study import SPEC, StudyFolder
+
+if TYPE_CHECKING:
+    from trials.power.model_based import Anticipated
+    from trials.power.summary import PowerEstimate
 
 #: Data sets per plan size that `trials design` simulates by default, and the most plan sizes it tries.
 SIMULATIONS = 200
@@ -19,8 +22,6 @@ MULTIPLES = 4
 #: Fewest data sets per plan size from which the runs needed are stated: with fewer, the power's Wilson interval is wider
 #: than about +-0.1 and a plan size may seem to reach the target by chance (one data set gives power 0 or 1).
 MIN_FOR_NEEDED = 100
-#: `trials power`'s defaults, so that its figures and these agree.
-DEFAULT_ANTICIPATED = Anticipated()
 
 
 @dataclass(frozen=True)
@@ -61,14 +62,19 @@ class PlannedPower:
 
 
 def planned_test_power(folder: StudyFolder, seed: int, simulations: int = SIMULATIONS, search: bool = True, target: float = 0.8,
-                       anticipated: Anticipated = DEFAULT_ANTICIPATED) -> PlannedPower | None:
+                       anticipated: Anticipated | None = None) -> PlannedPower | None:
     """The planned test's power at the study's plan size and, with `search`, at 2, 3, ... times it until `target` is
     reached (at most MULTIPLES sizes); None when the plan compares no factor's arms. Larger plans are designed from the
-    spec as `trials power --runs` designs them."""
+    spec as `trials power --runs` designs them. `anticipated`: by default `trials power`'s, so that its figures and these
+    agree."""
     spec, _ = study_spec(folder)
     analysis, _ = plan_in_force(folder.path(SPEC), spec, folder.read_design())
     if not analysis.factor:
         return None
+    # The simulation's statistics (statsmodels, scipy.stats) load only for a plan that compares arms.
+    from trials.power.model_based import Anticipated, planned_power
+
+    anticipated = anticipated or Anticipated()
     own = own_plan(folder)
     powers: dict[int, PowerEstimate] = {}
     for multiple in range(1, (MULTIPLES if search else 1) + 1):
