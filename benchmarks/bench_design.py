@@ -1,210 +1,252 @@
-"""Benchmark of `trials design`: the paper's two plans, then the exchange's cost as the model and
-the number of runs grow, beside R's AlgDesign where the issue measured it.
+"""Benchmark of `trials design` side by side with R's AlgDesign (optFederov, or optBlock for a blocked plan, 100 starts)
+on the same candidate points, when Rscript and AlgDesign are installed.
 
-Prints, per preset: p, the efficiencies, the D-efficiency relative to the approximate design's bound, how many of
-100 seeded starts reached the best value, and the wall time of the whole `trials design` command
-(a fresh process, start-up included; median of 5, with its CPU time, user + sys), and the 27-run plan again
-with its design figures drawn (--figures: PNG and SVG), a program that only starts the libraries the 27-run plan needs
-(numpy, scipy.special, a cached numba kernel) beside that command, and a spec of 6 continuous factors in a full quadratic
-model, 40 runs, with --seed 2019 and the starts its design.json says reached the best, its starts searched on every CPU
-this process may use (the default) and on one (--threads 1). The command runs
-with Python's bytecode cache on, in a private folder warmed by one run first, as an ordinary install
-has it (pip compiles bytecode); this environment's PYTHONDONTWRITEBYTECODE would otherwise make
-every import compile its module from source, doubling the start-up. Then, for k continuous factors in a full
-quadratic model, the search time of 100 starts (CPU), the iterated local search's kick budget per start (0:
-the starts agreed without it), the starts that reached the best design, how far the median start ended
-below it, and its D-efficiency; AlgDesign's figures (optFederov, the same candidate grid and starts) were measured
-in issue 24, since R cannot be installed beside the project: they are printed as the reference.
+For each plan: the whole `trials design` command (a fresh process, start-up included, bytecode cached as an ordinary
+install has it) and the whole `Rscript` process, each the median of --repeats runs, and each design's D-efficiency, both
+computed by this project's `designs.diagnostics.diagnose` on its own model, so the two are measured alike (AlgDesign's
+own D uses R's contrasts). Then equal work against equal work: AlgDesign's search time inside R (`system.time` of the
+call) beside the search time (CPU, one thread, in this process, kernels compiled) of the fewest of our seeded starts
+(1, 2, 4, ..., 100) whose design reaches AlgDesign's D-efficiency, and how many that took.
 
-    python benchmarks/bench_design.py [--quick]
+Without R the table shows this project's figures alone. `--loaded` keeps one core busy with another process throughout.
+
+    python benchmarks/bench_design.py [--quick] [--loaded] [--repeats N]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
-import resource
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from designs.constraints import compile_restrictions
 from designs.diagnostics import diagnose
-from designs.exchange import optimal_design
-from designs.factors import ContinuousFactor
-from designs.model import parse_model
-from designs.plan import build_plan
+from designs.exchange import candidate_set, optimal_design
+from designs.factors import CategoricalFactor
 from designs.presets import ab, qualitative
-from trials.commands.design import usable_cpus
-from trials.controllers.registry import AB_PRESET as CONTROLLERS
+from designs.spec import StudySpec, read_spec
+from trials.controllers.registry import AB_PRESET
 
-PRESETS = {"qualitative (--runs 27)": (qualitative(), ["--runs", "27"]), "A/B (--runs 18 --ab)": (ab(CONTROLLERS), ["--runs", "18", "--ab"])}
-REPEATS = 5
-#: (factors, runs) -> AlgDesign's seconds and D-efficiency as issue 24 measured them (None: not measured).
-ALGDESIGN = {(6, 40): (5.0, 50.13), (6, 80): (13.8, None)}
-#: The issue's measurements of the previous Python exchange, for the same problems.
-BEFORE = {(6, 40): 145.0, (6, 80): 262.0, (4, 20): 33.6}
-#: p from 6 to 28 at 40 runs, then 6 factors from 40 to 200 runs, and the issue's 4-factor case.
-SIZES = [(2, 40), (3, 40), (4, 40), (5, 40), (6, 40), (6, 80), (6, 120), (6, 200), (4, 20)]
-QUICK = [(2, 40), (4, 20), (6, 40)]
-#: The seed of the 6-factor spec's whole command (the scaling table's searches use 2019 as the design seed itself).
-SPEC_SEED = 2019
-QUADRATIC_SPEC = """[study]
-name = "six-factor quadratic"
-runs = 40
-model = "main + interactions + quadratic"
-""" + "".join(f'\n[[factors]]\nname = "X{i}"\ntype = "continuous"\nlow = -1\nhigh = 1\n' for i in range(6))
+#: The seed of every search here: the design command's `--seed` and R's `set.seed`.
+SEED = 2019
+#: Starts, ours and AlgDesign's `nRepeats`.
+STARTS = 100
+#: The start counts tried for the equal-work comparison.
+START_STEPS = (1, 2, 4, 8, 16, 32, 64, 100)
 
 
-@dataclass
-class CommandRuns:
-    """The timed runs of one `trials design` command: wall and CPU (user + sys) seconds, and the starts at the best
-    design as its design.json records them."""
+@dataclass(frozen=True)
+class Case:
+    """One plan: how `trials design` is asked for it (a preset's flags, or a spec), and AlgDesign's formula over the
+    candidate columns (categorical ones as R factors)."""
 
-    walls: list[float]
-    cpus: list[float]
-    hits: list[int]
+    name: str
+    args: tuple[str, ...]
+    spec_text: str | None
+    formula: str
 
-
-def command_seconds(args: list[str], repeats: int = REPEATS, seed: int | None = None) -> CommandRuns:
-    """`trials design ARGS` in fresh study folders, bytecode cached; run i has seed i unless `seed` is given."""
-    runs = CommandRuns([], [], [])
-    with tempfile.TemporaryDirectory() as cache:
-        env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
-        env["PYTHONPYCACHEPREFIX"] = cache
-        for i in range(-1, repeats):  # run -1 writes the bytecode cache and is not timed
-            with tempfile.TemporaryDirectory() as folder:
-                before = resource.getrusage(resource.RUSAGE_CHILDREN)
-                start = time.perf_counter()
-                subprocess.run(
-                    [sys.executable, "-m", "trials.cli", "design", *args, "--seed", str(max(i, 0) if seed is None else seed),
-                     "--study", folder],
-                    check=True,
-                    stdout=subprocess.DEVNULL,
-                    env=env,
-                )
-                wall = time.perf_counter() - start
-                after = resource.getrusage(resource.RUSAGE_CHILDREN)
-                hits = json.loads(Path(folder, "design.json").read_text(encoding="utf-8"))["search"]["hits"]
-            if i >= 0:
-                runs.walls.append(wall)
-                runs.cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
-                runs.hits.append(hits)
-    return runs
+    def spec(self, folder: Path) -> StudySpec:
+        if self.spec_text is None:
+            return qualitative() if "--ab" not in self.args else ab(AB_PRESET)
+        path = folder / "spec.toml"
+        path.write_text(self.spec_text, encoding="utf-8")
+        return read_spec(path)
 
 
-#: A program that pays only the libraries' start-up: numpy, scipy.special and numba's first call of a kernel it has
-#: cached, the three the 27-run plan's command cannot do without (numba's first call also imports scipy.linalg),
-#: run as `trials` runs: OpenBLAS on one thread, no garbage collection at exit.
-LIBRARY_FLOOR = """import gc
-import os
-
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-import numba
-import numpy as np
-import scipy.special
-
-@numba.njit(cache=True)
-def total(values):
-    return values.sum()
-
-total(np.ones(3))
-gc.freeze()
-"""
+def quadratic_spec(factors: int, runs: int, extra: str = "") -> str:
+    """`factors` continuous factors X1.. on [-1, 1] in a full quadratic model."""
+    head = f'[study]\nname = "quadratic"\nruns = {runs}\nmodel = "main + interactions + quadratic"\n{extra}'
+    return head + "".join(f'\n[[factors]]\nname = "X{i + 1}"\ntype = "continuous"\nlow = -1\nhigh = 1\n' for i in range(factors))
 
 
-def library_floor(repeats: int = REPEATS) -> CommandRuns:
-    """Wall and CPU seconds of `LIBRARY_FLOOR` in fresh processes, bytecode and kernel cached by a first run."""
-    runs = CommandRuns([], [], [])
-    with tempfile.TemporaryDirectory() as folder:
-        script = Path(folder, "library_floor.py")
-        script.write_text(LIBRARY_FLOOR, encoding="utf-8")
-        env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
-        env["PYTHONPYCACHEPREFIX"] = folder
-        for i in range(-1, repeats):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            start = time.perf_counter()
-            subprocess.run([sys.executable, str(script)], check=True, env=env)
-            wall = time.perf_counter() - start
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            if i >= 0:
-                runs.walls.append(wall)
-                runs.cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
-    return runs
+CASES = (
+    Case("the 27-run plan (--runs 27)", ("--runs", "27"), None, "~ ."),
+    Case("the 18-run A/B plan (--runs 18 --ab --power 0)", ("--runs", "18", "--ab", "--power", "0"), None, "~ (.)^2 + I(Pedestrians^2)"),
+    Case("6 factors, quadratic (p 28), 40 runs", (), quadratic_spec(6, 40), "~ quad(.)"),
+    Case("6 factors, quadratic (p 28), 60 runs", (), quadratic_spec(6, 60), "~ quad(.)"),
+    Case("6 factors, quadratic (p 28), 100 runs", (), quadratic_spec(6, 100), "~ quad(.)"),
+    Case("8 factors, quadratic (p 45), 60 runs", (), quadratic_spec(8, 60), "~ quad(.)"),
+    Case("4 factors, quadratic, X1 + X2 <= 1.5, 3 blocks, 30 runs", (),
+         quadratic_spec(4, 30, 'disallowed = ["X1 + X2 > 1.5"]\nblocks = 3\n'), "~ quad(.)"),
+)
+QUICK = CASES[:3]
 
 
-def presets() -> None:
-    print(f"{'preset':<24}{'p':>3}{'D-eff':>10}{'A-eff':>9}{'G-eff':>9}{'APV':>8}{'bound':>9}{'vs bound':>10}{'hits/100':>10}"
-          f"{'median s':>10}{'max s':>8}{'CPU s':>7}")
-    for name, (spec, args) in PRESETS.items():
-        plan = build_plan(replace(spec, seed=2019, starts=100), allocation_seed=0)
-        d = plan.diagnostics
-        runs = command_seconds(args)
-        times, cpus = runs.walls, runs.cpus
-        print(
-            f"{name:<24}{d.p:>3}{d.d_efficiency:>10.4f}{d.a_efficiency:>9.3f}{d.g_efficiency:>9.3f}"
-            f"{d.average_prediction_variance:>8.4f}{plan.bound.d_efficiency:>9.4f}{plan.d_efficiency_vs_bound:>9.2f}%"
-            f"{plan.design.hits:>10}{statistics.median(times):>10.3f}{max(times):>8.3f}{statistics.median(cpus):>7.3f}"
-        )
-    print(f"(wall and CPU time of `trials design` in a fresh process, median of {REPEATS}, load average "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; goal for the 27-run plan: under 0.8 s; "
-          "AlgDesign 0.19 s, the previous release 1.2 s)")
-    floor, plan = library_floor(), command_seconds(["--runs", "27"])
-    print(f"library start-up alone (numpy, scipy.special, numba's first cached call): {statistics.median(floor.walls):.3f} s "
-          f"({statistics.median(floor.cpus):.3f} s CPU); the 27-run command measured beside it {statistics.median(plan.walls):.3f} s "
-          f"({statistics.median(plan.cpus):.3f} s CPU)")
-    figures = command_seconds(["--runs", "27", "--figures"], repeats=3)
-    print(f"qualitative (--runs 27 --figures): {statistics.median(figures.walls):.3f} s "
-          f"({statistics.median(figures.cpus):.3f} s CPU), the two design figures drawn as PNG and SVG")
-    with tempfile.TemporaryDirectory() as folder:
-        spec = f"{folder}/spec.toml"
-        with open(spec, "w", encoding="utf-8") as handle:
-            handle.write(QUADRATIC_SPEC)
-        quadratic = command_seconds(["--spec", spec], repeats=1, seed=SPEC_SEED)
-        one_thread = command_seconds(["--spec", spec, "--threads", "1"], repeats=1, seed=SPEC_SEED)
-    print(f"6 continuous factors, full quadratic, 40 runs, 100 starts: `trials design --spec --seed {SPEC_SEED}` "
-          f"{quadratic.walls[0]:.1f} s ({quadratic.cpus[0]:.1f} s CPU, starts on the {usable_cpus()} CPUs this process may use), "
-          f"{quadratic.hits[0]} of 100 starts at the best; with --threads 1 {one_thread.walls[0]:.1f} s "
-          "(goal: at most 10 s, 50 of 100; AlgDesign 5.0 s, the previous release 145 s)")
+@dataclass(frozen=True)
+class Problem:
+    """A case as both tools see it: our model, restrictions and fixed block column, and the candidate points."""
+
+    spec: StudySpec
+    candidates: np.ndarray
+    block: int | None
+
+    @classmethod
+    def of(cls, case: Case, folder: Path) -> Problem:
+        spec = case.spec(folder)
+        model = spec.build_model()
+        restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "spec")
+        block = next((i for i in spec.per_run() if model.factors[i].name == "Block"), None)
+        return cls(spec, candidate_set(model, restrictions), block)
+
+    def d_efficiency(self, settings: np.ndarray) -> float:
+        return diagnose(self.spec.build_model(), settings).d_efficiency
 
 
-def scaling(sizes: list[tuple[int, int]]) -> None:
-    print()
-    print(f"{'factors':>7}{'p':>4}{'runs':>6}{'search s':>10}{'kicks':>7}{'hits/100':>10}{'within 1 %':>11}"
-          f"{'median %':>10}{'D-eff':>9}   {'AlgDesign s, D-eff':>20}{'before s':>10}")
-    for k, runs in sizes:
-        model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(k)))
-        start = time.process_time()
-        design = optimal_design(model, runs, seed=2019, starts=100)
-        seconds = time.process_time() - start
-        reference = ALGDESIGN.get((k, runs))
-        shown = "" if reference is None else f"{reference[0]:.1f}, " + ("-" if reference[1] is None else f"{reference[1]:.2f}")
-        before = BEFORE.get((k, runs))
-        relative = np.exp((design.start_values - design.value) / model.p)  # each start's D-efficiency over the best's
-        near = int(np.sum(relative >= 0.99))
-        print(f"{k:>7}{model.p:>4}{runs:>6}{seconds:>10.2f}{design.kicks:>7}{design.hits:>10}{near:>11}"
-              f"{100 * np.median(relative):>10.2f}{diagnose(model, design.settings).d_efficiency:>9.2f}"
-              f"   {shown:>20}{'' if before is None else f'{before:.1f}':>10}")
-    print("(CPU time of the search of 100 starts in this process, numba's kernels compiled and cached; hits: starts at the best "
-          "design's log det within 1e-6, within 1 %: starts whose D-efficiency is within 1 % of the best; median %: the median start's D-efficiency "
-          "as a percentage of the best's; AlgDesign's figures are the issue's)")
+def medians(times: list[float]) -> float:
+    return statistics.median(times)
+
+
+def trials_design(case: Case, folder: Path, repeats: int) -> tuple[float, float]:
+    """The whole `trials design` command: median wall seconds of `repeats` fresh processes (bytecode cached by an untimed
+    first run), and its design's D-efficiency."""
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    spec = ("--spec", str(folder / "spec.toml")) if case.spec_text is not None else ()
+    walls, efficiency = [], float("nan")
+    for i in range(-1, repeats):
+        study = folder / f"study{i + 1}"
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "trials.cli", "design", *case.args, *spec, "--seed", str(SEED), "--study", str(study),
+                        "--quiet"], check=True, stdout=subprocess.DEVNULL, env=env)
+        if i >= 0:
+            walls.append(time.perf_counter() - start)
+        efficiency = json.loads((study / "design.json").read_text(encoding="utf-8"))["diagnostics"]["d_efficiency"]
+    return medians(walls), efficiency
+
+
+def r_script(case: Case, problem: Problem, folder: Path) -> Path:
+    """The R program of a case: read the candidates, search as AlgDesign does with 100 starts, print its search seconds
+    and the chosen candidates (1-based), one line per block."""
+    factors = problem.spec.build_model().factors
+    columns = [i for i in range(len(factors)) if i != problem.block]
+    table = folder / "candidates.csv"
+    points = problem.candidates[:, columns]
+    if problem.block is not None:
+        points = np.unique(points, axis=0)  # the block column multiplied the points
+    if len(points) <= problem.spec.runs:
+        # AlgDesign chooses each row of its data at most once: with no more points than runs, each is given ceil(runs / p)
+        # times, as often as a D-optimal plan of so few points may repeat one.
+        points = np.repeat(points, -(-problem.spec.runs // problem.spec.build_model().p), axis=0)
+    header = ",".join(factors[i].name for i in columns)
+    np.savetxt(table, points, delimiter=",", header=header, comments="", fmt="%.17g")
+    categorical = [factors[i].name for i in columns if isinstance(factors[i], CategoricalFactor)]
+    runs, blocks = problem.spec.runs, problem.spec.blocks
+    search = (f"d <- optBlock({case.formula}, withinData = cand, blocksizes = rep({runs // blocks}, {blocks}), nRepeats = {STARTS})"
+              if problem.block is not None else f"d <- optFederov({case.formula}, cand, nTrials = {runs}, nRepeats = {STARTS})")
+    chosen = ('for (b in d$Blocks) cat(rownames(b), "\\n")' if problem.block is not None else 'cat(d$rows, "\\n")')
+    script = folder / "design.R"
+    script.write_text(
+        "suppressMessages(library(AlgDesign))\n"
+        f'cand <- read.csv("{table}")\n'
+        + "".join(f'cand${name} <- factor(cand${name})\n' for name in categorical)
+        + f"set.seed({SEED})\n"
+        f'seconds <- system.time({search})[["elapsed"]]\n'
+        'cat(seconds, "\\n")\n'
+        f"{chosen}\n",
+        encoding="utf-8")
+    return script
+
+
+def algdesign(case: Case, problem: Problem, folder: Path, repeats: int) -> tuple[float, float, float] | None:
+    """AlgDesign's whole Rscript process (median wall seconds), its search seconds inside R and its design's D-efficiency
+    by our diagnose; None when Rscript or AlgDesign is missing."""
+    rscript = shutil.which("Rscript")
+    if rscript is None:
+        return None
+    script = r_script(case, problem, folder)
+    walls, searches, out = [], [], ""
+    for _ in range(repeats):
+        start = time.perf_counter()
+        done = subprocess.run([rscript, str(script)], capture_output=True, text=True)
+        walls.append(time.perf_counter() - start)
+        if done.returncode != 0:
+            if "AlgDesign" in done.stderr:
+                return None
+            raise RuntimeError(done.stderr)
+        out = done.stdout
+        searches.append(float(out.split()[0]))
+    lines = out.strip().splitlines()[1:]
+    points = np.loadtxt(folder / "candidates.csv", delimiter=",", skiprows=1, ndmin=2)
+    rows = [points[[int(r) - 1 for r in line.split()]] for line in lines]
+    if problem.block is not None:
+        settings = [np.insert(block, problem.block, b, axis=1) for b, block in enumerate(rows)]
+        design = np.vstack(settings)
+    else:
+        design = rows[0]
+    return medians(walls), medians(searches), problem.d_efficiency(design)
+
+
+def to_reach(problem: Problem, target: float) -> tuple[int, float] | None:
+    """The fewest of START_STEPS seeded starts whose design reaches `target` D-efficiency, and the CPU seconds that
+    search took on one thread; None when 100 starts do not."""
+    model = problem.spec.build_model()
+    restrictions = compile_restrictions(problem.spec.disallowed, problem.spec.constraints, model.factors, "spec")
+    for starts in START_STEPS:
+        began = time.process_time()
+        design = optimal_design(model, problem.spec.runs, seed=SEED, starts=starts, restrictions=restrictions,
+                                per_run=problem.spec.per_run())
+        seconds = time.process_time() - began
+        if problem.d_efficiency(design.settings) >= target - 1e-9:
+            return starts, seconds
+    return None
+
+
+@contextlib.contextmanager
+def busy_core(loaded: bool) -> Iterator[None]:
+    """With `loaded`, another process spinning on one core until the block ends."""
+    if not loaded:
+        yield
+        return
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        spinner.kill()
+        spinner.wait()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="the presets and three sizes only")
+    parser.add_argument("--quick", action="store_true", help="the two presets and the 40-run quadratic only")
+    parser.add_argument("--loaded", action="store_true", help="keep one core busy with another process throughout")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs of each whole process (median; default 3)")
     args = parser.parse_args()
-    # Load the compiled kernels, the iterated local search's too (these starts disagree).
-    optimal_design(parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(4))), 20,
-                   seed=0, starts=4)
-    presets()
-    scaling(QUICK if args.quick else SIZES)
+    # Compile (or load) the exchange's kernels before anything is timed in this process.
+    with tempfile.TemporaryDirectory() as folder:
+        warm = Problem.of(CASES[2], Path(folder))
+        optimal_design(warm.spec.build_model(), warm.spec.runs, seed=0, starts=2)
+    print(f"{'plan':<58}{'trials s':>9}{'D-eff':>8}{'R s':>8}{'D-eff':>8}{'ratio':>7}   "
+          f"{'R search s':>11}{'ours to reach R':>20}")
+    with busy_core(args.loaded):
+        for case in QUICK if args.quick else CASES:
+            with tempfile.TemporaryDirectory() as name:
+                folder = Path(name)
+                problem = Problem.of(case, folder)
+                ours, ours_eff = trials_design(case, folder, args.repeats)
+                reference = algdesign(case, problem, folder, args.repeats)
+                if reference is None:
+                    print(f"{case.name:<58}{ours:>9.2f}{ours_eff:>8.2f}{'(AlgDesign not installed)':>33}")
+                    continue
+                r_wall, r_search, r_eff = reference
+                reach = to_reach(problem, r_eff)
+                reached = "not in 100 starts" if reach is None else f"{reach[1]:.2f} s ({reach[0]} starts)"
+                print(f"{case.name:<58}{ours:>9.2f}{ours_eff:>8.2f}{r_wall:>8.2f}{r_eff:>8.2f}{ours / r_wall:>7.2f}   "
+                      f"{r_search:>11.2f}{reached:>20}")
+    print(f"(wall seconds of each whole process, median of {args.repeats}, seed {SEED}, {STARTS} starts each; ratio: trials over R; "
+          f"D-efficiencies by this project's diagnose; {'one core kept busy by another process; ' if args.loaded else ''}"
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the end)")
 
 
 if __name__ == "__main__":

@@ -174,8 +174,8 @@ def test_a_study_with_the_robots_navigation_stack_runs_live_only(tmp_path):
                     "--study", str(folder)], check=True, capture_output=True)
     run = subprocess.run([*trials, "run", "--blind", "--study", str(folder)], capture_output=True, text=True)
     assert run.returncode == 2, run.stdout + run.stderr
-    assert run.stderr.strip().splitlines()[-1].endswith("one of this study's controllers is the robot's own navigation stack, "
-                                                        "which plans on the robot: run it live (trials run --robot URI)")
+    assert run.stderr.strip().splitlines()[-1].endswith("one of this study's controllers plans on the robot: the study runs live only "
+                                                        "(trials run --robot URI)")
     assert "Traceback" not in run.stderr and not list(folder.glob("runs/*.mcap"))
 
 

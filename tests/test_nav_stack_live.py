@@ -31,7 +31,8 @@ ARMS = ("Lattice", NAME, "NavStack")
 #: What each controller's sealed record holds every step.
 OWN_RECORD = {"Lattice": "expansions", NAME: "nearest_person_m", "NavStack": "navigation_stack"}
 #: Any controller's name, module or package, or the stack arm's own words.
-NAMED = re.compile(rb"lattice|sbpl|gapkeeper|gap_keeper|lab_planner|lab-planner|navstack|own navigation stack", re.IGNORECASE)
+NAMED = re.compile(rb"lattice|sbpl|gapkeeper|gap_keeper|lab_planner|lab-planner|navstack|navigation stack|move_base|navigate_to_pose",
+                   re.IGNORECASE)
 #: nav2_msgs/action/NavigateToPose as Nav2 (Jazzy) defines it: goal, result and feedback.
 NAVIGATE_TO_POSE = """geometry_msgs/PoseStamped pose
 string behavior_tree
@@ -128,7 +129,7 @@ def terminate(rig: Rig, run: subprocess.Popen) -> None:
 
 #: Stop rules tried on a stack driving the robot: the stop, the reason the run gives, the stand-in stack's options.
 RULES = {
-    "a silent stack": (None, "no plan within 1 s", ("--silent-after", "3")),
+    "a stack that gives up": (None, "no plan within 1 s", ("--give-up-after", "3")),
     "the e-stop topic": (press_estop, "e-stop on /e_stop", ()),
     "SIGTERM": (terminate, "stopped by SIGTERM", ()),
 }

@@ -38,7 +38,7 @@ def test_the_navigation_stack_builds_but_plans_only_on_the_robot():
     stack = registry.build(registry.NAV_STACK)
     assert is_nav_stack(stack) and not is_nav_stack(registry.build(registry.LATTICE))
     alone = Observation(0.0, np.zeros(3), np.zeros(2), np.array([10.0, 0.0]), np.zeros((T_OBS, 2)), (), np.zeros((0, T_OBS, 2)))
-    with pytest.raises(ControllerFault, match=r"runs live only \(trials run --robot URI\)"):
+    with pytest.raises(ControllerFault, match=r"^this controller plans on the robot: it runs live only \(trials run --robot URI\)$"):
         stack.plan(alone)
 
 

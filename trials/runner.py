@@ -562,8 +562,7 @@ class TrialWorker:
         self._controllers = {level: registry.build(level, built) for level in sorted(wanted)}
         nav_stack = any(is_nav_stack(controller) for controller in self._controllers.values())
         if nav_stack and options.robot is None:
-            raise StudyError("one of this study's controllers is the robot's own navigation stack, which plans on "
-                             "the robot: run it live (trials run --robot URI)")
+            raise StudyError("one of this study's controllers plans on the robot: the study runs live only (trials run --robot URI)")
         self._driver = None
         if options.robot is not None:
             from trials.robot.live import warm_up

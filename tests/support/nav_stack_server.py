@@ -4,9 +4,9 @@ odometry frame it drives the software robot toward it, from the robot's odometry
 /cmd_vel_nav, until it is within 0.2 m (succeeded) or cancelled. Every goal and cancel it hears is appended to FILE as a
 JSON line (a goal's frame and pose; over ROS 2 also the request's bytes as sent).
 
-    python -m tests.support.nav_stack_server URI FILE [--silent-after S]
+    python -m tests.support.nav_stack_server URI FILE [--give-up-after S]
 
-`--silent-after S`: S seconds into a goal, stop sending commands (a stack that hangs).
+`--give-up-after S`: S seconds into a goal, abort it and send no more commands (a stack that gives up).
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ COMMANDS, RATE_HZ, REACHED_M = "/cmd_vel_nav", 20.0, 0.2
 class Stack:
     """What both servers share: the robot's newest pose, the command law, and the record of what was heard."""
 
-    def __init__(self, uri: RobotUri, out: Path, silent_after: float | None) -> None:
-        self.out, self.silent_after = out, silent_after
+    def __init__(self, uri: RobotUri, out: Path, give_up_after: float | None) -> None:
+        self.out, self.give_up_after = out, give_up_after
         self.transport = open_transport(uri, "stand_in_navigation")
         self.pose: tuple[float, float, float] | None = None
         self.transport.subscribe("/odom", ODOMETRY, lambda odometry: setattr(self, "pose", (odometry.pose.x, odometry.pose.y, odometry.pose.yaw)))
@@ -42,8 +42,8 @@ class Stack:
             file.write(json.dumps({"wall_ns": time.time_ns(), **entry}) + "\n")
 
     def step(self, goal: tuple[float, float], began: float) -> bool | None:
-        """Send one command toward `goal`: True when reached (a zero sent), None while silent, else False."""
-        if self.silent_after is not None and time.monotonic() - began > self.silent_after:
+        """Send one command toward `goal`: True when reached (a zero sent), None when the stack gives up, else False."""
+        if self.give_up_after is not None and time.monotonic() - began > self.give_up_after:
             return None
         if self.pose is None:
             return False
@@ -75,7 +75,11 @@ def serve_ros1(stack: Stack) -> None:
                 stack.publish(Velocity(0.0, 0.0))
                 server.set_preempted()
                 return
-            if stack.step((target.pose.position.x, target.pose.position.y), began):
+            reached = stack.step((target.pose.position.x, target.pose.position.y), began)
+            if reached is None:
+                server.set_aborted()
+                return
+            if reached:
                 server.set_succeeded()
                 return
             time.sleep(1.0 / RATE_HZ)
@@ -93,15 +97,16 @@ def serve_ros2(stack: Stack, stop: threading.Event) -> None:
 
     from trials.robot import ros2_action_types as act
     from trials.robot import ros2_types as msg
-    from trials.robot.ros2_navigation import SERVICE_QOS, STATUS_QOS, action_topics
+    from trials.robot.ros2 import LATCHED_QOS, PUBLISHER_QOS
+    from trials.robot.ros2_navigation import action_topics
 
     participant = stack.transport.participant
     names = action_topics("navigate_to_pose")
-    goals = DataReader(participant, Topic(participant, names["goal"], act.SendGoalRequest), SERVICE_QOS)
-    goal_replies = DataWriter(participant, Topic(participant, names["goal_reply"], act.SendGoalResponse), SERVICE_QOS)
-    cancels = DataReader(participant, Topic(participant, names["cancel"], act.CancelGoalRequest), SERVICE_QOS)
-    cancel_replies = DataWriter(participant, Topic(participant, names["cancel_reply"], act.CancelGoalResponse), SERVICE_QOS)
-    status = DataWriter(participant, Topic(participant, names["status"], act.GoalStatusArray), STATUS_QOS)
+    goals = DataReader(participant, Topic(participant, names["goal"], act.SendGoalRequest), PUBLISHER_QOS)
+    goal_replies = DataWriter(participant, Topic(participant, names["goal_reply"], act.SendGoalResponse), PUBLISHER_QOS)
+    cancels = DataReader(participant, Topic(participant, names["cancel"], act.CancelGoalRequest), PUBLISHER_QOS)
+    cancel_replies = DataWriter(participant, Topic(participant, names["cancel_reply"], act.CancelGoalResponse), PUBLISHER_QOS)
+    status = DataWriter(participant, Topic(participant, names["status"], act.GoalStatusArray), LATCHED_QOS)
     current: tuple[act.GoalInfo, tuple[float, float], float] | None = None
 
     def say(info: act.GoalInfo, state: int) -> None:
@@ -126,8 +131,9 @@ def serve_ros2(stack: Stack, stop: threading.Event) -> None:
                 stack.publish(Velocity(0.0, 0.0))
                 say(current[0], 5)  # canceled
                 current = None
-        if current is not None and stack.step(current[1], current[2]):
-            say(current[0], 4)  # succeeded
+        reached = stack.step(current[1], current[2]) if current is not None else False
+        if current is not None and reached is not False:
+            say(current[0], 4 if reached else 6)  # succeeded, or aborted: given up
             current = None
 
 
@@ -135,12 +141,12 @@ def main(argv: list[str]) -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("uri")
     parser.add_argument("out", type=Path)
-    parser.add_argument("--silent-after", type=float)
+    parser.add_argument("--give-up-after", type=float)
     args = parser.parse_args(argv)
     uri = RobotUri.parse(args.uri)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    stack = Stack(uri, args.out, args.silent_after)
+    stack = Stack(uri, args.out, args.give_up_after)
     if uri.scheme == ROS1:
         serve_ros1(stack)
         Path(f"{args.out}.ready").touch()

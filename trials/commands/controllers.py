@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from trials.controllers import registry
+    from trials.controllers.nav_stack import is_nav_stack
     from trials.controllers.plugins import study_controllers
     from trials.errors import USER_ERRORS
     from trials.study import SEALED_CONTROLLERS, StudyFolder
@@ -43,11 +44,11 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for name, source in sources.items():
         line = f"{name:<{width}}  {source.describe()}"
-        if args.check and name == registry.NAV_STACK:
-            line += "  live only: the robot's stack plans (trials run --robot URI)"
-        elif args.check:
+        if args.check:
             try:
-                line += f"  plans ({_check(registry.build(name, options)):.3f} s)"
+                built = registry.build(name, options)
+                line += ("  live only: the robot's stack plans (trials run --robot URI)" if is_nav_stack(built)
+                         else f"  plans ({_check(built):.3f} s)")
             except USER_ERRORS as exc:
                 failed += 1
                 line += f"  FAILS: {exc}"

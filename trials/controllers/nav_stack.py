@@ -21,7 +21,7 @@ class NavStackController:
         return {"drives": "the robot's own navigation stack"}
 
     def plan(self, observation: Observation) -> Plan:
-        raise ControllerFault("the robot's own navigation stack plans on the robot: it runs live only (trials run --robot URI)")
+        raise ControllerFault("this controller plans on the robot: it runs live only (trials run --robot URI)")
 
 
 def is_nav_stack(controller: Any) -> bool:

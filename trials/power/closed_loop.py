@@ -17,6 +17,8 @@ import numpy as np
 from analysis.participants import judge_run
 from analysis.run_log import RunLog as JudgedLog
 from trials.controllers import registry
+from trials.controllers.nav_stack import is_nav_stack
+from trials.errors import StudyError
 from trials.power.plans import PowerPlan
 from trials.power.seeds import derived
 from trials.power.verdicts import Verdict, judgments_verdict
@@ -81,6 +83,9 @@ class CampaignWorker:
         self.plans, self.controllers, self.options, self.participants = plans, controllers, options, participants
         built = registry.ControllerOptions(weights=options.settings.weights)
         self._built = {name: registry.build(name, built) for name in controllers}
+        if any(is_nav_stack(controller) for controller in self._built.values()):
+            raise StudyError("a controller that plans on the robot (NavStack) cannot be simulated: closed-loop power needs "
+                             "controllers that run in the simulator")
 
     def __call__(self, batch: CampaignBatch) -> list[CampaignResult]:
         plan = self.plans[batch.plan]

@@ -23,9 +23,9 @@ controller that has not answered within `plan_timeout`, and any exception; a run
 and the laser's transform to the base have all been seen.
 
 The robot's own navigation stack as the controller (`trials.controllers.nav_stack`) is sent the goal when the run starts;
-its velocity commands take the follower's place, relayed through the same limits and protective field; a stack silent
-for `plan_timeout` is a controller that has not answered; every stop cancels its goal before the zero velocity
-(`trials.robot.navigation`).
+its velocity commands take the follower's place while it drives that goal, relayed through the same limits and protective
+field; a stack that has not taken the goal or has ended it for `plan_timeout` is a controller that has not answered;
+every stop sends a zero velocity, cancels the stack's goals, then sends the zeros (`trials.robot.navigation`).
 A killed worker sends nothing itself: its parent's `trials.robot.guard.Guard` stops the robot (docs/live_runs.md).
 """
 
@@ -56,7 +56,7 @@ from trials.controllers.nav_stack import is_nav_stack
 from trials.controllers.obstacles import OBSTACLE_RANGE_M, thinned
 from trials.log_trial import People
 from trials.metrics import measure
-from trials.robot.navigation import NavigationClient, StackCommands, arrival_pose, open_navigation, rollout
+from trials.robot.navigation import NavigationClient, StackCommands, StackRelay, arrival_pose, open_navigation
 from trials.robot.one_driver import PublisherWatch, node_name, wait_for_discovery
 from trials.robot.people_check import PeopleCounter
 from trials.robot.protective_field import OPEN, FieldReading, ProtectiveField, returns_in, valid_returns
@@ -399,9 +399,13 @@ class RobotLink:
         self.twist = velocity_publisher(transport, settings)
         self.announce = transport.publisher(RUN_TOPIC, TEXT, latched=True)
         self.navigation: NavigationClient | None = None
-        self.stack_commands = StackCommands()
+        self.stack_commands: StackCommands | None = None
         if nav_stack:
-            self.navigation, self.stack_commands = open_navigation(transport, settings)
+            try:
+                self.navigation, self.stack_commands = open_navigation(transport, settings)
+            except Exception:
+                transport.close()
+                raise
         wait_for_discovery(transport)
         self.publishers = PublisherWatch(transport, settings, session)
 
@@ -437,8 +441,8 @@ class LiveRun:
         self.command = (0.0, 0.0)
         self.laser_frame: str | None = None
         self.stage: Stage | None = None
-        #: Whether the navigation stack holds this run's goal: every stop cancels it.
-        self.stack_goal = False
+        #: The navigation stack's side of a NavStack run once its goal is being sent: every stop cancels the stack's goals.
+        self.relay: StackRelay | None = None
 
     # --- safety --------------------------------------------------------------------------------------
 
@@ -447,13 +451,17 @@ class LiveRun:
         self.link.twist(linear, angular)
 
     def halt(self) -> None:
-        """Cancel the navigation stack's goal, if it has one, then zero velocity, sent `STOP_REPEATS` times: whatever
-        happened, the last command is a stop."""
-        if self.stack_goal and self.link.navigation is not None:
-            self.stack_goal = False
-            with suppress(Exception):  # a lost middleware must not keep the zero velocity from being sent
-                self.link.navigation.cancel()
-        stop_robot(self.send)
+        """Zero velocity, sent `STOP_REPEATS` times: whatever happened, the last command is a stop. A NavStack run also
+        cancels the stack's goals, after a first zero (a cancel may wait on the middleware)."""
+        relay, self.relay = self.relay, None
+        try:
+            if relay is not None:
+                with suppress(Exception):
+                    self.send(0.0, 0.0)
+                with suppress(Exception):  # a lost middleware must not keep the zeros below from being sent
+                    relay.client.cancel()
+        finally:
+            stop_robot(self.send)
 
     def _why_stop(self, now: float, check_sensors: bool) -> str | None:
         # The console's E-STOP creates its file before it signals `trials run`: the file names the cause.
@@ -473,6 +481,8 @@ class LiveRun:
         self.stage = stage
         frame = stage.frame if stage is not None else None
         self.on_state(WAITING, ", ".join(self.sensors.missing(None, frame)))
+        if self.link.navigation is not None:  # before every row, whichever arm drives it: no goal of the stack lingers
+            self.link.navigation.cancel()
         self.link.announce(run_code)
         self.send(0.0, 0.0)
         announced = time.monotonic()
@@ -503,7 +513,7 @@ class LiveRun:
     def _stack_missing(self) -> list[str]:
         """The navigation stack's action server, while a link that has a stack does not see it (asked before every run)."""
         navigation = self.link.navigation
-        return [] if navigation is None or navigation.ready() else [f"the navigation stack's action server {navigation.action}"]
+        return [] if navigation is None or navigation.ready() else ["an answer from the robot's action server (nav_stack_action)"]
 
     def _off_start(self) -> str | None:
         """Why the robot does not stand at its stage's start now, else None (always None for an unstaged run)."""
@@ -579,14 +589,14 @@ class LiveRun:
         sink.event(0.0, START, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in frame {s.odometry_frame}")
         self.on_state(DRIVING, f"goal ({goal[0]:.2f}, {goal[1]:.2f}) in {s.odometry_frame}")
         ending: tuple[str, str] | None = None
-        # The robot's own navigation stack: its newest command (after the goal), and when it came.
-        stack = self.link.navigation if is_nav_stack(controller) else None
-        stack_command, answered_at = (0.0, 0.0), 0.0
+        relay = None
+        if is_nav_stack(controller):
+            assert self.link.navigation is not None and self.link.stack_commands is not None, "a NavStack arm opens the link with a stack"
+            relay = StackRelay(self.link.navigation, self.link.stack_commands, s)
         try:
-            if stack is not None:
-                stack.send(arrival_pose(np.array([odometry.pose.x, odometry.pose.y]), goal), s.odometry_frame, start_ns)
-                self.stack_goal = True
-                asked_at = answered_at = time.monotonic()
+            if relay is not None:
+                self.relay = relay  # set first: a goal whose sending fails halfway is cancelled too
+                relay.start(arrival_pose(np.array([odometry.pose.x, odometry.pose.y]), goal), s.odometry_frame, start_ns)
             while ending is None:
                 now = time.monotonic()
                 reason = self._why_stop(now, check_sensors=True) or self._command_gap(now - sent_at, scans)
@@ -633,12 +643,10 @@ class LiveRun:
                     robot_poses.popleft()
                 # A finished plan replaces the one followed; a new one is asked for every 0.4 s of robot time. The stack
                 # answers with velocity commands instead, as often as it likes.
-                if stack is not None:
-                    heard = self.link.stack_commands.newest()
-                    if heard is not None and heard[1] >= asked_at:
-                        stack_command, answered_at = (heard[0].linear, heard[0].angular), heard[1]
-                    if time.monotonic() - answered_at > s.plan_timeout:
-                        ending = (ABORTED, f"no plan within {s.plan_timeout:g} s")
+                if relay is not None:
+                    stopped = relay.poll()
+                    if stopped is not None:
+                        ending = (ABORTED, stopped)
                         break
                 elif pending is not None and pending.done():
                     plan_t, position, plan, took = pending.result()
@@ -657,15 +665,14 @@ class LiveRun:
                     observation = self._observation(t, robot, goal, robot_poses, rows, start_ns, thinned(world) if world is not None else None)
                     sink.perceived(t, observation.pedestrian_ids, observation.pedestrian_history)
                     next_plan = max(next_plan + STEP_S, t)
-                    if stack is not None:
-                        sink.planned(t, Plan(rollout(robot.pose, stack_command),
-                                             record={"controller": controller.name, "navigation_stack": stack.status(), "command": list(stack_command)}))
+                    if relay is not None:
+                        sink.planned(t, relay.planned(robot.pose, controller.name))
                     elif pending is None:
                         pending, asked_at = planner.submit(_timed_plan, controller, observation), time.monotonic()
                     else:
                         late += 1
-                if stack is not None:  # a command older than the watchdog is not relayed: a base would not obey it either
-                    command = stack_command if time.monotonic() - answered_at <= s.watchdog else (0.0, 0.0)
+                if relay is not None:
+                    command = relay.command()
                 else:
                     command = follower.command(t, robot) if planned else (0.0, 0.0)
                 wanted = _limited(command, self.command, limits, min(max(time.monotonic() - sent_at, 1e-3), period))

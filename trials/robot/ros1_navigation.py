@@ -13,7 +13,7 @@ from trials.robot.ros1 import import_rospy
 from trials.robot.transport import LinkError
 
 INSTALL = "sudo apt-get install python3-actionlib python3-actionlib-msgs python3-move-base-msgs"
-#: actionlib_msgs/GoalStatus's values in `trials.robot.navigation`'s words.
+#: actionlib_msgs/GoalStatus's values (0-9) in `trials.robot.navigation`'s words.
 STATES = (nav.PENDING, nav.ACTIVE, nav.CANCELED, nav.SUCCEEDED, nav.ABORTED, nav.REJECTED, nav.CANCELING, nav.CANCELING,
           nav.CANCELED, nav.LOST)
 
@@ -33,7 +33,14 @@ class Ros1Navigation:
         self._sent = False
 
     def ready(self) -> bool:
-        return bool(self._client.wait_for_server(self._rospy.Duration(0.01)))
+        """Whether the server's status has been heard and it takes this client's goals and cancels: actionlib's own
+        `wait_for_server` test, asked once (that call waits on ROS time, which stands still under /use_sim_time)."""
+        client = self._client.action_client
+        status = client.last_status_msg
+        if status is None:
+            return False
+        server = status._connection_header["callerid"]
+        return bool(client.pub_goal.impl.has_connection(server) and client.pub_cancel.impl.has_connection(server))
 
     def send(self, goal: Pose2D, frame: str, stamp_ns: int) -> None:
         message = self._msgs.MoveBaseGoal()

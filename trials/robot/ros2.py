@@ -76,8 +76,9 @@ LOOPBACK_CONFIG = (
 _log = logging.getLogger(__name__)
 _RELIABLE = Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100))
 _XCDR1 = Policy.DataRepresentation(use_cdrv0_representation=True)
-_PUBLISHER = Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(10), _XCDR1)
-_LATCHED = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1), _XCDR1)
+#: Writers' QoS: rclcpp's default (also ROS 2's services'), and latched (also an action's status).
+PUBLISHER_QOS = Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(10), _XCDR1)
+LATCHED_QOS = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1), _XCDR1)
 _SUBSCRIBER = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(10))
 _LATCHED_SUBSCRIBER = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1))
 _STATIC_SUBSCRIBER = Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(100))
@@ -281,7 +282,7 @@ class Ros2Transport:
         how = _kind(kind)
         with self._lock:
             self._check_open()
-            qos = _LATCHED if latched or kind == TF_STATIC else _PUBLISHER
+            qos = LATCHED_QOS if latched or kind == TF_STATIC else PUBLISHER_QOS
             writer = DataWriter(self._participant, self._topic(topic, how.type), qos)
             static = self._static.setdefault(topic, {}) if kind == TF_STATIC else None
 

@@ -236,6 +236,9 @@ def settings_from_table(table: dict[str, Any], where: str) -> RobotSettings:
             raise StudyError(f"{where}: goals must be a table of Direction level = [x, y], got {goals!r}")
         values["goals"] = {str(level): _pose(pose, f"goals.{level}", where) for level, pose in goals.items()}
     settings = RobotSettings(**values)
+    if settings.nav_stack_cmd_vel_topic in (settings.cmd_vel_topic, settings.estop_topic):
+        raise StudyError(f"{where}: nav_stack_cmd_vel_topic must differ from cmd_vel_topic and estop_topic (the run relays the "
+                         f"stack's commands to the base), got {settings.nav_stack_cmd_vel_topic!r}")
     if settings.watchdog * settings.command_rate < 2.0:
         raise StudyError(f"{where}: watchdog {settings.watchdog:g} s is shorter than two commands at {settings.command_rate:g} Hz")
     return settings
