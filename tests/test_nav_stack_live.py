@@ -18,7 +18,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from tests.support.blinding import assert_names_nothing, assert_the_key_unblinds_to_what_drove, trials
 from tests.support.example_plugin import NAME
-from tests.support.live_rig import TRIALS, Rig, assert_stopped_and_kept, design, live_rig, set_robot_keys, wait_for
+from tests.support.live_rig import TRIALS, Rig, assert_stopped_and_kept, design, live_rig, robot_over, set_robot_keys, wait_for
 from tests.support.system_packages import need
 from trials.outcomes import read_outcomes
 from trials.robot.ros1 import DIST_PACKAGES
@@ -135,9 +135,10 @@ RULES = {
 }
 
 
-@pytest.mark.parametrize("rule", RULES)
-def test_every_stop_cancels_the_stacks_goal_and_stops_the_robot(tmp_path, middleware, rule):
-    uri, env = middleware
+@pytest.mark.parametrize(("rule", "kind"), [("a stack that gives up", "ros1"), ("a stack that gives up", "ros2"),
+                                             ("the e-stop topic", "ros1"), ("SIGTERM", "ros2")])
+def test_every_stop_cancels_the_stacks_goal_and_stops_the_robot(tmp_path, request, rule, kind):
+    uri, env = robot_over(kind, request, tmp_path)
     stop, reason, options = RULES[rule]
     folder = tmp_path / "study"
     folder.mkdir()

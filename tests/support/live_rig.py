@@ -157,7 +157,12 @@ def ros2_uri() -> str:
 @pytest.fixture(params=["ros1", "ros2"])
 def middleware(request, tmp_path) -> tuple[str, dict[str, str]]:
     """A robot URI and the environment of its rig's processes, over each middleware: a real ROS 1 master, and DDS."""
-    if request.param == "ros2":
+    return robot_over(request.param, request, tmp_path)
+
+
+def robot_over(kind: str, request: pytest.FixtureRequest, tmp_path: Path) -> tuple[str, dict[str, str]]:
+    """A robot URI over `kind` ("ros1": a real master of the test's own, "ros2": a DDS domain) and its rig's environment."""
+    if kind == "ros2":
         return ros2_uri(), {**repository_env(), LOOPBACK_ENV: "1"}
     uri, _ = request.getfixturevalue("master")
     return str(uri), ros1_env(tmp_path)
