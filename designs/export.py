@@ -13,7 +13,7 @@ import numpy as np
 from designs.blinding import WHOLE_KEY
 from designs.diagnostics import POWER_CONVENTION, Diagnostics
 from designs.errors import DesignError
-from designs.exchange import AGREED, CRITERION_NAMES, KICK_RUNS, PATIENCE, RESTART_KICKS, VALUE_TOL, candidate_set
+from designs.exchange import AGREE_BATCH, AGREED, CRITERION_NAMES, KICK_RUNS, PATIENCE, RESTART_KICKS, VALUE_TOL, candidate_set
 from designs.factors import CategoricalFactor, ContinuousFactor, DiscreteFactor, Factor, FixedFactor, plain
 from designs.plan import StudyPlan
 from designs.spec import PLAN_COLUMNS, factor_from_table, factor_table
@@ -106,6 +106,8 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             "criterion_value": plan.design.value,
             "starts": plan.design.starts,
             "kick_budget_per_start": plan.design.kicks,
+            "searched_again": plan.design.searched,
+            "agree_batch": AGREE_BATCH,
             "patience": PATIENCE,
             "restart_kicks": RESTART_KICKS,
             "agreed": AGREED,
@@ -141,7 +143,8 @@ def summary_lines(plan: StudyPlan) -> list[str]:
     lines = [
         f"Study {spec.name!r}: {spec.runs} runs, model {spec.model!r} with p = {d.p} parameters",
         f"Seed {plan.seed}; criterion {plan.design.criterion} ({CRITERION_NAMES[plan.design.criterion]}); "
-        f"{plan.design.starts} exchange starts{f' with up to {plan.design.kicks} kicks each' if plan.design.kicks else ''}, "
+        f"{plan.design.starts} exchange starts"
+        f"{f', the first {plan.design.searched} searched again with up to {plan.design.kicks} kicks each' if plan.design.kicks else ''}, "
         f"{plan.design.hits} reached the best design",
     ]
     bound = f"  D-efficiency bound           {plan.bound.d_efficiency:9.4f}   this design reaches {plan.d_efficiency_vs_bound:.2f} % of it"

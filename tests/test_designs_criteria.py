@@ -242,6 +242,7 @@ def test_restarts_bring_more_starts_of_the_six_factor_quadratic_to_the_best(monk
     budget, brings more starts to the best design. Counted over three seeds, since one seed alone may show no gain
     (measured, of 20 starts each: seed 2019 14 against 6, seed 1 9 against 9, seed 5 15 against 7)."""
     model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(6)))
+    monkeypatch.setattr(exchange, "AGREE_BATCH", 10**6)  # every start searched again: the hits count the restarts' effect
     seeds = (2019, 1, 5)
     restarted = [optimal_design(model, 40, seed=seed, starts=20) for seed in seeds]
     monkeypatch.setattr(exchange, "PATIENCE", 10**6)
@@ -346,6 +347,7 @@ def test_kicks_bring_the_starts_of_a_near_saturated_quadratic_together(monkeypat
     """4 continuous factors, full quadratic (p = 15) in 20 runs: the coordinate exchange alone leaves its starts
     at distinct local optima; iterated local search brings most to the best, and no start ends worse for it."""
     model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(4)))
+    monkeypatch.setattr(exchange, "AGREE_BATCH", 10**6)  # every start searched again
     design = optimal_design(model, 20, seed=2019, starts=20)
     monkeypatch.setattr(exchange, "KICK_WORK", 0)
     plain = optimal_design(model, 20, seed=2019, starts=20)
@@ -369,3 +371,16 @@ def test_starts_searched_on_threads_end_exactly_as_one_after_another(criterion):
     np.testing.assert_array_equal(threaded.start_values, one.start_values)
     np.testing.assert_array_equal(threaded.settings, one.settings)
     assert seen == [(n, 6) for n in range(1, 7)] * 2
+
+
+def test_the_starts_are_searched_again_until_enough_agree_on_the_best(monkeypatch):
+    """4 continuous factors, full quadratic (p = 15) in 20 runs, 40 starts: once `AGREED` of the starts searched again
+    tie for the best, the rest are not searched, and searching every one finds no better design (measured: 8 of 40
+    searched, then 10 at the best; all 40 searched, all 40 at the same best)."""
+    model = parse_model("main + interactions + quadratic", tuple(ContinuousFactor(f"X{i}", -1, 1) for i in range(4)))
+    stopped = optimal_design(model, 20, seed=2019, starts=40)
+    assert stopped.searched == exchange.AGREE_BATCH and stopped.hits >= exchange.AGREED
+    assert stopped.settings.tolist() == optimal_design(model, 20, seed=2019, starts=40, threads=2).settings.tolist()
+    monkeypatch.setattr(exchange, "AGREE_BATCH", 10**6)
+    every = optimal_design(model, 20, seed=2019, starts=40)
+    assert every.searched == 40 and every.value <= stopped.value + exchange.VALUE_TOL

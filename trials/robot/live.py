@@ -482,7 +482,8 @@ class LiveRun:
         frame = stage.frame if stage is not None else None
         self.on_state(WAITING, ", ".join(self.sensors.missing(None, frame)))
         if self.link.navigation is not None:  # before every row, whichever arm drives it: no goal of the stack lingers
-            self.link.navigation.cancel()
+            with suppress(Exception):  # a middleware that fails here is the stop rules' to report
+                self.link.navigation.cancel()
         self.link.announce(run_code)
         self.send(0.0, 0.0)
         announced = time.monotonic()
