@@ -264,6 +264,7 @@ def test_trials_controllers_lists_and_checks_every_source(tmp_path, capsys):
     assert checked["NavStack"].endswith("live only: the robot's stack plans (trials run --robot URI)")
 
 
+@pytest.mark.slow
 def test_an_installed_package_is_found_by_its_entry_point_and_passes_its_own_tests(tmp_path):
     env = install_example(tmp_path / "site")
     listed = subprocess.run([sys.executable, "-m", "trials.cli", "controllers", "--check"], env=env, capture_output=True, text=True)

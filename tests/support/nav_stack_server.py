@@ -53,7 +53,7 @@ class Stack:
             self.publish(Velocity(0.0, 0.0))
             return True
         error = math.atan2(math.sin(math.atan2(dy, dx) - yaw), math.cos(math.atan2(dy, dx) - yaw))
-        self.publish(Velocity(0.6 * max(math.cos(error), 0.0), max(-1.5, min(1.5, 2.0 * error))))
+        self.publish(Velocity(0.8 * max(math.cos(error), 0.0), max(-1.5, min(1.5, 2.0 * error))))
         return False
 
 

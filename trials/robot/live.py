@@ -37,7 +37,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -575,7 +575,6 @@ class LiveRun:
         trace = Trace()
         people = NOBODY
         ending_rule = SimConfig(timeout_s=s.timeout, limits=limits)
-        planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
         pending: Future[tuple[float, np.ndarray, Plan, float]] | None = None
         next_plan, planned, asked_at = 0.0, False, 0.0
         latencies: list[float] = []
@@ -669,7 +668,7 @@ class LiveRun:
                     if relay is not None:
                         sink.planned(t, relay.planned(robot.pose, controller.name))
                     elif pending is None:
-                        pending, asked_at = planner.submit(_timed_plan, controller, observation), time.monotonic()
+                        pending, asked_at = _plan_aside(controller, observation), time.monotonic()
                     else:
                         late += 1
                 if relay is not None:
@@ -718,7 +717,6 @@ class LiveRun:
             raise
         finally:
             sensors.end_drive()
-            planner.shutdown(wait=False, cancel_futures=True)
         self.halt()
         status, detail = ending
         self.on_state(status, detail)
@@ -838,6 +836,21 @@ def warm_up(controllers: Iterable[Controller]) -> None:
     for controller in (c for c in controllers if not is_nav_stack(c)):  # the robot's own stack plans on the robot
         controller.plan(Observation(time=0.0, robot_pose=np.zeros(3), robot_velocity=np.zeros(2), goal=np.array(GOAL_AHEAD),
                                     robot_history=still, pedestrian_ids=(), pedestrian_history=np.zeros((0, T_OBS, 2))))
+
+
+def _plan_aside(controller: Controller, observation: Observation) -> Future[tuple[float, np.ndarray, Plan, float]]:
+    """`_timed_plan` on a daemon thread of its own: a controller that never answers is left behind when the run stops,
+    and never keeps the worker process from exiting (a thread pool's threads would be waited for)."""
+    future: Future[tuple[float, np.ndarray, Plan, float]] = Future()
+
+    def work() -> None:
+        try:
+            future.set_result(_timed_plan(controller, observation))
+        except BaseException as exc:  # handed to the loop, which stops the run
+            future.set_exception(exc)
+
+    threading.Thread(target=work, name="planner", daemon=True).start()
+    return future
 
 
 def _timed_plan(controller: Controller, observation: Observation) -> tuple[float, np.ndarray, Plan, float]:
