@@ -31,10 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from designs.constraints import compile_restrictions
+from designs.constraints import Restrictions, compile_restrictions
 from designs.diagnostics import diagnose
 from designs.exchange import candidate_set, optimal_design
 from designs.factors import CategoricalFactor
+from designs.model import Model
 from designs.presets import ab, qualitative
 from designs.spec import StudySpec, read_spec
 from trials.controllers.registry import AB_PRESET
@@ -89,6 +90,8 @@ class Problem:
     """A case as both tools see it: our model, restrictions and fixed block column, and the candidate points."""
 
     spec: StudySpec
+    model: Model
+    restrictions: Restrictions | None
     candidates: np.ndarray
     block: int | None
 
@@ -98,14 +101,10 @@ class Problem:
         model = spec.build_model()
         restrictions = compile_restrictions(spec.disallowed, spec.constraints, model.factors, "spec")
         block = next((i for i in spec.per_run() if model.factors[i].name == "Block"), None)
-        return cls(spec, candidate_set(model, restrictions), block)
+        return cls(spec, model, restrictions, candidate_set(model, restrictions), block)
 
     def d_efficiency(self, settings: np.ndarray) -> float:
-        return diagnose(self.spec.build_model(), settings).d_efficiency
-
-
-def medians(times: list[float]) -> float:
-    return statistics.median(times)
+        return diagnose(self.model, settings).d_efficiency
 
 
 def trials_design(case: Case, folder: Path, repeats: int) -> tuple[float, float]:
@@ -123,13 +122,13 @@ def trials_design(case: Case, folder: Path, repeats: int) -> tuple[float, float]
         if i >= 0:
             walls.append(time.perf_counter() - start)
         efficiency = json.loads((study / "design.json").read_text(encoding="utf-8"))["diagnostics"]["d_efficiency"]
-    return medians(walls), efficiency
+    return statistics.median(walls), efficiency
 
 
 def r_script(case: Case, problem: Problem, folder: Path) -> Path:
     """The R program of a case: read the candidates, search as AlgDesign does with 100 starts, print its search seconds
     and the chosen candidates (1-based), one line per block."""
-    factors = problem.spec.build_model().factors
+    factors = problem.model.factors
     columns = [i for i in range(len(factors)) if i != problem.block]
     table = folder / "candidates.csv"
     points = problem.candidates[:, columns]
@@ -138,7 +137,7 @@ def r_script(case: Case, problem: Problem, folder: Path) -> Path:
     if len(points) <= problem.spec.runs:
         # AlgDesign chooses each row of its data at most once: with no more points than runs, each is given ceil(runs / p)
         # times, as often as a D-optimal plan of so few points may repeat one.
-        points = np.repeat(points, -(-problem.spec.runs // problem.spec.build_model().p), axis=0)
+        points = np.repeat(points, -(-problem.spec.runs // problem.model.p), axis=0)
     header = ",".join(factors[i].name for i in columns)
     np.savetxt(table, points, delimiter=",", header=header, comments="", fmt="%.17g")
     categorical = [factors[i].name for i in columns if isinstance(factors[i], CategoricalFactor)]
@@ -185,17 +184,15 @@ def algdesign(case: Case, problem: Problem, folder: Path, repeats: int) -> tuple
         design = np.vstack(settings)
     else:
         design = rows[0]
-    return medians(walls), medians(searches), problem.d_efficiency(design)
+    return statistics.median(walls), statistics.median(searches), problem.d_efficiency(design)
 
 
 def to_reach(problem: Problem, target: float) -> tuple[int, float] | None:
     """The fewest of START_STEPS seeded starts whose design reaches `target` D-efficiency, and the CPU seconds that
     search took on one thread; None when 100 starts do not."""
-    model = problem.spec.build_model()
-    restrictions = compile_restrictions(problem.spec.disallowed, problem.spec.constraints, model.factors, "spec")
     for starts in START_STEPS:
         began = time.process_time()
-        design = optimal_design(model, problem.spec.runs, seed=SEED, starts=starts, restrictions=restrictions,
+        design = optimal_design(problem.model, problem.spec.runs, seed=SEED, starts=starts, restrictions=problem.restrictions,
                                 per_run=problem.spec.per_run())
         seconds = time.process_time() - began
         if problem.d_efficiency(design.settings) >= target - 1e-9:
@@ -226,7 +223,7 @@ def main() -> None:
     # Compile (or load) the exchange's kernels before anything is timed in this process.
     with tempfile.TemporaryDirectory() as folder:
         warm = Problem.of(CASES[2], Path(folder))
-        optimal_design(warm.spec.build_model(), warm.spec.runs, seed=0, starts=2)
+        optimal_design(warm.model, warm.spec.runs, seed=0, starts=2)
     print(f"{'plan':<58}{'trials s':>9}{'D-eff':>8}{'R s':>8}{'D-eff':>8}{'ratio':>7}   "
           f"{'R search s':>11}{'ours to reach R':>20}")
     with busy_core(args.loaded):

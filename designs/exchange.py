@@ -142,10 +142,11 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
 
     Each start runs the coordinate exchange from its random runs (curved continuous coordinates drawn
-    anywhere in their range). When the starts end at different values, each start searches again from
-    its end snapped to the grid: the exchange on the grid and kicks of iterated local search, restarted
-    from fresh openings of its own while its kick budget (`_Search.kicks`) lasts (`_Search.restarts`), then
-    the exchange with continuous moves from each grid design tied for its best; it keeps the best of its ends.
+    anywhere in their range). When the starts end at different values, the starts search again, in batches of
+    `AGREE_BATCH` in start order until `AGREED` of those searched tie for the best, each from its end snapped to the
+    grid: the exchange on the grid and kicks of iterated local search, restarted from fresh openings of its own while
+    its kick budget (`_Search.kicks`) lasts (`_Search.restarts`), then the exchange with continuous moves from each
+    grid design tied for its best; it keeps the best of its ends.
 
     `kept` (m, k) are runs already made (augmenting a study): they open the design unchanged and
     `runs` - m new runs are searched around them. `per_run` maps a factor the runs fix (block,
