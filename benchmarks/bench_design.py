@@ -83,6 +83,8 @@ CASES = (
          quadratic_spec(4, 30, 'disallowed = ["X1 + X2 > 1.5"]\nblocks = 3\n'), "~ quad(.)"),
 )
 QUICK = CASES[:3]
+#: Pairs of cases whose whole-process times show how time grows with runs, and with terms.
+GROWTH = (((CASES[2], CASES[4]), "40 -> 100 runs at p 28"), ((CASES[3], CASES[5]), "p 28 -> 45 at 60 runs"))
 
 
 @dataclass(frozen=True)
@@ -226,6 +228,7 @@ def main() -> None:
         optimal_design(warm.model, warm.spec.runs, seed=0, starts=2)
     print(f"{'plan':<58}{'trials s':>9}{'D-eff':>8}{'R s':>8}{'D-eff':>8}{'ratio':>7}   "
           f"{'R search s':>11}{'ours to reach R':>20}")
+    walls: dict[Case, tuple[float, float]] = {}
     with busy_core(args.loaded):
         for case in QUICK if args.quick else CASES:
             with tempfile.TemporaryDirectory() as name:
@@ -237,10 +240,14 @@ def main() -> None:
                     print(f"{case.name:<58}{ours:>9.2f}{ours_eff:>8.2f}{'(AlgDesign not installed)':>33}")
                     continue
                 r_wall, r_search, r_eff = reference
+                walls[case] = ours, r_wall
                 reach = to_reach(problem, r_eff)
                 reached = "not in 100 starts" if reach is None else f"{reach[1]:.2f} s ({reach[0]} starts)"
                 print(f"{case.name:<58}{ours:>9.2f}{ours_eff:>8.2f}{r_wall:>8.2f}{r_eff:>8.2f}{ours / r_wall:>7.2f}   "
                       f"{r_search:>11.2f}{reached:>20}")
+    for (small, large), what in GROWTH:
+        if small in walls and large in walls:
+            print(f"growth, {what}: trials x{walls[large][0] / walls[small][0]:.2f}, AlgDesign x{walls[large][1] / walls[small][1]:.2f}")
     print(f"(wall seconds of each whole process, median of {args.repeats}, seed {SEED}, {STARTS} starts each; ratio: trials over R; "
           f"D-efficiencies by this project's diagnose; {'one core kept busy by another process; ' if args.loaded else ''}"
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the end)")

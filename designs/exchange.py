@@ -5,7 +5,9 @@ some term raises to a power starts anywhere in its range) and then, run by run, 
 change of one coordinate, or the best swap for a whole candidate point, while the criterion
 improves (Meyer and Nachtsheim's coordinate exchange with Fedorov's row swaps). Candidates may
 repeat and balance is never imposed, so optima that replicate points are reachable. The inner
-loop is compiled (`designs/kernels.py`) and updates (X'X)^-1 by rank-one steps.
+loop is compiled (`designs/kernels.py`) and updates (X'X)^-1 by rank-one steps. A small D-optimal design whose
+factors all stay on their grids opens by Fedorov's row exchange in numpy instead (`designs/row_exchange.py`): its
+search takes less time than loading the compiled kernels.
 
 Criteria, as JMP names them:
 - D: maximise det(X'X)
@@ -25,6 +27,7 @@ from designs.constraints import Restrictions, factor_arrays
 from designs.errors import DesignError
 from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
+from designs.row_exchange import WORK_LIMIT, RowExchange
 
 CRITERION_NAMES = {"D": "largest det(X'X)", "I": "smallest average prediction variance", "A": "smallest trace((X'X)^-1)"}
 CRITERIA = tuple(CRITERION_NAMES)
@@ -75,6 +78,8 @@ class ExactDesign:
         seed: the master seed; start s uses SeedSequence(seed).spawn(starts)[s].
         kicks: the iterated local search's kick budget per start, restarts charged (0: the starts agreed without it).
         searched: how many starts, the first in start order, were searched again with kicks (`AGREE_BATCH`).
+        row_exchange: whether the starts opened by the numpy row exchange (`designs/row_exchange.py`) rather than the
+            compiled coordinate exchange.
     """
 
     settings: np.ndarray
@@ -84,6 +89,7 @@ class ExactDesign:
     seed: int
     kicks: int = 0
     searched: int = 0
+    row_exchange: bool = False
 
     @property
     def starts(self) -> int:
@@ -142,7 +148,8 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
     """The best `runs`-run design for `model` under `criterion`, best of `starts` seeded starts.
 
     Each start runs the coordinate exchange from its random runs (curved continuous coordinates drawn
-    anywhere in their range). When the starts end at different values, the starts search again, in batches of
+    anywhere in their range), or, where `_Search.row_exchange` says it suits, the numpy row exchange of all starts at
+    once. When the starts end at different values, the starts search again, in batches of
     `AGREE_BATCH` in start order until `AGREED` of those searched tie for the best, each from its end snapped to the
     grid: the exchange on the grid and kicks of iterated local search, restarted from fresh openings of its own while
     its kick budget (`_Search.kicks`) lasts (`_Search.restarts`), then the exchange with continuous moves from each
@@ -178,7 +185,16 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
             if _better(value, ends[s], criterion):
                 designs[s], ends[s] = settings, value
 
-    _each_start(open_start, range(starts), starts, threads, progress)
+    rows = search.row_exchange(starts, runs)
+    if rows is None:
+        _each_start(open_start, range(starts), starts, threads, progress)
+    else:
+        opened = np.stack(designs)
+        rows.exchange(opened)
+        designs = list(opened)
+        ends[:] = [search.value(settings) for settings in designs]
+        if progress is not None:
+            progress(starts, starts)
     kicks = search.kicks(runs) if starts > 1 and not np.all(_same(ends, _best(ends, criterion), criterion)) else 0
     searched = 0
     while searched < (starts if kicks else 0):
@@ -192,7 +208,7 @@ def optimal_design(model: Model, runs: int, *, seed: int, starts: int = 100, cri
         why = " or no allowed setting fits some run's block or covariate" if restrictions else ""
         raise DesignError(f"no {runs}-run design can estimate every term of the model (X'X stays singular{why})")
     best_settings = designs[int(np.flatnonzero(ends == best)[0])]
-    return ExactDesign(best_settings, criterion, float(best), ends, seed, kicks, searched)
+    return ExactDesign(best_settings, criterion, float(best), ends, seed, kicks, searched, rows is not None)
 
 
 @dataclass
@@ -277,6 +293,14 @@ class _Search:
         codes, weight, trace, ops, args, bounds = self.codes
         kernels.optimise_start(settings, *codes, continuous, self.frozen, weight, trace, ops, args, bounds, self.swaps,
                                _PROBES, _PROBE_INVERSE, _MAX_PASSES, self.first_free)
+
+    def row_exchange(self, starts: int, runs: int) -> RowExchange | None:
+        """The numpy row exchange of all starts at once, where it suits: D, every factor on its grid, and a pass small
+        enough (`row_exchange.WORK_LIMIT`) that the search takes less than loading the compiled kernels."""
+        if self.criterion != "D" or self.continuous.any():
+            return None
+        rows = RowExchange(self.model, self.restrictions, self.frozen, self.first_free)
+        return rows if rows.work(starts, runs) <= WORK_LIMIT else None
 
     def kicks(self, runs: int) -> int:
         """Kicks per start: as many as `KICK_WORK` allows (each re-runs the exchange, about runs x factors x p^2

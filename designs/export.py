@@ -99,8 +99,10 @@ def design_record(plan: StudyPlan, created: str, key: str) -> dict[str, Any]:
             },
         },
         "search": {
-            "algorithm": "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates; "
-                         f"when the starts disagree, iterated local search on the grid (kicks of {KICK_RUNS} runs, restarted from a "
+            "algorithm": ("Fedorov's row exchange over the grid points, every start at once in numpy, rank-two updates"
+                          if plan.design.row_exchange else
+                          "coordinate exchange with candidate-point swaps and replicates, compiled, rank-one updates")
+                         + f"; when the starts disagree, iterated local search on the grid (kicks of {KICK_RUNS} runs, restarted from a "
                          f"fresh opening after {PATIENCE} kicks without gain) before a last exchange",
             "criterion": plan.design.criterion,
             "criterion_value": plan.design.value,

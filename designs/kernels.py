@@ -242,12 +242,25 @@ def _poly(coefficients, t):
 
 
 @kernel
-def _singular(info):
-    """Whether X'X is singular to working precision. Its condition number decides, not its determinant: X'X of a
-    singular design with integer codes comes out of the factorization with a tiny positive determinant, whose
-    inverse is then all rounding error (a saturated plan's random start, say)."""
+def _checked_inverse(info):
+    """(False, (X'X)^-1), or (True, X'X) when X'X is singular to working precision. Its condition number decides, not
+    its determinant: X'X of a singular design with integer codes comes out of the factorization with a tiny positive
+    determinant, whose inverse is then all rounding error (a saturated plan's random start, say). The bound
+    cond(X'X) <= |X'X|_F |(X'X)^-1|_F settles most designs without the SVD the condition number takes, the costliest
+    step of a pass otherwise."""
     sign, _ = np.linalg.slogdet(info)
-    return sign <= 0 or np.linalg.cond(info) > _SINGULAR_CONDITION
+    if sign <= 0:
+        return True, info
+    inv = np.linalg.inv(info)
+    if np.sqrt(np.sum(info * info) * np.sum(inv * inv)) <= _SINGULAR_CONDITION or np.linalg.cond(info) <= _SINGULAR_CONDITION:
+        return False, inv
+    return True, info
+
+
+@kernel
+def _singular(info):
+    """Whether X'X is singular to working precision (`_checked_inverse`)."""
+    return _checked_inverse(info)[0]
 
 
 @kernel
@@ -255,10 +268,12 @@ def _inverse(x):
     """V = (X'X)^-1 of the model rows `x`, with a small ridge on the diagonal when X'X is singular, so the
     exchange can still move a singular start towards a design that estimates every term."""
     info = x.T @ x
-    if _singular(info):
-        ridge = 1e-6 * max(1.0, np.trace(info) / info.shape[0])
-        for r in range(info.shape[0]):
-            info[r, r] += ridge
+    singular, inv = _checked_inverse(info)
+    if not singular:
+        return inv
+    ridge = 1e-6 * max(1.0, np.trace(info) / info.shape[0])
+    for r in range(info.shape[0]):
+        info[r, r] += ridge
     return np.linalg.inv(info)
 
 
@@ -463,10 +478,11 @@ def criterion_of(settings, kinds, levels, col_factor, col_code, weight, trace):
     for i in range(n):
         model_row(settings[i], kinds, levels, col_factor, col_code, x[i])
     info = x.T @ x
-    if _singular(info):
+    singular, inv = _checked_inverse(info)
+    if singular:
         return -np.inf
     if trace:
-        return -np.sum(weight * np.linalg.inv(info))
+        return -np.sum(weight * inv)
     return np.linalg.slogdet(info)[1]
 
 

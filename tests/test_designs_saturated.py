@@ -38,6 +38,18 @@ def test_a_singular_information_matrix_with_a_positive_determinant_is_singular()
     assert np.isfinite(inverse).all() and np.abs(inverse).max() < 1e7
 
 
+def test_the_condition_number_decides_where_its_cheap_bound_does_not():
+    """cond(X'X) <= |X'X|_F |(X'X)^-1|_F spares the SVD; where the bound passes the limit but the condition number does
+    not (here 15 x 3.2e11 against 3.2e11), the matrix is regular, and it is singular once the condition number passes."""
+    small = 10.0 ** -11.5
+    info = np.diag(np.r_[np.ones(15), np.full(15, small)])
+    assert np.sqrt(np.sum(info**2) * np.sum(np.linalg.inv(info) ** 2)) > 1e12 > np.linalg.cond(info)
+    singular, inverse = kernels._checked_inverse(info)
+    assert not singular
+    np.testing.assert_allclose(np.diag(inverse), np.r_[np.ones(15), np.full(15, 1 / small)], rtol=1e-12)
+    assert kernels._singular(np.diag(np.r_[np.ones(15), np.full(15, 1e-13)]))
+
+
 def test_an_exchange_with_a_singular_core_leaves_the_inverse_to_be_made_afresh():
     x = plackett_burman_rows()
     inverse = np.linalg.inv(x.T @ x)  # I / 12: every run's leverage x'Vx is exactly 1
