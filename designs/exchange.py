@@ -27,7 +27,7 @@ from designs.constraints import Restrictions, factor_arrays
 from designs.errors import DesignError
 from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
-from designs.row_exchange import WORK_LIMIT, RowExchange
+from designs.row_exchange import WORK_LIMIT, RowExchange, pass_work
 
 CRITERION_NAMES = {"D": "largest det(X'X)", "I": "smallest average prediction variance", "A": "smallest trace((X'X)^-1)"}
 CRITERIA = tuple(CRITERION_NAMES)
@@ -299,8 +299,9 @@ class _Search:
         enough (`row_exchange.WORK_LIMIT`) that the search takes less than loading the compiled kernels."""
         if self.criterion != "D" or self.continuous.any():
             return None
-        rows = RowExchange(self.model, self.restrictions, self.frozen, self.first_free)
-        return rows if rows.work(starts, runs) <= WORK_LIMIT else None
+        if pass_work(self.model, self.frozen, starts, runs - self.first_free) > WORK_LIMIT:
+            return None
+        return RowExchange(self.model, self.restrictions, self.frozen, self.first_free)
 
     def kicks(self, runs: int) -> int:
         """Kicks per start: as many as `KICK_WORK` allows (each re-runs the exchange, about runs x factors x p^2

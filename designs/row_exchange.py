@@ -12,6 +12,7 @@ settings (its block or covariate) that the restrictions allow, so they include e
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 
@@ -31,6 +32,12 @@ _SINGULAR_CONDITION = 1e12
 _MAX_PASSES = 500
 
 
+def pass_work(model: Model, frozen: np.ndarray, starts: int, free_runs: int) -> int:
+    """Multiply-adds of one pass over `starts` starts of `free_runs` runs each, every grid point tried in every run."""
+    points = math.prod(len(model.grid(i)) for i in range(len(model.factors)) if not frozen[i])
+    return starts * free_runs * points * model.p ** 2
+
+
 class RowExchange:
     """The trial points of each run of one search, and the exchange of many starts over them."""
 
@@ -42,10 +49,6 @@ class RowExchange:
         grids = [model.grid(i) for i in range(len(model.factors))]
         self.grid = np.array(list(itertools.product(*[g if not frozen[i] else g[:1] for i, g in enumerate(grids)])))
         self._rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-    def work(self, starts: int, runs: int) -> int:
-        """Multiply-adds of one pass over `starts` starts of `runs` runs."""
-        return starts * (runs - self.first_free) * len(self.grid) * self.model.p ** 2
 
     def trials(self, run: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The trial points of a run with the settings `run` (its frozen ones kept) and their model rows."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import csv
 import difflib
+import hashlib
 import json
 import os
 import re
@@ -121,8 +122,8 @@ def simulated_study(design: list[str], run: list[str], report: list[str]) -> tup
         where = Path(folder)
         trials(design, where)
         trials(run, where)
-        blinding = json.loads((where / "design.json").read_text(encoding="utf-8")).get("blinding") or {}
-        trials([blinding["commitment"]["digest"] if word == COMMITMENT else word for word in report], where)
+        digest = hashlib.sha256((where / "preregistration.md").read_bytes()).hexdigest()  # what `trials design` printed
+        trials([digest if word == COMMITMENT else word for word in report], where)
         with (where / "outcomes.csv").open(newline="", encoding="utf-8") as handle:
             rows = list(csv.DictReader(handle))
         return rows, json.loads((where / "report" / "report.json").read_text(encoding="utf-8"))
@@ -165,7 +166,7 @@ def ab_study() -> str:
         f"trials {' '.join(design)} && trials run --blind && trials report --unblind --commitment {COMMITMENT}",
         "```",
         "",
-        f"{COMMITMENT}: the commitment `trials design` printed; a real study leaves `--allocation-seed` out.",
+        f"{COMMITMENT}: the pre-registration digest `trials design` printed; a real study leaves `--allocation-seed` out.",
         "",
         table(["controller", *RUN_HEADER], outcome_rows),
         "",

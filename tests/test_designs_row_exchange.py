@@ -14,7 +14,7 @@ from designs.constraints import compile_restrictions
 from designs.exchange import _Search, candidate_set, optimal_design
 from designs.factors import BlockFactor, CategoricalFactor, ContinuousFactor, CovariateFactor, DiscreteFactor
 from designs.model import parse_model
-from designs.row_exchange import WORK_LIMIT, RowExchange
+from designs.row_exchange import WORK_LIMIT, RowExchange, pass_work
 
 FACTORS = (DiscreteFactor("P", (2, 4, 6)), CategoricalFactor("D", ("a", "b", "c")), ContinuousFactor("X", 0, 1))
 
@@ -99,7 +99,7 @@ def test_only_small_d_designs_on_the_grid_take_the_row_exchange():
     assert _Search.of(curved, "D", None, {}, 0).row_exchange(100, 12) is None  # X^2's optimum may lie off the grid
     many = parse_model("main + interactions", tuple(CategoricalFactor(f"F{i}", ("a", "b", "c")) for i in range(6)))
     search = _Search.of(many, "D", None, {}, 0)
-    assert RowExchange(many, None, search.frozen, 0).work(100, 80) > WORK_LIMIT
+    assert many.p == 73 and pass_work(many, search.frozen, 100, 80) == 100 * 80 * 3**6 * 73**2 > WORK_LIMIT
     assert search.row_exchange(100, 80) is None
 
 
