@@ -81,7 +81,7 @@ def test_blinded_report_names_no_controller(ab_study: Path, capsys: pytest.Captu
     with (ab_study / "report" / "tables" / "a_b_comparison_table_ii.csv").open() as handle:
         table = list(csv.DictReader(handle))
     assert [row["min_pedestrians"] for row in table] == ["2", "4", "6"]
-    assert [int(row["A_runs"]) + int(row["B_runs"]) for row in table] == [18, 12, 7]
+    assert [int(row["A_runs"]) + int(row["B_runs"]) for row in table] == [18, 11, 6]
     # Numbers in their own columns, as numbers: shares as fractions, interval ends and p-values apart, no "%" or "< 0.001".
     assert all(cell == "" or float(cell) == float(cell) for row in table for cell in row.values())
     assert float(table[0]["A_share_low"]) < float(table[0]["A_share"]) < float(table[0]["A_share_high"]) <= 1.0
@@ -133,9 +133,9 @@ def test_unblinded_report_has_table_ii(ab_study: Path, capsys: pytest.CaptureFix
         assert row["fisher_p"] == pytest.approx(fisher_exact([[y1, n1 - y1], [y2, n2 - y2]]).pvalue)
         assert row["fisher_p"] <= row["holm_p"] <= 1.0
         assert row["difference"]["estimate"] == pytest.approx(y1 / n1 - y2 / n2)
-    # The D-optimal plan is unbalanced within rows: 9, 6, 3 runs for one arm and 9, 6, 4 for the other.
+    # The D-optimal plan is unbalanced within rows: 9, 5, 3 runs for one arm and 9, 6, 3 for the other.
     runs = sorted([row["arms"][arm]["runs"] for row in record["table_ii"]] for arm in ("NaviGAN-R", "Lattice"))
-    assert runs == [[9, 6, 3], [9, 6, 4]]
+    assert runs == [[9, 5, 3], [9, 6, 3]]
     assert record["fits"][0]["method"].startswith("logistic GEE clustered by run")
     assert out.index("Primary result (run-level randomization test of Controller") < out.index("Judged socially compliant")
     # The primary result's numbers, in report.json: the mean run shares counted here from responses.csv and the key.
@@ -213,15 +213,15 @@ def test_a_run_played_from_an_external_log_is_left_out_of_the_comparisons(ab_stu
     expected = _expected_table(ab_study, left_out=(external,))
     assert {row["min_pedestrians"]: {arm: (v["yes"], v["judged"]) for arm, v in row["arms"].items()} for row in record["table_ii"]} == expected
     assert sum(v["runs"] for v in record["table_ii"][0]["arms"].values()) == 17
-    # The external run has 2 pedestrians and so 2 simulated judgments (one per pedestrian), of 74: its arm's first row
+    # The external run has 2 pedestrians and so 2 simulated judgments (one per pedestrian), of 70: its arm's first row
     # loses exactly those (its yes among them), the other arm's keeps all of its own.
     arm, with_it = record["scores"][external]["arm"], _expected_table(ab_study)
-    assert judgments == 2 and sum(n for _, n in with_it[2].values()) == 74
+    assert judgments == 2 and sum(n for _, n in with_it[2].values()) == 70
     assert expected[2] == {**with_it[2], arm: (with_it[2][arm][0] - yes, with_it[2][arm][1] - 2)}
     assert {name: v["runs"] for name, v in record["table_ii"][0]["arms"].items()} == {name: 8 if name == arm else 9 for name in with_it[2]}
-    # The model fits: 17 runs each (the GEE's 72 judgments); the score counts: 17 runs, without the external run's human 3.
+    # The model fits: 17 runs each (the GEE's 68 judgments); the score counts: 17 runs, without the external run's human 3.
     markdown = (ab_study / "report" / "report.md").read_text()
-    assert re.search(r"logistic GEE clustered by run \(exchangeable working correlation[^\n]*\): 17 runs, 72 observations", markdown)
+    assert re.search(r"logistic GEE clustered by run \(exchangeable working correlation[^\n]*\): 17 runs, 68 observations", markdown)
     squares = [line for line in markdown.splitlines() if line.startswith("least squares:")]  # run shares and the four metrics
     assert len(squares) == 5 and all(line.startswith("least squares: 17 runs, 17 observations;") for line in squares)
     assert sum(record["score_counts"].values()) == 17 and record["scores"][external]["made"] == "external log"
