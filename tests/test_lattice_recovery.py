@@ -131,7 +131,7 @@ class StudyRows:
 
 
 @pytest.mark.slow
-def test_the_ab_plans_lattice_runs_reach_the_goal_over_20_seeds(tmp_path, capsys):
+def test_the_ab_plans_lattice_runs_neither_freeze_nor_drive_into_anyone_over_20_seeds(tmp_path, capsys):
     # The lattice arm only (9 of each plan's 18 runs): NaviGAN-R never froze, and all 360 runs take
     # too long. Before the fix 5 of these 180 runs stood until the timeout (seeds 6, 10, 12, 15
     # and 20). One pool of two workers serves all 20 studies, so the workers start once.
