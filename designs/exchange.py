@@ -25,6 +25,7 @@ import numpy as np
 
 from designs.constraints import Restrictions, factor_arrays
 from designs.errors import DesignError
+from designs.exchange_numerics import MAX_PASSES
 from designs.factors import CategoricalFactor, ContinuousFactor
 from designs.model import Model
 from designs.row_exchange import WORK_LIMIT, RowExchange, pass_work
@@ -39,7 +40,6 @@ MAX_CANDIDATES = 200_000
 #: Whole candidate points are tried as row swaps while candidates x p stays below this; beyond it the
 #: coordinate moves alone search (each swap costs p^2 per candidate).
 _SWAP_BUDGET = 4_000
-_MAX_PASSES = 500
 #: Iterated local search when the starts disagree: the work of a start's kicks (runs x factors x p^2 a kick),
 #: the most kicks a start makes, and the runs each kick moves to random candidate points.
 KICK_WORK = 28_500_000
@@ -292,7 +292,7 @@ class _Search:
 
         codes, weight, trace, ops, args, bounds = self.codes
         kernels.optimise_start(settings, *codes, continuous, self.frozen, weight, trace, ops, args, bounds, self.swaps,
-                               _PROBES, _PROBE_INVERSE, _MAX_PASSES, self.first_free)
+                               _PROBES, _PROBE_INVERSE, MAX_PASSES, self.first_free)
 
     def row_exchange(self, starts: int, runs: int) -> RowExchange | None:
         """The numpy row exchange of all starts at once, where it suits: D, every factor on its grid, and a pass small
@@ -346,7 +346,7 @@ class _Search:
         points = rng.integers(len(self.candidates), size=(kicks, moved))
         codes, weight, trace, ops, args, bounds = self.codes
         return kernels.iterate_start(settings, *codes, self.frozen, weight, trace, ops, args, bounds, _PROBES, _PROBE_INVERSE,
-                                     _MAX_PASSES, self.first_free, self.candidates, rows, points, PATIENCE)
+                                     MAX_PASSES, self.first_free, self.candidates, rows, points, PATIENCE)
 
     def value(self, settings: np.ndarray) -> float:
         """The criterion of a searched design (inf or -inf: singular, or a run left nowhere allowed)."""

@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from designs.constraints import ADD, AND, CATEGORICAL, CONST, DIV, EQ, GE, GT, LE, LT, MUL, NE, NEG, NOT, SUB, VAR
+from designs.exchange_numerics import CORE_LOST, GAIN_TOLERANCE, RIDGE, SINGULAR_CONDITION
 
 #: Compiled once and cached; the GIL is released, so starts can search on threads side by side.
 kernel = njit(cache=True, nogil=True)
@@ -33,8 +34,6 @@ kernel = njit(cache=True, nogil=True)
 _FINE_POINTS = 201
 _ZOOM_POINTS = 21
 _ZOOMS = 5
-#: X'X whose condition number passes this is singular to working precision (`_singular`).
-_SINGULAR_CONDITION = 1e12
 
 
 @kernel
@@ -252,7 +251,7 @@ def _checked_inverse(info):
     if sign <= 0:
         return True, info
     inv = np.linalg.inv(info)
-    if np.sqrt(np.sum(info * info) * np.sum(inv * inv)) <= _SINGULAR_CONDITION or np.linalg.cond(info) <= _SINGULAR_CONDITION:
+    if np.sqrt(np.sum(info * info) * np.sum(inv * inv)) <= SINGULAR_CONDITION or np.linalg.cond(info) <= SINGULAR_CONDITION:
         return False, inv
     return True, info
 
@@ -271,7 +270,7 @@ def _inverse(x):
     singular, inv = _checked_inverse(info)
     if not singular:
         return inv
-    ridge = 1e-6 * max(1.0, np.trace(info) / info.shape[0])
+    ridge = RIDGE * max(1.0, np.trace(info) / info.shape[0])
     for r in range(info.shape[0]):
         info[r, r] += ridge
     return np.linalg.inv(info)
@@ -288,7 +287,7 @@ def _exchange_row(inv, x_old, y, b, a):
     dx = _dot(x_old, b)
     dxy = _dot(b, y)
     det = (1.0 + dy) * (dx - 1.0) - dxy * dxy
-    if abs(det) <= 1e-8 * max(abs((1.0 + dy) * (dx - 1.0)), dxy * dxy, 1.0):
+    if abs(det) <= CORE_LOST * max(abs((1.0 + dy) * (dx - 1.0)), dxy * dxy, 1.0):
         return False
     s11 = (dx - 1.0) / det
     s12 = -dxy / det
@@ -340,9 +339,9 @@ def optimise_start(settings, kinds, levels, col_factor, col_code, centre, half, 
     for _ in range(max_passes):
         passes += 1
         inv = _inverse(x)
-        tolerance = 1e-10
+        tolerance = GAIN_TOLERANCE
         if trace:
-            tolerance = 1e-10 * max(np.sum(weight * inv), 1e-300)
+            tolerance = GAIN_TOLERANCE * max(np.sum(weight * inv), 1e-300)
         improved = False
         for i in range(first_free, n):
             _mat_vec(inv, x[i], b)

@@ -17,19 +17,15 @@ import math
 import numpy as np
 
 from designs.constraints import Restrictions
+from designs.exchange_numerics import CORE_LOST, GAIN_TOLERANCE, MAX_PASSES, RIDGE, SINGULAR_CONDITION
 from designs.model import Model
 
 #: The most arithmetic a pass may take here (starts x runs x trial points x p^2 multiply-adds): beyond it the compiled
 #: exchange, once loaded, is the faster (a pass of this size takes about 40 ms in numpy).
 WORK_LIMIT = 20_000_000
-#: A gain in log det(X'X) below this is no gain, as in the compiled exchange.
-_TOLERANCE = 1e-10
 #: Trial points whose gains differ by less than this tie; the first of them is taken, so rounding in the last bits
 #: (which differs between BLAS kernels) does not decide between the points of a symmetric design.
 _TIE = 1e-9
-#: X'X whose condition number passes this is singular to working precision, as in the compiled exchange.
-_SINGULAR_CONDITION = 1e12
-_MAX_PASSES = 500
 
 
 def pass_work(model: Model, frozen: np.ndarray, starts: int, free_runs: int) -> int:
@@ -66,7 +62,7 @@ class RowExchange:
         starts, runs, _ = settings.shape
         x = self.model.matrix(settings.reshape(starts * runs, -1)).reshape(starts, runs, -1)
         active = np.arange(starts)
-        for _ in range(_MAX_PASSES):
+        for _ in range(MAX_PASSES):
             inv = _inverse(x[active])
             moved = np.zeros(len(active), dtype=bool)
             for i in range(self.first_free, runs):
@@ -82,7 +78,7 @@ class RowExchange:
                 ratio = (1.0 - dx)[:, None] * (1.0 + dy) + dxy * dxy
                 gain = np.log(np.maximum(ratio, 1e-300))
                 top = gain.max(axis=1)
-                go = np.flatnonzero(top > _TOLERANCE)
+                go = np.flatnonzero(top > GAIN_TOLERANCE)
                 if not len(go):
                     continue
                 choice = np.argmax(gain[go] >= top[go, None] - _TIE, axis=1)
@@ -103,12 +99,12 @@ def _updated(inv: np.ndarray, old: np.ndarray, y: np.ndarray, a: np.ndarray, b: 
     dx = np.einsum("sp,sp->s", old, b)
     dxy = np.einsum("sp,sp->s", b, y)
     det = (1.0 + dy) * (dx - 1.0) - dxy * dxy
-    lost = np.abs(det) <= 1e-8 * np.maximum(np.maximum(np.abs((1.0 + dy) * (dx - 1.0)), dxy * dxy), 1.0)
+    lost = np.abs(det) <= CORE_LOST * np.maximum(np.maximum(np.abs((1.0 + dy) * (dx - 1.0)), dxy * dxy), 1.0)
     safe = np.where(lost, 1.0, det)
     s11, s12, s22 = (dx - 1.0) / safe, -dxy / safe, (1.0 + dy) / safe
-    outer = lambda u, v: u[:, :, None] * v[:, None, :]  # noqa: E731
-    inv = inv - (s11[:, None, None] * outer(a, a) + s12[:, None, None] * (outer(a, b) + outer(b, a))
-                 + s22[:, None, None] * outer(b, b))
+    u = np.stack([a, b], axis=2)  # V - U S U' with U = [a b] and S the core's inverse
+    core = np.stack([np.stack([s11, s12], axis=1), np.stack([s12, s22], axis=1)], axis=1)
+    inv = inv - u @ core @ u.transpose(0, 2, 1)
     if lost.any():
         inv[lost] = _inverse(x[lost])
     return inv
@@ -119,9 +115,9 @@ def _inverse(x: np.ndarray) -> np.ndarray:
     does), so a singular opening can still move towards a design that estimates every term."""
     info = np.einsum("snp,snq->spq", x, x)
     sign, _ = np.linalg.slogdet(info)
-    singular = (sign <= 0) | (np.linalg.cond(info) > _SINGULAR_CONDITION)
+    singular = (sign <= 0) | (np.linalg.cond(info) > SINGULAR_CONDITION)
     if singular.any():
         p = info.shape[1]
-        ridge = 1e-6 * np.maximum(1.0, np.trace(info[singular], axis1=1, axis2=2) / p)
+        ridge = RIDGE * np.maximum(1.0, np.trace(info[singular], axis1=1, axis2=2) / p)
         info[singular] += ridge[:, None, None] * np.eye(p)
     return np.linalg.inv(info)
