@@ -301,7 +301,7 @@ class _Search:
             return None
         if pass_work(self.model, self.frozen, starts, runs - self.first_free) > WORK_LIMIT:
             return None
-        return RowExchange(self.model, self.restrictions, self.frozen, self.first_free)
+        return RowExchange(self.model, candidate_set(self.model), self.restrictions, self.frozen, self.first_free)
 
     def kicks(self, runs: int) -> int:
         """Kicks per start: as many as `KICK_WORK` allows (each re-runs the exchange, about runs x factors x p^2

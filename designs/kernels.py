@@ -257,12 +257,6 @@ def _checked_inverse(info):
 
 
 @kernel
-def _singular(info):
-    """Whether X'X is singular to working precision (`_checked_inverse`)."""
-    return _checked_inverse(info)[0]
-
-
-@kernel
 def _inverse(x):
     """V = (X'X)^-1 of the model rows `x`, with a small ridge on the diagonal when X'X is singular, so the
     exchange can still move a singular start towards a design that estimates every term."""

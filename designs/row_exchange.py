@@ -11,7 +11,6 @@ settings (its block or covariate) that the restrictions allow, so they include e
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -37,13 +36,14 @@ def pass_work(model: Model, frozen: np.ndarray, starts: int, free_runs: int) -> 
 class RowExchange:
     """The trial points of each run of one search, and the exchange of many starts over them."""
 
-    def __init__(self, model: Model, restrictions: Restrictions | None, frozen: np.ndarray, first_free: int):
+    def __init__(self, model: Model, grid: np.ndarray, restrictions: Restrictions | None, frozen: np.ndarray,
+                 first_free: int):
+        """`grid`: every combination of the factors' candidate settings, restrictions not applied (`candidate_set`)."""
         self.model = model
+        self.grid = grid
         self.frozen = frozen
         self.first_free = first_free
         self.restrictions = restrictions
-        grids = [model.grid(i) for i in range(len(model.factors))]
-        self.grid = np.array(list(itertools.product(*[g if not frozen[i] else g[:1] for i, g in enumerate(grids)])))
         self._rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def trials(self, run: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -52,6 +52,7 @@ class RowExchange:
         if key not in self._rows:
             points = self.grid.copy()
             points[:, self.frozen] = run[self.frozen]
+            points = np.unique(points, axis=0)  # the grid's order, each point once
             if self.restrictions:
                 points = points[self.restrictions.allowed(points, self.model.factors)]
             self._rows[key] = points, self.model.matrix(points)

@@ -32,8 +32,8 @@ def test_a_singular_information_matrix_with_a_positive_determinant_is_singular()
     # Exactly singular (two equal runs), whatever sign and size of determinant a BLAS kernel's rounding gives it: on
     # many machines a positive one, which a determinant test took for a regular design.
     assert round(float(np.linalg.svd(x, compute_uv=False)[-1]), 9) == 0.0
-    assert kernels._singular(info)
-    assert not kernels._singular(plackett_burman_rows().T @ plackett_burman_rows())
+    assert kernels._checked_inverse(info)[0]
+    assert not kernels._checked_inverse(plackett_burman_rows().T @ plackett_burman_rows())[0]
     inverse = kernels._inverse(x)  # with the ridge: finite, and no larger than its size allows
     assert np.isfinite(inverse).all() and np.abs(inverse).max() < 1e7
 
@@ -47,7 +47,7 @@ def test_the_condition_number_decides_where_its_cheap_bound_does_not():
     singular, inverse = kernels._checked_inverse(info)
     assert not singular
     np.testing.assert_allclose(np.diag(inverse), np.r_[np.ones(15), np.full(15, 1 / small)], rtol=1e-12)
-    assert kernels._singular(np.diag(np.r_[np.ones(15), np.full(15, 1e-13)]))
+    assert kernels._checked_inverse(np.diag(np.r_[np.ones(15), np.full(15, 1e-13)]))[0]
 
 
 def test_an_exchange_with_a_singular_core_leaves_the_inverse_to_be_made_afresh():
